@@ -1,0 +1,1 @@
+"""Scene model, loading and normalisation, and the built-in demo scene generator."""

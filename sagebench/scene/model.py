@@ -1,0 +1,158 @@
+"""The artist-scene input format (scene.json) as pydantic models; the JSON Schema is generated from them."""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+Kind = Literal["object", "wall", "floor", "ceiling", "door", "window"]
+DoorState = Literal["open", "closed", "ajar"]
+Units = Literal["m", "cm", "mm"]
+UpAxis = Literal["Z", "Y"]
+
+UNIT_SCALE: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+
+Vec3 = tuple[float, float, float]
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Transform(_Model):
+    """Mesh-file coordinates to scene coordinates: either TRS (scale, then rotation, then translation) or a 4x4 matrix."""
+
+    translation: tuple[FiniteFloat, FiniteFloat, FiniteFloat] = (0.0, 0.0, 0.0)
+    rotation_wxyz: tuple[FiniteFloat, FiniteFloat, FiniteFloat, FiniteFloat] = (1.0, 0.0, 0.0, 0.0)
+    scale: tuple[FiniteFloat, FiniteFloat, FiniteFloat] = (1.0, 1.0, 1.0)
+    matrix: tuple[tuple[FiniteFloat, ...], ...] | None = Field(
+        default=None, description="Row-major 4x4 matrix; when given, translation/rotation/scale must be left out."
+    )
+
+    @field_validator("rotation_wxyz")
+    @classmethod
+    def _unit_quaternion(cls, q: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+        n = math.sqrt(sum(c * c for c in q))
+        if n < 1e-9:
+            raise ValueError("rotation_wxyz is a zero quaternion")
+        return tuple(c / n for c in q)  # type: ignore[return-value]
+
+    @field_validator("matrix")
+    @classmethod
+    def _four_by_four(cls, m: tuple[tuple[float, ...], ...] | None) -> tuple[tuple[float, ...], ...] | None:
+        if m is not None and (len(m) != 4 or any(len(r) != 4 for r in m)):
+            raise ValueError("matrix must be 4 rows of 4 numbers")
+        return m
+
+    @model_validator(mode="after")
+    def _one_form(self) -> Transform:
+        trs_set = {"translation", "rotation_wxyz", "scale"} & self.model_fields_set
+        if self.matrix is not None and trs_set:
+            raise ValueError(f"give either matrix or {', '.join(sorted(trs_set))}, not both")
+        return self
+
+    def as_matrix(self) -> np.ndarray:
+        """[4, 4] float64 homogeneous matrix."""
+        if self.matrix is not None:
+            return np.asarray(self.matrix, dtype=np.float64)
+        w, x, y, z = self.rotation_wxyz
+        rot = np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+            ]
+        )
+        out = np.eye(4)
+        out[:3, :3] = rot * np.asarray(self.scale)[None, :]
+        out[:3, 3] = self.translation
+        return out
+
+
+class Door(_Model):
+    """A door leaf authored in its closed pose; it turns about a vertical hinge axis to its state's angle."""
+
+    state: DoorState
+    hinge: tuple[FiniteFloat, FiniteFloat, FiniteFloat] = Field(
+        description="A point on the hinge axis, in scene units and frame."
+    )
+    swing: Literal[1, -1] = Field(default=1, description="+1 opens counter-clockwise seen from above, -1 clockwise.")
+    open_deg: Annotated[float, Field(gt=0, le=180)] = 90.0
+    ajar_deg: Annotated[float, Field(gt=0, le=180)] = 45.0
+
+    def angle_rad(self) -> float:
+        """Signed rotation of the leaf from its closed pose about the up axis."""
+        deg = {"closed": 0.0, "ajar": self.ajar_deg, "open": self.open_deg}[self.state]
+        return math.radians(deg) * self.swing
+
+
+class Room(_Model):
+    id: Annotated[str, Field(min_length=1)]
+    type: Annotated[str, Field(min_length=1, description="kitchen, living_room, bedroom, bathroom, ...")]
+    polygon: list[tuple[FiniteFloat, ...]] = Field(
+        description="Floor outline: [x, y] points when up_axis is Z, else [x, y, z] points in scene units."
+    )
+
+    @field_validator("polygon")
+    @classmethod
+    def _enough_points(cls, pts: list[tuple[float, ...]]) -> list[tuple[float, ...]]:
+        if len(pts) < 3:
+            raise ValueError("a floor polygon needs at least 3 points")
+        if len({len(p) for p in pts}) != 1 or len(pts[0]) not in (2, 3):
+            raise ValueError("polygon points must all be [x, y] or all be [x, y, z]")
+        return pts
+
+
+class SceneObject(_Model):
+    instance_id: Annotated[int, Field(ge=1, description="Unique per scene; 0 is reserved for background.")]
+    category: Annotated[str, Field(min_length=1)]
+    kind: Kind = "object"
+    mesh: Annotated[str, Field(min_length=1, description="Path relative to the scene directory.")]
+    transform: Transform = Transform()
+    room_id: str | None = None
+    attributes: dict[str, str] = Field(default_factory=dict, description="colour, material, state, ...")
+    door: Door | None = None
+
+    @model_validator(mode="after")
+    def _door_fields(self) -> SceneObject:
+        if self.kind == "door" and self.door is None:
+            raise ValueError("a door needs a 'door' entry with its state (open, closed or ajar) and hinge")
+        if self.kind != "door" and self.door is not None:
+            raise ValueError(f"only kind 'door' may have a 'door' entry (kind is {self.kind!r})")
+        return self
+
+
+class SceneSpec(_Model):
+    """scene.json: everything sagebench needs to know about an artist scene besides its meshes."""
+
+    scene_id: Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")]
+    units: Units = "m"
+    up_axis: UpAxis = "Z"
+    floor_height: FiniteFloat = Field(default=0.0, description="Height of the walkable floor along up_axis, scene units.")
+    rooms: list[Room] = Field(default_factory=list)
+    objects: Annotated[list[SceneObject], Field(min_length=1)]
+
+    @model_validator(mode="after")
+    def _cross_checks(self) -> SceneSpec:
+        seen: dict[int, int] = {}
+        for i, obj in enumerate(self.objects):
+            if obj.instance_id in seen:
+                raise ValueError(
+                    f"objects[{i}].instance_id: duplicate instance_id {obj.instance_id} (also objects[{seen[obj.instance_id]}])"
+                )
+            seen[obj.instance_id] = i
+        room_ids = [r.id for r in self.rooms]
+        if len(set(room_ids)) != len(room_ids):
+            raise ValueError("rooms: duplicate room id")
+        for i, obj in enumerate(self.objects):
+            if obj.room_id is not None and obj.room_id not in room_ids:
+                raise ValueError(f"objects[{i}].room_id: unknown room {obj.room_id!r}")
+        if self.up_axis == "Y":
+            for j, room in enumerate(self.rooms):
+                if len(room.polygon[0]) != 3:
+                    raise ValueError(f"rooms[{j}].polygon: a Y-up scene needs [x, y, z] points")
+        return self

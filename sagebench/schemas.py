@@ -1,0 +1,36 @@
+"""JSON Schemas of every file format sagebench reads or writes, generated from the models."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from sagebench.fileio import dumps_json
+
+
+def _scene_schema() -> dict[str, Any]:
+    from sagebench.scene.model import SceneSpec
+
+    return SceneSpec.model_json_schema()
+
+
+# file name in schemas/ -> function returning the schema; later stages add their formats here.
+SCHEMAS: dict[str, Callable[[], dict[str, Any]]] = {
+    "scene.schema.json": _scene_schema,
+}
+
+
+def render_schemas() -> dict[str, str]:
+    """file name -> canonical JSON text."""
+    return {name: dumps_json(make()) for name, make in sorted(SCHEMAS.items())}
+
+
+def write_schemas(out: Path) -> list[Path]:
+    from sagebench.fileio import write_text
+
+    written = []
+    for name, text in render_schemas().items():
+        write_text(out / name, text)
+        written.append(out / name)
+    return written

@@ -1,0 +1,1 @@
+"""One module per CLI stage: each owns its inputs, outputs and atomic writes."""
