@@ -112,6 +112,19 @@ def load_scene(scene_dir: Path | str) -> LoadedScene:
     return LoadedScene(spec=normalised, meshes=meshes, source_dir=scene_dir, source_sha256=hasher.hexdigest())
 
 
+def write_normalised_scene(scene: LoadedScene, dest: Path) -> None:
+    """Write the normalised scene.json and a copy of every mesh it names into `dest`.
+
+    `dest` is then a scene directory of its own: load_scene(dest) gives the same world meshes, so every
+    later stage reads `scenes/<scene_id>/` of a run and never the artist's directory.
+    """
+    from sagebench.fileio import dumps_json, write_bytes
+
+    for name in sorted({o.mesh for o in scene.spec.objects}):
+        write_bytes(dest / name, (scene.source_dir / name).read_bytes())
+    write_bytes(dest / SCENE_FILE, dumps_json(scene.spec.model_dump(mode="json", exclude_defaults=True)).encode())
+
+
 def resolve_mesh_path(scene_dir: Path, mesh: str, spec_path: Path, field: str) -> Path:
     rel = Path(mesh)
     if rel.is_absolute() or ".." in rel.parts:
