@@ -1,0 +1,104 @@
+"""Scores of one episode: the navigation metrics of habitat/VLN-CE and the SAGE-Bench continuity metrics.
+
+Definitions (DESIGN.md; all distances in the XY plane):
+- NE  = distance from the final pose to the goal.
+- SR  = 1 if the agent stopped (`stopped`) with NE <= goal_radius, else 0.
+- OSR = 1 if any pose came within goal_radius of the goal.
+- SPL = SR * g / max(g, L): g the geodesic start->goal distance, L the agent's path length.
+- nDTW = exp(-DTW(P, R) / (|R| * d_th)), d_th = 3.0 m, R the reference resampled every 0.25 m.
+- SDTW = SR * nDTW.
+- CSR = mean over poses of s(t): 1 while the pose is within r_tol (1.0 m) of the resampled reference polyline.
+- ICP = mean over poses of c(t) in [0, 1], the collision intensity (fraction of commanded motion blocked).
+- PS  = 1 - mean over t >= 2 of min(|wrap(theta_t - theta_{t-1})| / pi, 1); 1 for a single pose.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from sagebench.metrics.dtw import dtw
+from sagebench.metrics.polyline import distance_to_polyline, path_length, resample
+
+
+@dataclass(frozen=True)
+class MetricConfig:
+    """Constants of the metrics; defaults are the paper's where it gives one, else DESIGN.md's."""
+
+    ndtw_threshold: float = 3.0  # d_th, m (habitat / VLN-CE)
+    resample_spacing: float = 0.25  # reference resampling for nDTW and CSR, m
+    corridor_radius: float = 1.0  # CSR r_tol, m (the paper gives none)
+
+
+@dataclass(frozen=True)
+class EpisodeMetrics:
+    ne: float
+    sr: float
+    osr: float
+    spl: float
+    ndtw: float
+    sdtw: float
+    csr: float
+    icp: float
+    ps: float
+    path_length: float
+
+    def as_dict(self) -> dict[str, float]:
+        return asdict(self)
+
+
+def wrap_angle(a: np.ndarray) -> np.ndarray:
+    """Angles wrapped to [-pi, pi)."""
+    return (np.asarray(a, dtype=np.float64) + np.pi) % (2 * np.pi) - np.pi
+
+
+def path_smoothness(yaw: np.ndarray) -> float:
+    """PS of a yaw sequence [T] in radians."""
+    yaw = np.asarray(yaw, dtype=np.float64)
+    if len(yaw) < 2:
+        return 1.0
+    turn = np.abs(wrap_angle(np.diff(yaw)))
+    return float(1.0 - np.minimum(turn / math.pi, 1.0).mean())
+
+
+def score_episode(
+    poses: np.ndarray,
+    reference_path: np.ndarray,
+    goal: np.ndarray,
+    *,
+    goal_radius: float,
+    geodesic_distance: float,
+    stopped: bool,
+    collision_intensity: np.ndarray | None = None,
+    config: MetricConfig = MetricConfig(),
+) -> EpisodeMetrics:
+    """Score one episode.
+
+    poses: [T, 4] agent (x, y, z, yaw) as given; reference_path: [M, >=2] waypoints; goal: [>=2];
+    collision_intensity: [T] in [0, 1] (zeros when None).
+    """
+    poses = np.asarray(poses, dtype=np.float64)
+    if poses.ndim != 2 or poses.shape[1] != 4 or len(poses) == 0:
+        raise ValueError(f"poses must be [T, 4] with T >= 1, got shape {poses.shape}")
+    goal_xy = np.asarray(goal, dtype=np.float64)[:2]
+    dist_to_goal = np.linalg.norm(poses[:, :2] - goal_xy, axis=1)
+    ne = float(dist_to_goal[-1])
+    sr = float(stopped and ne <= goal_radius)
+    osr = float((dist_to_goal <= goal_radius).any())
+    length = path_length(poses)
+    g = float(geodesic_distance)
+    spl = sr * g / max(g, length) if max(g, length) > 0 else sr
+    ref = resample(np.asarray(reference_path, dtype=np.float64), config.resample_spacing)
+    ndtw = math.exp(-dtw(poses, ref) / (len(ref) * config.ndtw_threshold))
+    csr = float((distance_to_polyline(poses, ref) <= config.corridor_radius).mean())
+    if collision_intensity is None:
+        icp = 0.0
+    else:
+        c = np.asarray(collision_intensity, dtype=np.float64)
+        if c.shape != (len(poses),):
+            raise ValueError(f"collision_intensity must have one value per pose ({len(poses)}), got {c.shape}")
+        icp = float(np.clip(c, 0.0, 1.0).mean())
+    return EpisodeMetrics(ne=ne, sr=sr, osr=osr, spl=spl, ndtw=ndtw, sdtw=sr * ndtw, csr=csr, icp=icp,
+                          ps=path_smoothness(poses[:, 3]), path_length=length)

@@ -1,0 +1,119 @@
+"""Metric values worked out by hand on tiny paths."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from sagebench.metrics import MetricConfig, score_episode
+from sagebench.metrics.dtw import dtw
+from sagebench.metrics.episode import path_smoothness
+from sagebench.metrics.polyline import distance_to_polyline, resample
+
+
+def _poses(xy, yaw=None) -> np.ndarray:
+    xy = np.asarray(xy, dtype=float)
+    yaw = np.zeros(len(xy)) if yaw is None else np.asarray(yaw, dtype=float)
+    return np.column_stack([xy, np.zeros(len(xy)), yaw])
+
+
+def _score(poses, ref, **kw):
+    args = dict(goal=np.asarray(ref, float)[-1], goal_radius=1.0, geodesic_distance=5.0, stopped=True) | kw
+    return score_episode(poses, np.asarray(ref, float), **args)
+
+
+def _plain_dtw(p, r) -> float:
+    n, m = len(p), len(r)
+    d = np.full((n + 1, m + 1), np.inf)
+    d[0, 0] = 0
+    for i in range(1, n + 1):
+        for j in range(1, m + 1):
+            cost = math.dist(p[i - 1][:2], r[j - 1][:2])
+            d[i, j] = cost + min(d[i - 1, j], d[i, j - 1], d[i - 1, j - 1])
+    return d[n, m]
+
+
+def test_dtw_tiny_paths_by_hand():
+    # cost matrix rows p=(0,0),(1,0),(2,0) x cols r=(0,0),(2,0): [[0,2],[1,1],[2,0]]; best alignment sums to 1
+    assert dtw(np.array([[0, 0], [1, 0], [2, 0]]), np.array([[0, 0], [2, 0]])) == pytest.approx(1.0)
+
+
+@settings(max_examples=50, deadline=None)
+@given(arrays(np.float64, st.tuples(st.integers(1, 12), st.just(2)), elements=st.floats(-5, 5)),
+       arrays(np.float64, st.tuples(st.integers(1, 12), st.just(2)), elements=st.floats(-5, 5)))
+def test_dtw_matches_plain_dynamic_programme(p, r):
+    assert dtw(p, r) == pytest.approx(_plain_dtw(p, r), rel=1e-9, abs=1e-9)
+
+
+def test_ndtw_of_a_parallel_path_one_metre_off():
+    ref = [[0, 0], [2, 0]]
+    on = resample(np.array(ref, float), 0.25)  # 9 points
+    assert len(on) == 9
+    assert _score(_poses(on), ref).ndtw == pytest.approx(1.0)
+    off = _score(_poses(on + [0, 1]), ref, stopped=False)
+    assert off.ndtw == pytest.approx(math.exp(-9 * 1.0 / (9 * 3.0)))
+    assert off.sdtw == 0.0
+
+
+def test_spl_for_a_detour_of_known_length():
+    # goal 5 m away; the agent walks 2.5 m up, 5 m across, 2.5 m down... no: up 1.25, across 5, down 1.25 = 7.5 m
+    xy = [[0, 0], [0, 1.25], [5, 1.25], [5, 0]]
+    m = _score(_poses(xy), [[0, 0], [5, 0]], geodesic_distance=5.0)
+    assert m.path_length == pytest.approx(7.5)
+    assert m.sr == 1.0 and m.spl == pytest.approx(5.0 / 7.5)
+
+
+def test_spl_never_rewards_a_path_shorter_than_the_geodesic():
+    m = _score(_poses([[0, 0], [4.5, 0]]), [[0, 0], [5, 0]], geodesic_distance=5.0)
+    assert m.sr == 1.0 and m.spl == pytest.approx(1.0)
+
+
+def test_path_smoothness_known_turns():
+    assert path_smoothness([0, math.pi / 2, math.pi / 2, -math.pi / 2]) == pytest.approx(1 - (0.5 + 0 + 1) / 3)
+    # 3.0 -> -3.0 rad is a 0.283 rad turn across the wrap, not 6 rad
+    assert path_smoothness([3.0, -3.0]) == pytest.approx(1 - (2 * math.pi - 6.0) / math.pi)
+    assert path_smoothness([1.0]) == 1.0
+
+
+def test_csr_counts_the_fraction_of_steps_inside_the_corridor():
+    xy = [[x, 0.0] for x in range(6)] + [[x, 2.0] for x in range(6, 10)]
+    m = _score(_poses(xy), [[0, 0], [10, 0]])
+    assert m.csr == pytest.approx(0.6)
+    assert _score(_poses(xy), [[0, 0], [10, 0]], config=MetricConfig(corridor_radius=2.5)).csr == 1.0
+
+
+def test_icp_is_the_mean_blocked_fraction():
+    m = _score(_poses([[0, 0]] * 4), [[0, 0], [1, 0]], collision_intensity=[0, 0.5, 1, 0.5])
+    assert m.icp == pytest.approx(0.5)
+    with pytest.raises(ValueError, match="one value per pose"):
+        _score(_poses([[0, 0]] * 4), [[0, 0], [1, 0]], collision_intensity=[0, 1])
+
+
+def test_success_is_strictly_by_goal_radius():
+    ref = [[0, 0], [5, 0]]
+    at_edge = _score(_poses([[0, 0], [4, 0]]), ref)
+    assert at_edge.ne == pytest.approx(1.0) and at_edge.sr == 1.0
+    beyond = _score(_poses([[0, 0], [4 - 1e-6, 0]]), ref)
+    assert beyond.sr == 0.0 and beyond.spl == 0.0
+    passed_by = _score(_poses([[0, 0], [5, 0], [9, 0]]), ref)
+    assert passed_by.sr == 0.0 and passed_by.osr == 1.0 and passed_by.ne == pytest.approx(4.0)
+    not_stopped = _score(_poses([[0, 0], [5, 0]]), ref, stopped=False)
+    assert not_stopped.sr == 0.0 and not_stopped.osr == 1.0
+
+
+def test_distance_to_polyline_by_hand():
+    line = np.array([[0, 0], [4, 0], [4, 3]], float)
+    d = distance_to_polyline(np.array([[2, 1], [5, 1.5], [-3, -4], [4, 5]], float), line)
+    np.testing.assert_allclose(d, [1, 1, 5, 2])
+
+
+def test_resample_keeps_both_ends():
+    pts = resample(np.array([[0, 0], [1, 0], [1, 0.6]]), 0.25)
+    np.testing.assert_allclose(pts[0], [0, 0])
+    np.testing.assert_allclose(pts[-1], [1, 0.6])
+    assert len(pts) == 8  # stations 0, .25, ..., 1.5 and the end at 1.6
