@@ -1,0 +1,1 @@
+"""3D Gaussians: the scene's appearance (PLY I/O, mesh sampling, instance ids, pruning)."""

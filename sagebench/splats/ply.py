@@ -1,0 +1,233 @@
+"""3DGS PLY files: the INRIA layout (read and write, plus an int `instance_id`) and the compressed
+SuperSplat/PlayCanvas layout (read) used by InteriorGS's `3dgs_compressed.ply`.
+
+INRIA vertex properties: x y z nx ny nz f_dc_0..2 f_rest_0..M-1 opacity scale_0..2 rot_0..3, all float;
+f_rest is channel-major (all red coefficients, then green, then blue), opacity is a logit, scales are
+logs and rot_0 is w. Only binary little-endian files are read and written.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from sagebench.errors import DataError
+from sagebench.fileio import write_bytes
+from sagebench.splats.model import SH_C0, Gaussians
+
+_TYPES = {
+    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
+    "short": "<i2", "int16": "<i2", "ushort": "<u2", "uint16": "<u2",
+    "int": "<i4", "int32": "<i4", "uint": "<u4", "uint32": "<u4",
+    "float": "<f4", "float32": "<f4", "double": "<f8", "float64": "<f8",
+}
+CHUNK_SIZE = 256  # Gaussians per chunk in the compressed layout
+_CHUNK_BOUNDS = ["min_x", "min_y", "min_z", "max_x", "max_y", "max_z",
+                 "min_scale_x", "min_scale_y", "min_scale_z", "max_scale_x", "max_scale_y", "max_scale_z"]
+_CHUNK_COLOUR = ["min_r", "min_g", "min_b", "max_r", "max_g", "max_b"]
+_PACKED = ["packed_position", "packed_rotation", "packed_scale", "packed_color"]
+
+
+@dataclass(frozen=True)
+class _Element:
+    name: str
+    count: int
+    dtype: np.dtype
+
+
+def read_ply(path: Path | str) -> Gaussians:
+    """Read an INRIA-layout or compressed 3DGS PLY; raises DataError naming what is wrong."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as err:
+        raise DataError(f"cannot read: {err.strerror}", path=path) from None
+    elements, body = _parse_header(data, path)
+    tables = _read_elements(data, body, elements, path)
+    names = [e.name for e in elements]
+    if "chunk" in names:
+        return _decode_compressed(tables, path)
+    if "vertex" not in names:
+        raise DataError("no 'vertex' element", path=path)
+    return _decode_inria(tables["vertex"], path)
+
+
+def write_ply(path: Path | str, gaussians: Gaussians) -> None:
+    """Write the INRIA layout plus `instance_id` (int), atomically; read_ply gives back the same arrays."""
+    g = gaussians
+    n, k = g.count, g.sh.shape[1]
+    rest = g.sh[:, 1:, :].transpose(0, 2, 1).reshape(n, 3 * (k - 1))  # channel-major
+    columns = [("x", g.means[:, 0]), ("y", g.means[:, 1]), ("z", g.means[:, 2])]
+    columns += [(name, np.zeros(n, np.float32)) for name in ("nx", "ny", "nz")]
+    columns += [(f"f_dc_{c}", g.sh[:, 0, c]) for c in range(3)]
+    columns += [(f"f_rest_{i}", rest[:, i]) for i in range(rest.shape[1])]
+    columns += [("opacity", g.opacity_logits)]
+    columns += [(f"scale_{i}", g.log_scales[:, i]) for i in range(3)]
+    columns += [(f"rot_{i}", g.quats_wxyz[:, i]) for i in range(4)]
+    dtype = np.dtype([(name, "<f4") for name, _ in columns] + [("instance_id", "<i4")])
+    table = np.empty(n, dtype=dtype)
+    for name, col in columns:
+        table[name] = col
+    table["instance_id"] = g.instance_id
+    header = ["ply", "format binary_little_endian 1.0", "comment written by sagebench", f"element vertex {n}"]
+    header += [f"property float {name}" for name, _ in columns] + ["property int instance_id", "end_header"]
+    write_bytes(Path(path), ("\n".join(header) + "\n").encode("ascii") + table.tobytes())
+
+
+def _parse_header(data: bytes, path: Path) -> tuple[list[_Element], int]:
+    if not data.startswith(b"ply\n") and not data.startswith(b"ply\r\n"):
+        raise DataError("not a PLY file (no 'ply' magic line)", path=path)
+    end = data.find(b"end_header")
+    if end < 0:
+        raise DataError("PLY header has no 'end_header' line", path=path)
+    body = data.index(b"\n", end) + 1 if b"\n" in data[end:] else len(data)
+    lines = data[:end].decode("ascii", errors="replace").splitlines()[1:]
+    elements: list[tuple[str, int, list[tuple[str, str]]]] = []
+    for number, line in enumerate(lines, start=2):
+        words = line.split()
+        if not words or words[0] in ("comment", "obj_info"):
+            continue
+        if words[0] == "format":
+            if words[1:2] != ["binary_little_endian"]:
+                raise DataError(f"header line {number}: only binary_little_endian PLY is supported, got {line!r}", path=path)
+        elif words[0] == "element" and len(words) == 3 and words[2].isdigit():
+            elements.append((words[1], int(words[2]), []))
+        elif words[0] == "property" and len(words) == 3 and elements:
+            if words[1] not in _TYPES:
+                raise DataError(f"header line {number}: unknown property type {words[1]!r}", path=path)
+            elements[-1][2].append((words[2], _TYPES[words[1]]))
+        elif words[0] == "property" and words[1:2] == ["list"]:
+            raise DataError(f"header line {number}: list properties are not 3DGS data ({line!r})", path=path)
+        else:
+            raise DataError(f"header line {number}: cannot parse {line!r}", path=path)
+    return [_Element(name, count, np.dtype(props)) for name, count, props in elements], body
+
+
+def _read_elements(data: bytes, offset: int, elements: list[_Element], path: Path) -> dict[str, np.ndarray]:
+    tables: dict[str, np.ndarray] = {}
+    for el in elements:
+        size = el.count * el.dtype.itemsize
+        if offset + size > len(data):
+            raise DataError(
+                f"truncated: element '{el.name}' needs {size} bytes, only {len(data) - offset} left", path=path
+            )
+        tables[el.name] = np.frombuffer(data, dtype=el.dtype, count=el.count, offset=offset)
+        offset += size
+    return tables
+
+
+def _require(table: np.ndarray, names: list[str], element: str, path: Path) -> None:
+    missing = [n for n in names if n not in (table.dtype.names or ())]
+    if missing:
+        raise DataError(f"missing propert{'y' if len(missing) == 1 else 'ies'} {', '.join(missing)}",
+                        path=path, field=element)
+
+
+def _f32(table: np.ndarray, names: list[str]) -> np.ndarray:
+    return np.stack([table[n].astype(np.float32) for n in names], axis=-1) if names else np.zeros((len(table), 0), np.float32)
+
+
+def _decode_inria(v: np.ndarray, path: Path) -> Gaussians:
+    base = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", *[f"scale_{i}" for i in range(3)],
+            *[f"rot_{i}" for i in range(4)]]
+    _require(v, base, "vertex", path)
+    n_rest = sum(1 for name in v.dtype.names if name.startswith("f_rest_"))
+    _require(v, [f"f_rest_{i}" for i in range(n_rest)], "vertex", path)
+    k = n_rest // 3 + 1
+    if n_rest % 3 or k not in (1, 4, 9, 16):
+        raise DataError(f"{n_rest} f_rest properties; expected 0, 9, 24 or 45 (SH degree 0-3)", path=path, field="vertex")
+    n = len(v)
+    sh = np.empty((n, k, 3), np.float32)
+    sh[:, 0, :] = _f32(v, ["f_dc_0", "f_dc_1", "f_dc_2"])
+    sh[:, 1:, :] = _f32(v, [f"f_rest_{i}" for i in range(n_rest)]).reshape(n, 3, k - 1).transpose(0, 2, 1)
+    ids = v["instance_id"].astype(np.int32) if "instance_id" in v.dtype.names else np.zeros(n, np.int32)
+    return Gaussians(
+        means=_f32(v, ["x", "y", "z"]),
+        quats_wxyz=_f32(v, [f"rot_{i}" for i in range(4)]),
+        log_scales=_f32(v, [f"scale_{i}" for i in range(3)]),
+        opacity_logits=v["opacity"].astype(np.float32),
+        sh=sh,
+        instance_id=ids,
+    )
+
+
+def _unorm(bits: np.ndarray, shift: int, width: int) -> np.ndarray:
+    top = (1 << width) - 1
+    return ((bits >> np.uint32(shift)) & np.uint32(top)).astype(np.float64) / top
+
+
+def _lerp(lo: np.ndarray, hi: np.ndarray, t: np.ndarray) -> np.ndarray:
+    return lo * (1.0 - t) + hi * t
+
+
+def _decode_compressed(tables: dict[str, np.ndarray], path: Path) -> Gaussians:
+    """Chunks of 256 Gaussians share min/max bounds; each Gaussian packs four uint32 words:
+
+    position and log-scale 11-10-11 bits lerped within the chunk bounds; rotation 2 bits for the index
+    of the largest of (rot_0..rot_3) = (w, x, y, z) and 10 bits each for the other three in order,
+    scaled by sqrt(2) around 0.5; colour 8-8-8-8 RGBA where RGB is 0.5 + SH_C0 * f_dc (lerped within
+    min_r..max_r when the chunk has them) and A the opacity. Optional `sh` element: uchar f_rest_* with
+    (n - 0.5) * 8, n = 0, 1 or (v + 0.5) / 256.
+    """
+    if "vertex" not in tables:
+        raise DataError("compressed PLY has a 'chunk' element but no 'vertex' element", path=path)
+    chunk, vertex = tables["chunk"], tables["vertex"]
+    _require(chunk, _CHUNK_BOUNDS, "chunk", path)
+    _require(vertex, _PACKED, "vertex", path)
+    n = len(vertex)
+    if len(chunk) != math.ceil(n / CHUNK_SIZE):
+        raise DataError(f"{len(chunk)} chunks for {n} Gaussians; expected {math.ceil(n / CHUNK_SIZE)}", path=path,
+                        field="chunk")
+    c = {name: np.repeat(chunk[name].astype(np.float64), CHUNK_SIZE)[:n] for name in chunk.dtype.names}
+    words = {name: vertex[name].astype(np.uint32) for name in _PACKED}
+
+    pos, scl = words["packed_position"], words["packed_scale"]
+    means = np.stack([_lerp(c[f"min_{a}"], c[f"max_{a}"], _unorm(pos, s, w))
+                      for a, s, w in (("x", 21, 11), ("y", 11, 10), ("z", 0, 11))], axis=-1)
+    log_scales = np.stack([_lerp(c[f"min_scale_{a}"], c[f"max_scale_{a}"], _unorm(scl, s, w))
+                           for a, s, w in (("x", 21, 11), ("y", 11, 10), ("z", 0, 11))], axis=-1)
+
+    rot = words["packed_rotation"]
+    abc = np.stack([(_unorm(rot, s, 10) - 0.5) * math.sqrt(2.0) for s in (20, 10, 0)], axis=-1)
+    largest = (rot >> np.uint32(30)).astype(np.int64)
+    m = np.sqrt(np.maximum(0.0, 1.0 - (abc**2).sum(axis=1)))
+    quats = np.empty((n, 4))
+    rows = np.arange(n)
+    others = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])[largest]
+    quats[rows, largest] = m
+    for j in range(3):
+        quats[rows, others[:, j]] = abc[:, j]
+
+    col = words["packed_color"]
+    rgb = np.stack([_unorm(col, s, 8) for s in (24, 16, 8)], axis=-1)
+    if all(name in c for name in _CHUNK_COLOUR):
+        lo = np.stack([c["min_r"], c["min_g"], c["min_b"]], axis=-1)
+        hi = np.stack([c["max_r"], c["max_g"], c["max_b"]], axis=-1)
+        rgb = _lerp(lo, hi, rgb)
+    alpha = np.clip(_unorm(col, 0, 8), 1e-6, 1.0 - 1e-6)
+
+    k = 1
+    rest = np.zeros((n, 0, 3))
+    if "sh" in tables:
+        sh_table = tables["sh"]
+        n_rest = len(sh_table.dtype.names)
+        if len(sh_table) != n or n_rest not in (9, 24, 45):
+            raise DataError(f"'sh' element has {len(sh_table)} rows of {n_rest} coefficients; expected {n} rows of "
+                            f"9, 24 or 45", path=path, field="sh")
+        _require(sh_table, [f"f_rest_{i}" for i in range(n_rest)], "sh", path)
+        q = np.stack([sh_table[f"f_rest_{i}"].astype(np.float64) for i in range(n_rest)], axis=-1)
+        unit = np.where(q == 0, 0.0, np.where(q == 255, 1.0, (q + 0.5) / 256.0))
+        k = n_rest // 3 + 1
+        rest = ((unit - 0.5) * 8.0).reshape(n, 3, k - 1).transpose(0, 2, 1)
+    sh = np.concatenate([((rgb - 0.5) / SH_C0)[:, None, :], rest], axis=1)
+    return Gaussians(
+        means=means.astype(np.float32),
+        quats_wxyz=quats.astype(np.float32),
+        log_scales=log_scales.astype(np.float32),
+        opacity_logits=np.log(alpha / (1.0 - alpha)).astype(np.float32),
+        sh=sh.astype(np.float32),
+        instance_id=np.zeros(n, np.int32),
+    )
