@@ -1,0 +1,1 @@
+"""Physics for exported scenes: convex collider parts (exact pieces or CoACD), USD stage and MuJoCo MJCF writers."""

@@ -1,0 +1,150 @@
+"""Which pieces of a mesh are already convex solids, so that only the rest needs CoACD.
+
+Artist furniture is often a concatenation of boxes and cylinders: each connected piece is convex
+and its hull is an exact collider. A piece is a *convex solid* when it is closed (every edge on two
+faces) and its volume equals its hull's volume within a relative tolerance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import ConvexHull, QhullError
+
+WELD_DECIMALS = 6  # vertices closer than ~1e-6 m are one vertex
+MIN_THICKNESS = 0.01  # m; a flat piece's hull is padded to this thickness so it has a volume
+
+
+@dataclass(frozen=True)
+class ConvexPart:
+    """One convex collider: a closed hull with outward-wound triangles, in the source mesh's frame."""
+
+    vertices: np.ndarray  # [V, 3] float64
+    faces: np.ndarray  # [F, 3] int64
+
+    @property
+    def volume(self) -> float:
+        return float(ConvexHull(self.vertices).volume)
+
+
+@dataclass(frozen=True)
+class ConvexSplit:
+    """A mesh as exact convex parts plus the concave pieces (welded vertices, faces) left for CoACD."""
+
+    parts: list[ConvexPart]
+    concave: list[tuple[np.ndarray, np.ndarray]]  # ([V, 3] float64, [F, 3] int64) each
+
+
+def weld(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Merge coincident vertices (rounded to WELD_DECIMALS) and drop the ones no face uses.
+
+    vertices: [V, 3] float, faces: [F, 3] int -> ([V', 3] float64, [F, 3] int64), face order kept.
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    _, first, inverse = np.unique(np.round(v, WELD_DECIMALS), axis=0, return_index=True, return_inverse=True)
+    f = inverse.reshape(-1)[f]
+    used, f = np.unique(f, return_inverse=True)
+    return v[first][used], f.reshape(-1, 3)
+
+
+def face_components(faces: np.ndarray, n_vertices: int) -> list[np.ndarray]:
+    """Face indices of each group of faces joined through shared vertices, in order of first face."""
+    f = np.asarray(faces, dtype=np.int64)
+    rows = np.concatenate([f[:, 0], f[:, 1]])
+    cols = np.concatenate([f[:, 1], f[:, 2]])
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_vertices, n_vertices))
+    _, label = connected_components(graph, directed=False)
+    face_label = label[f[:, 0]]
+    _, first = np.unique(face_label, return_index=True)
+    return [np.flatnonzero(face_label == face_label[i]) for i in np.sort(first)]
+
+
+def hull_part(points: np.ndarray) -> ConvexPart:
+    """The convex hull of `points` [N, 3]; along any direction thinner than MIN_THICKNESS it is padded first."""
+    pts = np.asarray(points, dtype=np.float64)
+    for direction, extent in zip(*_principal_extents(pts)):
+        if extent < MIN_THICKNESS:
+            shift = direction[None, :] * (MIN_THICKNESS - extent) / 2
+            pts = np.concatenate([pts + shift, pts - shift])
+    hull = trimesh.convex.convex_hull(pts)
+    return ConvexPart(np.asarray(hull.vertices, dtype=np.float64), np.asarray(hull.faces, dtype=np.int64))
+
+
+def _principal_extents(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Principal directions [3, 3] (rows) of a point set and its extent [3] along each, thinnest last."""
+    centred = points - points.mean(axis=0)
+    _, _, vt = np.linalg.svd(centred, full_matrices=True)
+    return vt, np.ptp(centred @ vt.T, axis=0)
+
+
+def _hull_volume(points: np.ndarray) -> float:
+    try:
+        return float(ConvexHull(points).volume)
+    except (QhullError, ValueError):
+        return 0.0
+
+
+def is_convex_solid(vertices: np.ndarray, faces: np.ndarray, *, tolerance: float) -> bool:
+    """Closed, and |volume - hull volume| <= tolerance * hull volume (vertices welded first)."""
+    v, f = weld(vertices, faces)
+    hull_volume = _hull_volume(v)
+    if hull_volume <= 1e-12:
+        return False
+    mesh = trimesh.Trimesh(v, f, process=False)
+    if not mesh.is_watertight:
+        return False
+    return abs(abs(float(mesh.volume)) - hull_volume) <= tolerance * hull_volume
+
+
+def is_convex_solid_reference(vertices: np.ndarray, faces: np.ndarray, *, eps: float = 1e-6) -> bool:
+    """Textbook check: closed, consistently wound outward, and every vertex behind every face's plane."""
+    v, f = weld(vertices, faces)
+    mesh = trimesh.Trimesh(v, f, process=False)
+    if not mesh.is_watertight or not mesh.is_winding_consistent:
+        return False
+    normals = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    if float(mesh.volume) < 0:
+        normals = -normals
+    lengths = np.linalg.norm(normals, axis=1)
+    keep = lengths > 1e-15
+    if not keep.any():
+        return False
+    normals = normals[keep] / lengths[keep, None]
+    offsets = np.einsum("ij,ij->i", normals, v[f[keep, 0]])
+    return bool(np.all(v @ normals.T - offsets[None, :] <= eps * max(1.0, float(np.abs(v).max()))))
+
+
+def split_convex(vertices: np.ndarray, faces: np.ndarray, *, tolerance: float = 0.002) -> ConvexSplit:
+    """Split a mesh into exact convex parts and concave pieces for CoACD.
+
+    Pieces are the groups of faces joined through (welded) vertices. A convex solid piece is its own
+    hull; a flat piece (thinner than MIN_THICKNESS) is its padded hull; a piece made of convex solids
+    that only touch at vertices (boxes sharing corners, with their own vertices in the file) is those
+    solids; anything else is concave.
+    """
+    raw_v = np.asarray(vertices, dtype=np.float64)
+    raw_f = np.asarray(faces, dtype=np.int64)
+    v, f = weld(raw_v, raw_f)
+    parts: list[ConvexPart] = []
+    concave: list[tuple[np.ndarray, np.ndarray]] = []
+    for idx in face_components(f, len(v)):
+        piece_v, piece_f = weld(v, f[idx])
+        if is_convex_solid(piece_v, piece_f, tolerance=tolerance) or _is_flat(piece_v):
+            parts.append(hull_part(piece_v))
+            continue
+        sub = [weld(raw_v, raw_f[idx][s]) for s in face_components(raw_f[idx], len(raw_v))]
+        if len(sub) > 1 and all(is_convex_solid(sv, sf, tolerance=tolerance) for sv, sf in sub):
+            parts.extend(hull_part(sv) for sv, _ in sub)
+        else:
+            concave.append((piece_v, piece_f))
+    return ConvexSplit(parts, concave)
+
+
+def _is_flat(points: np.ndarray) -> bool:
+    """Thinner than MIN_THICKNESS along some direction (a sheet, a line or a point)."""
+    return bool(_principal_extents(points)[1][-1] < MIN_THICKNESS)

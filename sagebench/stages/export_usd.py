@@ -1,0 +1,205 @@
+"""`export-usd`: RUN/scenes/<id>/ -> colliders/ (convex parts), scene.usda (3DGS + colliders + semantics), scene.xml.
+
+Reads the normalised scene (scene.json + meshes) and gaussians.ply that build-scene wrote. Writes
+colliders/<category>_<instance_id>/part_NNN.stl (world frame) and colliders/colliders.json, then
+scene.usda and scene.xml; all are computed before the first byte is written.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from sagebench import ui
+from sagebench.collider_export.coacd_cache import CoacdParams, PartCache, coacd_version
+from sagebench.collider_export.convex import hull_part
+from sagebench.collider_export.decompose import MeshColliders, decompose_meshes
+from sagebench.collider_export.mjcf_writer import MjcfBody, mjcf_text
+from sagebench.collider_export.usd_writer import StageObject, prim_name, stage_text
+from sagebench.errors import ConfigError, DataError
+from sagebench.fileio import dumps_json, staged_dir, write_bytes, write_text
+from sagebench.scene.loader import SCENE_FILE, LoadedScene, door_pose, load_scene, read_mesh, resolve_mesh_path
+from sagebench.splats.model import Gaussians
+
+COLLIDERS_DIR = "colliders"
+COLLIDERS_INDEX = "colliders.json"
+USD_FILE = "scene.usda"
+MJCF_FILE = "scene.xml"
+GAUSSIANS_FILE = "gaussians.ply"
+
+
+class ExportConfig(BaseModel):
+    """Settings of export-usd; the CLI maps its options onto these fields (workers never change outputs)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    coacd: CoacdParams = CoacdParams()
+    convex_tolerance: float = Field(
+        default=0.002, gt=0, lt=1, description="A closed piece within this relative volume of its hull is convex."
+    )
+    workers: int = Field(default=1, ge=1, description="Processes running CoACD in parallel.")
+
+
+_OPTION_NAMES = {"coacd.threshold": "coacd_threshold", "coacd.max_convex_hull": "coacd_max_hulls",
+                 "coacd.preprocess_mode": "coacd_preprocess"}
+
+
+def make_config(
+    *, coacd_threshold: float | None = None, coacd_max_hulls: int | None = None,
+    coacd_preprocess: str | None = None, workers: int | None = None,
+) -> ExportConfig:
+    """An ExportConfig from the options given (None = keep the default); a bad value is a ConfigError."""
+    coacd = {k: v for k, v in (("threshold", coacd_threshold), ("max_convex_hull", coacd_max_hulls),
+                               ("preprocess_mode", coacd_preprocess)) if v is not None}
+    given: dict[str, object] = {"coacd": coacd}
+    if workers is not None:
+        given["workers"] = workers
+    try:
+        return ExportConfig.model_validate(given)
+    except ValidationError as err:
+        e = err.errors(include_url=False)[0]
+        loc = ".".join(str(p) for p in e["loc"])
+        raise ConfigError(e["msg"].removeprefix("Value error, "), field=_OPTION_NAMES.get(loc, loc) or None) from None
+
+
+def default_cache_dir() -> Path:
+    import platformdirs
+
+    return Path(platformdirs.user_cache_dir("sagebench"))
+
+
+@dataclass(frozen=True)
+class ExportResult:
+    scene_id: str
+    out_dir: Path  # RUN/scenes/<scene_id>
+    objects: int
+    parts: int
+    exact_parts: int  # parts that are convex pieces of the meshes themselves
+    coacd_pieces: int  # concave pieces decomposed by CoACD in this run
+    cached_pieces: int  # concave pieces read back from the cache
+    fallback_pieces: int  # concave pieces CoACD failed on (now their convex hull)
+    gaussians: int  # Gaussians written into the stage
+
+    def line(self) -> str:
+        return (f"{self.scene_id}: {self.objects} objects, {self.parts} collider parts ({self.exact_parts} exact, "
+                f"CoACD {self.coacd_pieces} run / {self.cached_pieces} cached / {self.fallback_pieces} failed), "
+                f"{self.gaussians} Gaussians -> {self.out_dir / USD_FILE}, {self.out_dir / MJCF_FILE}")
+
+
+def scene_dirs(run_dir: Path, scene_id: str | None) -> list[Path]:
+    """RUN/scenes/<id> for the scene asked for, or every scene of the run (sorted)."""
+    scenes = Path(run_dir) / "scenes"
+    if scene_id is not None:
+        one = scenes / scene_id
+        if not (one / SCENE_FILE).is_file():
+            raise DataError(f"no scene {scene_id!r} in this run (run build-scene first)", path=scenes)
+        return [one]
+    found = sorted(p.parent for p in scenes.glob(f"*/{SCENE_FILE}"))
+    if not found:
+        raise DataError("no scenes/<id>/scene.json in this run directory (run build-scene first)", path=run_dir)
+    return found
+
+
+def export_usd(
+    run_dir: Path, *, scene_id: str | None = None, config: ExportConfig = ExportConfig(), cache_dir: Path | None = None
+) -> list[ExportResult]:
+    """Export every scene of the run (or `scene_id`); CoACD results are cached in `cache_dir`
+    (default: the user cache directory)."""
+    cache = PartCache(default_cache_dir() if cache_dir is None else cache_dir)
+    return [export_scene(d, config=config, cache=cache) for d in scene_dirs(run_dir, scene_id)]
+
+
+def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> ExportResult:
+    scene = load_scene(scene_dir)
+    spec = scene.spec
+    local = _local_meshes(scene)
+    colliders = decompose_meshes(local, config.coacd, cache=cache, workers=config.workers,
+                                 convex_tolerance=config.convex_tolerance)
+    per_object = _split_gaussians(scene_dir / GAUSSIANS_FILE, scene)
+    rooms = {r.id: r.type for r in spec.rooms}
+    objects: list[StageObject] = []
+    files: dict[str, bytes] = {}
+    bodies: list[MjcfBody] = []
+    index = []
+    for obj in spec.objects:
+        matrix = obj.transform.as_matrix()
+        if obj.door is not None:
+            matrix = door_pose(obj.door) @ matrix
+        mc = colliders[obj.mesh]
+        so = StageObject(
+            instance_id=obj.instance_id, category=obj.category, kind=obj.kind, matrix=matrix, parts=mc.parts,
+            room_id=obj.room_id, room_type=rooms.get(obj.room_id), attributes=obj.attributes, door=obj.door,
+            gaussians=None if per_object is None else per_object.get(obj.instance_id),
+        )
+        objects.append(so)
+        name = prim_name(so)
+        part_files = []
+        for i, part in enumerate(mc.parts):
+            world = hull_part(trimesh.transform_points(part.vertices, matrix))
+            rel = f"{name}/part_{i:03d}.stl"
+            files[rel] = trimesh.Trimesh(world.vertices, world.faces, process=False).export(file_type="stl")
+            part_files.append(rel)
+        bodies.append(MjcfBody(name, part_files))
+        index.append(_index_entry(obj.instance_id, name, obj.mesh, part_files, mc))
+    usda = stage_text(spec.scene_id, objects, None if per_object is None else per_object.get(0))
+    mjcf = mjcf_text(spec.scene_id, bodies, meshdir=COLLIDERS_DIR, floor_height=spec.floor_height)
+    files[COLLIDERS_INDEX] = dumps_json({
+        "scene_id": spec.scene_id, "coacd_version": coacd_version(), "config": config.model_dump(exclude={"workers"}),
+        "frame": "world", "objects": index,
+    }).encode()
+    with staged_dir(scene_dir / COLLIDERS_DIR) as tmp:
+        for rel, data in files.items():
+            write_bytes(tmp / rel, data)
+    write_text(scene_dir / USD_FILE, usda)
+    write_text(scene_dir / MJCF_FILE, mjcf)
+    pieces = [p for mc in colliders.values() for p in mc.pieces]
+    return ExportResult(
+        scene_id=spec.scene_id, out_dir=scene_dir, objects=len(objects),
+        parts=sum(len(colliders[o.mesh].parts) for o in spec.objects),
+        exact_parts=sum(colliders[o.mesh].exact_parts for o in spec.objects),
+        coacd_pieces=sum(p.source == "coacd" for p in pieces), cached_pieces=sum(p.source == "cache" for p in pieces),
+        fallback_pieces=sum(p.source == "hull_fallback" for p in pieces),
+        gaussians=0 if per_object is None else sum(g.count for g in per_object.values()),
+    )
+
+
+def _local_meshes(scene: LoadedScene) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Each mesh file of the scene once, in its own frame (so one asset decomposes once for all its uses)."""
+    spec_path = scene.source_dir / SCENE_FILE
+    out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for i, obj in enumerate(scene.spec.objects):
+        if obj.mesh not in out:
+            field = f"objects[{i}].mesh"
+            mesh = read_mesh(resolve_mesh_path(scene.source_dir, obj.mesh, spec_path, field), spec_path, field)
+            out[obj.mesh] = (np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64))
+    return out
+
+
+def _split_gaussians(path: Path, scene: LoadedScene) -> dict[int, Gaussians] | None:
+    """The scene's Gaussians grouped by instance id (0: background); None without the file."""
+    if not path.is_file():
+        ui.warn(f"{path}: not found; the stage gets colliders and semantics but no Gaussians")
+        return None
+    from sagebench.splats.ply import read_ply
+
+    g = read_ply(path)
+    known = {o.instance_id for o in scene.spec.objects}
+    stray = sorted(set(np.unique(g.instance_id).tolist()) - known - {0})
+    if stray:
+        raise DataError(f"instance_id {stray[0]} is not an object of {SCENE_FILE}", path=path, field="instance_id")
+    order = np.argsort(g.instance_id, kind="stable")
+    ids, starts = np.unique(g.instance_id[order], return_index=True)
+    ends = np.append(starts[1:], len(order))
+    return {int(i): g.take(order[s:e]) for i, s, e in zip(ids, starts, ends)}
+
+
+def _index_entry(instance_id: int, name: str, mesh: str, part_files: list[str], mc: MeshColliders) -> dict:
+    return {
+        "instance_id": instance_id, "name": name, "mesh": mesh, "parts": part_files, "exact_parts": mc.exact_parts,
+        "concave_pieces": [{"cache_key": p.key, "method": "hull_fallback" if p.source == "hull_fallback" else "coacd",
+                            "parts": len(p.parts)} for p in mc.pieces],
+    }
