@@ -1,0 +1,1 @@
+"""Semantic top-down map: surface-sampled footprints, rasters, height-band occupancy, reachability, picture."""

@@ -1,0 +1,113 @@
+"""Occupancy from the geometry inside the agent's height band, and inflation by the agent radius.
+
+A cell is blocked by a part (a connected piece of a mesh) when
+- a triangle of the part, clipped to the band [z_lo, z_hi], touches the cell seen from above (thin
+  things: a 4 cm door leaf, a wall's side faces, a lamp's pole), or
+- the vertical line through the cell centre meets the part at heights whose span [lowest, highest]
+  overlaps the band (solid things: the inside of a wall, a cabinet's body under its top above the band).
+A table top at 0.75 m therefore blocks at the default band (0.05..1.2 m), a lamp hanging from 1.8 m
+does not, and a 1 cm rug does not.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from sagebench.topdown.raster import Grid, touched_cells, triangle_centre_hits
+
+
+def clip_to_band(tris: np.ndarray, z_lo: float, z_hi: float) -> tuple[np.ndarray, np.ndarray]:
+    """The xy outline of each triangle's part inside z_lo <= z <= z_hi.
+
+    tris: [N, 3, 3] float, m. Returns polys [M, 9, 2] (convex, vertices in cyclic order, padded by
+    repeating a vertex) and source [M] int64, the triangle each came from; triangles wholly outside
+    the band are dropped. A clipped triangle's corners are its vertices inside the band and the points
+    where its edges cross z_lo and z_hi, so at most 9 candidates.
+    """
+    a = tris
+    b = np.roll(tris, -1, axis=1)  # edge k runs from vertex k to vertex k + 1
+    z = tris[..., 2]
+    cands = [tris]
+    valid = [(z >= z_lo) & (z <= z_hi)]
+    for plane in (z_lo, z_hi):
+        da, db = a[..., 2] - plane, b[..., 2] - plane
+        cross = da * db < 0
+        t = np.where(cross, da / np.where(cross, da - db, 1.0), 0.0)
+        cands.append(a + t[..., None] * (b - a))
+        valid.append(cross)
+    pts = np.concatenate(cands, axis=1)[..., :2]  # [N, 9, 2]
+    ok = np.concatenate(valid, axis=1)  # [N, 9]
+    keep = ok.any(axis=1)
+    pts, ok = pts[keep], ok[keep]
+    first = pts[np.arange(len(pts)), ok.argmax(axis=1)]  # [M, 2] a valid corner, pads the invalid slots
+    pts = np.where(ok[..., None], pts, first[:, None, :])
+    centre = (pts * ok[..., None]).sum(axis=1) / ok.sum(axis=1, keepdims=True)
+    angle = np.arctan2(pts[..., 1] - centre[:, None, 1], pts[..., 0] - centre[:, None, 0])
+    order = np.argsort(angle, axis=1, kind="stable")
+    return np.take_along_axis(pts, order[..., None], axis=1), np.nonzero(keep)[0]
+
+
+def band_occupancy(tris: np.ndarray, part: np.ndarray, grid: Grid, z_lo: float, z_hi: float) -> np.ndarray:
+    """[H, W] bool, cells blocked by geometry in the band (see the module docstring).
+
+    tris: [N, 3, 3] float world m, the triangles of every blocking mesh; part: [N] int, the connected
+    part each triangle belongs to (parts are what the solid test spans).
+    """
+    h, w = grid.shape
+    out = np.zeros(h * w, dtype=bool)
+    polys, _ = clip_to_band(tris, z_lo, z_hi)
+    rows, cols = touched_cells(polys, grid)
+    out[rows * w + cols] = True
+    out |= _solid_spans(tris, part, grid, z_lo, z_hi)
+    return out.reshape(h, w)
+
+
+def _solid_spans(tris: np.ndarray, part: np.ndarray, grid: Grid, z_lo: float, z_hi: float) -> np.ndarray:
+    """[H * W] bool: cells where some part's [lowest, highest] surface over the centre overlaps the band."""
+    h, w = grid.shape
+    out = np.zeros(h * w, dtype=bool)
+    z = tris[..., 2]
+    # a part wholly above or below the band cannot span it
+    _, inv = np.unique(part, return_inverse=True)
+    pmin = np.full(inv.max() + 1 if len(inv) else 0, np.inf)
+    pmax = np.full_like(pmin, -np.inf)
+    np.minimum.at(pmin, inv, z.min(axis=1))
+    np.maximum.at(pmax, inv, z.max(axis=1))
+    near = ((pmax >= z_lo) & (pmin <= z_hi))[inv]
+    tris, inv = tris[near], inv[near]
+    j, rows, cols, zs = triangle_centre_hits(tris, grid)
+    if len(j) == 0:
+        return out
+    key = inv[j] * (h * w) + rows * w + cols
+    uniq, k = np.unique(key, return_inverse=True)
+    lo = np.full(len(uniq), np.inf)
+    hi = np.full(len(uniq), -np.inf)
+    np.minimum.at(lo, k, zs)
+    np.maximum.at(hi, k, zs)
+    spans = (hi >= z_lo) & (lo <= z_hi)
+    out[uniq[spans] % (h * w)] = True
+    return out
+
+
+def inflate(occupancy: np.ndarray, radius: float, resolution: float) -> np.ndarray:
+    """[H, W] bool navigable: free cells whose centre is at least `radius` m from every blocked cell centre.
+
+    occupancy: [H, W] bool or uint8, nonzero = blocked. Exact Euclidean distance transform; the grid's
+    border is not treated as blocked, so callers keep a blocked margin (outside the floor plan).
+    """
+    free = occupancy == 0
+    if not free.any():
+        return free
+    dist = ndimage.distance_transform_edt(free) * resolution
+    return free & (dist >= radius - 1e-9)
+
+
+def inflate_reference(occupancy: np.ndarray, radius: float, resolution: float) -> np.ndarray:
+    """Plain version of `inflate`: each free cell against every blocked cell centre."""
+    blocked = np.argwhere(occupancy != 0)
+    out = np.zeros(occupancy.shape, dtype=bool)
+    for r, c in np.argwhere(occupancy == 0):
+        d = np.hypot(blocked[:, 0] - r, blocked[:, 1] - c) * resolution if len(blocked) else np.array([np.inf])
+        out[r, c] = bool(d.min() >= radius - 1e-9)
+    return out

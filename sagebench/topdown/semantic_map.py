@@ -1,0 +1,75 @@
+"""semantic_map.json as pydantic models: what build-scene writes and later stages read; its JSON Schema."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from sagebench.scene.model import DoorState, Kind
+
+XY = tuple[float, float]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class MultiPolygon(_Model):
+    """GeoJSON MultiPolygon in world metres: polygons of rings (exterior first, then holes), each ring closed.
+
+    `shapely.geometry.shape(instance.polygon.model_dump())` gives the shapely geometry.
+    """
+
+    type: Literal["MultiPolygon"] = "MultiPolygon"
+    coordinates: list[list[list[XY]]]
+
+
+class MapInstance(_Model):
+    instance_id: Annotated[int, Field(ge=1)]
+    category: str
+    category_id: Annotated[int, Field(ge=1, description="Index into `categories` and value in topdown.npz `category`.")]
+    kind: Kind
+    room: str | None = Field(description="Room id from scene.json, else the room holding the footprint's centroid.")
+    polygon: MultiPolygon = Field(description="Footprint: union of the convex hulls of the object's parts, m.")
+    bbox_m: tuple[tuple[float, float, float], tuple[float, float, float]] = Field(
+        description="World axis-aligned box [[x, y, z] min, [x, y, z] max] of the posed mesh, m."
+    )
+    area_m2: Annotated[float, Field(ge=0)]
+    min_z: float
+    max_z: float
+    door_state: DoorState | None = None
+    blocks: bool = Field(description="Some of its geometry lies in the agent's height band.")
+
+
+class Region(_Model):
+    region_id: Annotated[int, Field(ge=1, description="Value in topdown.npz `region`.")]
+    area_m2: Annotated[float, Field(ge=0)]
+    rooms: list[str]
+
+
+class RoomReach(_Model):
+    room_id: str
+    type: str
+    navigable_area_m2: Annotated[float, Field(ge=0)]
+    regions: list[int]
+    reachable_rooms: list[str] = Field(description="Other rooms an agent can walk to from this one.")
+
+
+class SemanticMap(_Model):
+    """semantic_map.json: every instance's footprint and the navigable map's reachability report."""
+
+    scene_id: str
+    resolution: Annotated[float, Field(gt=0, description="m per cell.")]
+    origin: XY = Field(description="World (x, y) of the lower-left corner of cell (0, 0), m.")
+    shape: tuple[int, int] = Field(description="[H rows (y), W cols (x)] of every array in topdown.npz.")
+    floor_height: float
+    band_m: XY = Field(description="World z range whose geometry blocks: floor + band_min .. floor + band_max.")
+    agent_radius: Annotated[float, Field(gt=0)]
+    connectivity: Literal[8] = 8
+    categories: list[str] = Field(description="Category id -> name; id 0 is 'background' (no object).")
+    instances: list[MapInstance]
+    navigable_area_m2: Annotated[float, Field(ge=0)]
+    regions: list[Region]
+    rooms: list[RoomReach]
+    all_rooms_connected: bool
