@@ -25,6 +25,7 @@ import cv2
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 from scipy import ndimage
+from shapely.geometry import MultiPolygon, Polygon
 
 from sagebench.astar.grid_astar import Workspace, astar
 from sagebench.astar.shortcut import polyline_length, shortcut_indices, waypoints
@@ -67,7 +68,7 @@ class TargetSpec:
     kind: Literal["object", "room"]
     instance_id: int | None  # None for a room
     room_id: str | None  # the room it is in (its own id for a room)
-    polygon: np.ndarray  # [N, 2] float64 footprint or floor outline, world metres
+    outlines: tuple[np.ndarray, ...]  # each [N, 2] float64: exterior rings of the footprint or floor, world metres
 
 
 @dataclass(frozen=True)
@@ -203,8 +204,10 @@ def _stand_cells(nav: np.ndarray, labels: np.ndarray, grid: GridMap, target: Tar
     """The cells to stand at for `target`, or None when no navigable cell is close enough."""
     res = grid.resolution
     h, w = nav.shape
-    poly = (np.asarray(target.polygon, dtype=np.float64) - np.asarray(grid.origin)) / res  # (col, row) floats
-    anchor = np.array([poly[:, 1].mean(), poly[:, 0].mean()])
+    rings = [(np.asarray(r, dtype=np.float64) - np.asarray(grid.origin)) / res for r in target.outlines]  # (col, row)
+    poly = np.concatenate(rings)
+    centroid = MultiPolygon([Polygon(r) for r in rings]).centroid
+    anchor = np.array([centroid.y, centroid.x]) if not centroid.is_empty else poly.mean(axis=0)[::-1]
     margin = 0 if target.kind == "room" else int(np.ceil(config.approach_max_m / res)) + 1
     r0 = max(int(np.floor(poly[:, 1].min())) - margin, 0)
     r1 = min(int(np.ceil(poly[:, 1].max())) + margin + 1, h)
@@ -212,7 +215,7 @@ def _stand_cells(nav: np.ndarray, labels: np.ndarray, grid: GridMap, target: Tar
     c1 = min(int(np.ceil(poly[:, 0].max())) + margin + 1, w)
     if r0 >= r1 or c0 >= c1:
         return None
-    inside = _rasterise(poly - [c0, r0], (r1 - r0, c1 - c0))
+    inside = _rasterise([r - [c0, r0] for r in rings], (r1 - r0, c1 - c0))
     window = nav[r0:r1, c0:c1] != 0
     if target.kind == "room":
         free = window & inside
@@ -228,9 +231,10 @@ def _stand_cells(nav: np.ndarray, labels: np.ndarray, grid: GridMap, target: Tar
     return _Stand(cells, labels[cells[:, 0], cells[:, 1]], anchor)
 
 
-def _rasterise(poly_cells: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    """[h, w] bool: cells whose centre lies inside the polygon ((col, row) cell units), plus its outline cells."""
+def _rasterise(rings: list[np.ndarray], shape: tuple[int, int]) -> np.ndarray:
+    """[h, w] bool: cells whose centre lies inside any ring ((col, row) cell units), plus their outline cells."""
     mask = np.zeros(shape, dtype=np.uint8)
-    pts = np.round((poly_cells - 0.5) * 16).astype(np.int32)  # cv2 puts pixel centres at integers; 4-bit subpixel
-    cv2.fillPoly(mask, [pts], 1, lineType=cv2.LINE_8, shift=4)
+    for ring in rings:  # one at a time: cv2 fills several rings even-odd, and footprints may overlap
+        pts = np.round((ring - 0.5) * 16).astype(np.int32)  # cv2: pixel centres at integers; 4-bit subpixel
+        cv2.fillPoly(mask, [pts], 1, lineType=cv2.LINE_8, shift=4)
     return mask.astype(bool)

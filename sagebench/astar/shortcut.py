@@ -8,8 +8,6 @@ grazes the corner of, a non-navigable cell.
 
 from __future__ import annotations
 
-import math
-
 import numba
 import numpy as np
 
@@ -112,8 +110,3 @@ def polyline_length(points: np.ndarray) -> float:
     """Length in metres of an [K, >=2] polyline in the XY plane."""
     d = np.diff(np.asarray(points)[:, :2], axis=0)
     return float(np.hypot(d[:, 0], d[:, 1]).sum())
-
-
-def wrap_angle(a: float) -> float:
-    """`a` wrapped to [-pi, pi)."""
-    return (a + math.pi) % (2 * math.pi) - math.pi
