@@ -89,6 +89,35 @@ def demo(
         typer.echo(line)
 
 
+@app.command("build-scene")
+def build_scene_cmd(
+    scene_dir: Annotated[Path, typer.Argument(help="Artist scene directory (scene.json + meshes).")],
+    out: Annotated[Path, typer.Option("--out", help="Run directory; writes OUT/scenes/<scene_id>/.")],
+    resolution: Annotated[float | None, typer.Option(help="Grid cell side, m.")] = None,
+    band_min: Annotated[float | None, typer.Option(help="Lowest blocking height above the floor, m.")] = None,
+    band_max: Annotated[float | None, typer.Option(help="Highest blocking height above the floor, m.")] = None,
+    sample_density: Annotated[float | None, typer.Option(help="Footprint surface samples per m^2.")] = None,
+    wall_gap: Annotated[float | None, typer.Option(help="Join room floors across walls up to this thick, m.")] = None,
+    agent_radius: Annotated[float | None, typer.Option(help="Agent radius for the navigable map, m.")] = None,
+    seed: Annotated[int | None, typer.Option(help="Seed of the footprint sampling.")] = None,
+) -> None:
+    """Build the semantic top-down map and the height-band occupancy of one scene.
+
+    Reads SCENE_DIR/scene.json and its meshes.
+
+    Writes OUT/scenes/<scene_id>/: scene.json and meshes/ (normalised), topdown.npz,
+    semantic_map.json and topdown.png.
+
+    Defaults: resolution 0.05, band-min 0.05, band-max 1.2, sample-density 400,
+    wall-gap 0.3, agent-radius 0.2, seed 0.
+    """
+    from sagebench.stages.build_scene import build_scene, make_config
+
+    config = make_config(resolution=resolution, band_min=band_min, band_max=band_max, sample_density=sample_density,
+                         wall_gap=wall_gap, agent_radius=agent_radius, seed=seed)
+    typer.echo(build_scene(scene_dir, out, config).summary())
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console entry point: the one place where errors become exit status 2."""
     try:
