@@ -15,9 +15,16 @@ def _scene_schema() -> dict[str, Any]:
     return SceneSpec.model_json_schema()
 
 
+def _semantic_map_schema() -> dict[str, Any]:
+    from sagebench.topdown.semantic_map import SemanticMap
+
+    return SemanticMap.model_json_schema()
+
+
 # file name in schemas/ -> function returning the schema; later stages add their formats here.
 SCHEMAS: dict[str, Callable[[], dict[str, Any]]] = {
     "scene.schema.json": _scene_schema,
+    "semantic_map.schema.json": _semantic_map_schema,
 }
 
 

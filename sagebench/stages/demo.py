@@ -17,4 +17,7 @@ def run_demo(out: Path, *, seed: int = 0) -> Iterator[str]:
     yield f"demo scene: {scene_dir}"
     scene = load_scene(scene_dir)
     yield summarise(scene)
+    from sagebench.stages.build_scene import TopdownConfig, build_scene
+
+    yield build_scene(scene_dir, out, TopdownConfig(seed=seed)).summary()
     yield f"results are in {out}"
