@@ -1,0 +1,156 @@
+"""A scene's Gaussians: its trained gaussians.ply with nearest-surface instance ids, else mesh samples.
+
+Every object kind is kept (walls, floors and ceilings too: the agent's camera sees them) and every
+Gaussian carries its object's instance id. Optional contribution pruning over views from inside the rooms.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+
+import numpy as np
+import shapely
+from pydantic import BaseModel, ConfigDict, Field
+from shapely.geometry import Polygon
+
+from sagebench import ui
+from sagebench.config import AgentConfig
+from sagebench.errors import SceneError
+from sagebench.replay.camera import Camera, agent_camera
+from sagebench.scene.loader import SCENE_FILE, LoadedScene, frame_matrix, parse_spec
+from sagebench.splats.assign import assign_instances
+from sagebench.splats.from_mesh import mesh_gaussians, rotmat_to_quat
+from sagebench.splats.model import Gaussians, concat
+from sagebench.splats.ply import read_ply
+from sagebench.splats.prune import PruneReport, prune
+
+TRAINED_FILES = ("gaussians.ply", "3dgs_compressed.ply")  # looked for in the scene directory, in this order
+STRUCTURE_KINDS = frozenset({"wall", "floor", "ceiling"})
+
+
+class SplatConfig(BaseModel):
+    """How a scene gets its Gaussians (densities per square metre of surface, both sides of thin parts)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    object_density: float = Field(default=900.0, gt=0, description="Gaussians per m^2 on objects, doors, windows.")
+    structure_density: float = Field(default=300.0, gt=0, description="Gaussians per m^2 on walls, floors, ceilings.")
+    scale_factor: float = Field(default=0.7, gt=0, description="In-plane sigma as a multiple of the sample spacing.")
+    thickness_ratio: float = Field(default=0.1, gt=0, le=1, description="Normal sigma / in-plane sigma.")
+    opacity: float = Field(default=0.95, gt=0, lt=1, description="Opacity of sampled Gaussians.")
+    shading: float = Field(default=0.35, ge=0, le=1, description="Strength of the baked soft light (0 = flat colour).")
+    assign_tolerance: float = Field(default=0.05, gt=0, description="Trained Gaussians farther from every surface, m, get id 0.")
+    cull_unseen: bool = Field(default=True, description="Skip wall/floor/ceiling faces that face away from every room.")
+    prune: float = Field(default=0.0, ge=0, lt=1, description="Fraction of Gaussians to drop by contribution.")
+    prune_views: int = Field(default=32, ge=1, description="Scoring views (and a quarter as many held out).")
+    prune_width: int = Field(default=320, ge=16, description="Scoring view width, px (height 3/4 of it).")
+
+
+def scene_gaussians(scene: LoadedScene, config: SplatConfig = SplatConfig(), *, seed: int = 0,
+                    agent: AgentConfig = AgentConfig()) -> tuple[Gaussians, PruneReport | None]:
+    """The scene's Gaussians in world space (m, Z up) with instance ids, and the pruning report if pruned."""
+    trained = next((scene.source_dir / name for name in TRAINED_FILES if (scene.source_dir / name).is_file()), None)
+    if trained is not None:
+        g = _to_world(read_ply(trained), scene)
+        ids = assign_instances(g.means, scene.meshes, tolerance=config.assign_tolerance)
+        g = Gaussians(g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh, ids)
+    else:
+        g = sampled_gaussians(scene, config, seed=seed)
+    if config.prune == 0.0:
+        return g, None
+    views = list(room_views(scene, config.prune_views * 5 // 4, seed=seed, agent=agent, width=config.prune_width))
+    cut = config.prune_views
+    return prune(g, config.prune, views[:cut], views[cut:])
+
+
+def sampled_gaussians(scene: LoadedScene, config: SplatConfig = SplatConfig(), *, seed: int = 0) -> Gaussians:
+    """Flat Gaussians sampled on every object's world mesh; object i uses the seed (seed, instance_id)."""
+    parts = []
+    rooms = _room_space(scene) if config.cull_unseen else None
+    for obj in ui.track(scene.spec.objects, "sampling Gaussians"):
+        mesh = scene.meshes[obj.instance_id]
+        structure = obj.kind in STRUCTURE_KINDS
+        density = config.structure_density if structure else config.object_density
+        faces = _faces_towards(mesh, rooms) if structure and rooms is not None else None
+        parts.append(mesh_gaussians(
+            mesh, obj.instance_id, spacing=1.0 / math.sqrt(density), faces=faces,
+            rng=np.random.default_rng([seed, obj.instance_id]), scale_factor=config.scale_factor,
+            thickness_ratio=config.thickness_ratio, opacity=config.opacity, shading=config.shading,
+        ))
+    return concat(parts)
+
+
+def _room_space(scene: LoadedScene) -> tuple[shapely.Geometry, float, float] | None:
+    """The rooms' floor area and the height range above it, or None for a scene without rooms."""
+    if not scene.spec.rooms:
+        return None
+    top = max(float(m.bounds[1][2]) for m in scene.meshes.values())
+    return shapely.unary_union([Polygon(r.polygon) for r in scene.spec.rooms]), scene.spec.floor_height, top
+
+
+def _faces_towards(mesh, rooms: tuple[shapely.Geometry, float, float], step: float = 0.05) -> np.ndarray:
+    """[F] bool: faces whose centre, moved `step` m along the normal, is inside a room (someone can see them).
+
+    Drops the undersides of floor slabs, the tops of ceiling slabs and the outer faces of exterior walls.
+    """
+    area, z0, z1 = rooms
+    probe = mesh.triangles_center + step * mesh.face_normals
+    return shapely.contains_xy(area, probe[:, 0], probe[:, 1]) & (probe[:, 2] > z0) & (probe[:, 2] < z1)
+
+
+def _to_world(g: Gaussians, scene: LoadedScene) -> Gaussians:
+    """Trained Gaussians are in the artist scene's own units and up axis, like its meshes."""
+    spec_path = scene.source_dir / SCENE_FILE
+    try:
+        raw = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)
+    except OSError as err:
+        raise SceneError(f"cannot read: {err.strerror}", path=spec_path) from None
+    frame = frame_matrix(raw.units, raw.up_axis)
+    scale = float(np.cbrt(np.linalg.det(frame[:3, :3])))
+    rot = frame[:3, :3] / scale
+    if np.allclose(rot, np.eye(3)):
+        if scale == 1.0:
+            return g
+        quats, sh = g.quats_wxyz, g.sh
+    else:
+        quats = quat_multiply(rotmat_to_quat(rot[None])[0], g.quats_wxyz.astype(np.float64)).astype(np.float32)
+        if g.sh_degree > 0:
+            ui.warn(f"{scene.spec.scene_id}: trained Gaussians turned to Z up; their view-dependent colour "
+                    f"(SH degree {g.sh_degree}) is dropped, the base colour kept")
+        sh = g.sh[:, :1, :]
+    means = (g.means.astype(np.float64) @ frame[:3, :3].T + frame[:3, 3]).astype(np.float32)
+    log_scales = (g.log_scales + np.float32(math.log(scale))).astype(np.float32)
+    return Gaussians(means, quats, log_scales, g.opacity_logits, np.ascontiguousarray(sh), g.instance_id)
+
+
+def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product a * b of wxyz quaternions ([4] or [N, 4], broadcast)."""
+    aw, ax, ay, az = np.moveaxis(np.broadcast_to(a, np.broadcast_shapes(a.shape, b.shape)), -1, 0)
+    bw, bx, by, bz = np.moveaxis(np.broadcast_to(b, np.broadcast_shapes(a.shape, b.shape)), -1, 0)
+    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], axis=-1)
+
+
+def room_views(scene: LoadedScene, count: int, *, seed: int, agent: AgentConfig = AgentConfig(),
+               width: int = 320) -> Iterator[Camera]:
+    """`count` agent cameras at random points inside the rooms' floor polygons, random yaw, level."""
+    rng = np.random.default_rng([seed, 6])
+    rooms = [Polygon(r.polygon) for r in scene.spec.rooms]
+    if not rooms:
+        lo = np.min([m.bounds[0] for m in scene.meshes.values()], axis=0)
+        hi = np.max([m.bounds[1] for m in scene.meshes.values()], axis=0)
+        rooms = [shapely.box(lo[0], lo[1], hi[0], hi[1])]
+    area = shapely.unary_union(rooms)
+    x0, y0, x1, y1 = area.bounds
+    made = 0
+    while made < count:
+        xy = rng.uniform([x0, y0], [x1, y1], size=(4 * count, 2))
+        yaws = rng.uniform(-math.pi, math.pi, size=len(xy))
+        for (x, y), yaw in zip(xy[shapely.contains_xy(area, xy[:, 0], xy[:, 1])], yaws):
+            if made == count:
+                break
+            made += 1
+            yield agent_camera(float(x), float(y), float(yaw), floor_z=scene.spec.floor_height,
+                               camera_height=agent.camera_height, hfov_deg=agent.hfov_deg,
+                               width=width, height=width * 3 // 4)
