@@ -1,7 +1,7 @@
 """`build-scene`: a scene directory -> RUN/scenes/<scene_id>/ with the normalised scene and its top-down maps.
 
-Writes scene.json + meshes (normalised, loadable with `load_scene`), topdown.npz, semantic_map.json
-and topdown.png, all at once (a staged directory renamed into place).
+Writes scene.json + meshes (normalised, loadable with `load_scene`), topdown.npz, semantic_map.json,
+topdown.png and gaussians.ply (3DGS with instance ids), all at once (a staged directory renamed into place).
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from sagebench.config import AgentConfig
 from sagebench.errors import ConfigError, SceneError
 from sagebench.fileio import dumps_json, staged_dir, write_bytes
 from sagebench.scene.loader import LoadedScene, load_scene, write_normalised_scene
+from sagebench.splats.scene import SplatConfig
 from sagebench.topdown.footprints import footprint, mesh_parts
 from sagebench.topdown.occupancy import band_occupancy, clip_to_band, inflate
 from sagebench.topdown.raster import Grid, polygon_mask
@@ -103,14 +104,18 @@ class Topdown:
     footprints: dict[int, BaseGeometry]  # instance id -> footprint, world m
 
 
-def build_scene(scene_dir: Path, run_dir: Path, config: TopdownConfig | None = None) -> BuildSceneResult:
-    """Load `scene_dir`, compute its top-down maps and write RUN/scenes/<scene_id>/ atomically."""
+def build_scene(scene_dir: Path, run_dir: Path, config: TopdownConfig | None = None,
+                splats: SplatConfig | None = None) -> BuildSceneResult:
+    """Load `scene_dir`, compute its top-down maps and Gaussians and write RUN/scenes/<scene_id>/ atomically."""
+    from sagebench.splats.ply import write_ply
+    from sagebench.splats.scene import scene_gaussians
     from sagebench.topdown.render_png import render_topdown
 
     config = config or TopdownConfig()
     scene = load_scene(scene_dir)
     td = compute_topdown(scene, config)
     png = render_topdown(td)
+    gaussians, _ = scene_gaussians(scene, splats or SplatConfig(), seed=config.seed, agent=config.agent)
     out = Path(run_dir) / "scenes" / scene.spec.scene_id
     with staged_dir(out) as tmp:
         write_normalised_scene(scene, tmp)
@@ -126,6 +131,7 @@ def build_scene(scene_dir: Path, run_dir: Path, config: TopdownConfig | None = N
         }))
         write_bytes(tmp / "semantic_map.json", dumps_json(td.semantic.model_dump(mode="json")).encode())
         write_bytes(tmp / "topdown.png", png)
+        write_ply(tmp / "gaussians.ply", gaussians)
     best = max((len(r.reachable_rooms) + 1 for r in td.semantic.rooms if r.regions), default=0)
     return BuildSceneResult(
         scene_id=scene.spec.scene_id,
