@@ -118,6 +118,63 @@ def build_scene_cmd(
     typer.echo(build_scene(scene_dir, out, config).summary())
 
 
+@app.command("gen-trajectories")
+def gen_trajectories_cmd(
+    run_dir: Annotated[Path, typer.Argument(help="Run directory that build-scene wrote (RUN/scenes/<id>/).")],
+    scene: Annotated[str | None, typer.Option("--scene", help="Only this scene id (default: every scene).")] = None,
+    per_scene: Annotated[int | None, typer.Option(help="Distinct trajectories per scene [default: 200].")] = None,
+    seed: Annotated[int | None, typer.Option(help="Seed of sampling and wording [default: 0].")] = None,
+    shard_size: Annotated[int | None, typer.Option(help="Episode rows per Parquet shard [default: 1000].")] = None,
+    instructions: Annotated[
+        str | None, typer.Option(help="template: Base_Action + Single_Goal rows; none: bare trajectories [default: template].")
+    ] = None,
+) -> None:
+    """Sample A* trajectories between objects and rooms and write them with low-level instructions.
+
+    Reads RUN_DIR/scenes/<id>/topdown.npz, semantic_map.json and scene.json. Writes
+    RUN_DIR/episodes/<id>/part-NNNNN.parquet (one row per trajectory-instruction pair) and paths.png.
+    """
+    from sagebench.stages.gen_trajectories import gen_trajectories, make_config
+
+    config = make_config(per_scene=per_scene, seed=seed, shard_size=shard_size, instructions=instructions)
+    for result in gen_trajectories(run_dir, config, scene_id=scene):
+        typer.echo(result.summary())
+
+
+@app.command("render")
+def render_cmd(
+    run_dir: Annotated[Path, typer.Argument(help="Run directory with scenes/<scene_id>/ from build-scene.")],
+    scene: Annotated[str, typer.Option("--scene", help="Scene id (a directory under RUN_DIR/scenes).")],
+    pose: Annotated[str, typer.Option("--pose", help="X,Y,YAW: camera position on the floor, m, and heading, rad.")],
+    out: Annotated[Path, typer.Option("--out", help="PNG file to write.")],
+    camera_height: Annotated[float | None, typer.Option(help="Camera above the floor, m.")] = None,
+    pitch: Annotated[float | None, typer.Option(help="Camera tilt up, degrees (negative looks down).")] = None,
+    hfov: Annotated[float | None, typer.Option(help="Horizontal field of view, degrees.")] = None,
+    width: Annotated[int | None, typer.Option(help="Image width, px.")] = None,
+    height: Annotated[int | None, typer.Option(help="Image height, px.")] = None,
+    depth_out: Annotated[Path | None, typer.Option("--depth-out", help="Also write depth, float32 .npy, m.")] = None,
+    instance_out: Annotated[Path | None, typer.Option("--instance-out", help="Also write instance ids, int32 .npy.")] = None,
+) -> None:
+    """Render one view of a built scene's 3D Gaussians on the CPU.
+
+    The camera stands at (X, Y, floor + camera height), looks along YAW (radians, counter-clockwise
+    from +X), Z up, tilted by PITCH.
+
+    Reads RUN_DIR/scenes/<scene>/scene.json and gaussians.ply.
+
+    Writes OUT (PNG), and with --depth-out the expected z-depth (float32 .npy, metres, 0 where nothing
+    was hit) and with --instance-out the instance id per pixel (int32 .npy, 0 = background).
+
+    Defaults: camera-height 1.2, pitch 0, hfov 90, width 640, height 480.
+    """
+    from sagebench.stages.render import make_render_config, parse_pose, render_view, write_frame
+
+    config = make_render_config(camera_height=camera_height, hfov=hfov, pitch_deg=pitch, width=width, height=height)
+    frame = render_view(run_dir, scene, parse_pose(pose), config)
+    for path in write_frame(frame, out, depth_out=depth_out, instance_out=instance_out):
+        typer.echo(f"wrote {path}")
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console entry point: the one place where errors become exit status 2."""
     try:

@@ -1,0 +1,104 @@
+"""`render`: one view of a built scene's Gaussians from the agent's camera, written as PNG (+ depth, ids).
+
+Reads RUN/scenes/<scene_id>/scene.json (floor height) and gaussians.ply; writes only the files asked for.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from pathlib import Path
+
+import cv2
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from sagebench.config import AgentConfig
+from sagebench.errors import ConfigError, DataError
+from sagebench.fileio import write_bytes
+from sagebench.replay.camera import agent_camera
+from sagebench.replay.splat_reference import Frame
+from sagebench.scene.loader import SCENE_FILE, parse_spec
+
+
+class RenderConfig(BaseModel):
+    """The view: camera height and field of view come from the agent unless overridden."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    agent: AgentConfig = AgentConfig()
+    pitch_deg: float = Field(default=0.0, gt=-90, lt=90, description="Camera tilt up (negative: down), degrees.")
+    width: int = Field(default=640, ge=1, le=8192, description="Image width, px.")
+    height: int = Field(default=480, ge=1, le=8192, description="Image height, px.")
+
+
+def make_render_config(*, camera_height: float | None = None, hfov: float | None = None, **fields: object) -> RenderConfig:
+    """A RenderConfig from the options given (None = default); a bad value is a ConfigError naming the option."""
+    given = {k: v for k, v in fields.items() if v is not None}
+    agent = {k: v for k, v in (("camera_height", camera_height), ("hfov_deg", hfov)) if v is not None}
+    if agent:
+        given["agent"] = agent
+    try:
+        return RenderConfig.model_validate(given)
+    except ValidationError as err:
+        e = err.errors(include_url=False)[0]
+        name = {"agent.camera_height": "camera_height", "agent.hfov_deg": "hfov", "pitch_deg": "pitch"}.get(
+            ".".join(str(p) for p in e["loc"]), ".".join(str(p) for p in e["loc"]))
+        raise ConfigError(e["msg"], field=f"--{name.replace('_', '-')}") from None
+
+
+def parse_pose(text: str) -> tuple[float, float, float]:
+    """'X,Y,YAW' (metres, metres, radians) -> floats; a ConfigError otherwise."""
+    parts = text.split(",")
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise ConfigError(f"expected X,Y,YAW (three numbers: metres, metres, radians), got {text!r}", field="--pose")
+    return values  # type: ignore[return-value]
+
+
+def render_view(run_dir: Path, scene_id: str, pose: tuple[float, float, float], config: RenderConfig) -> Frame:
+    """Render RUN/scenes/<scene_id>'s Gaussians from the agent camera at `pose` (x, y, yaw)."""
+    from sagebench.replay.splat_render import render
+    from sagebench.splats.ply import read_ply
+
+    scene_dir = Path(run_dir) / "scenes" / scene_id
+    spec_path, ply_path = scene_dir / SCENE_FILE, scene_dir / "gaussians.ply"
+    for path in (spec_path, ply_path):
+        if not path.is_file():
+            raise DataError(f"missing; run `sagebench build-scene ... --out {run_dir}` first", path=path)
+    spec = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)
+    x, y, yaw = pose
+    cam = agent_camera(x, y, yaw, floor_z=spec.floor_height, camera_height=config.agent.camera_height,
+                       pitch_deg=config.pitch_deg, hfov_deg=config.agent.hfov_deg, width=config.width,
+                       height=config.height)
+    return render(read_ply(ply_path), cam)
+
+
+def png_bytes(rgb: np.ndarray) -> bytes:
+    """[H, W, 3] float colour -> PNG bytes (clipped to [0, 1], 8 bits)."""
+    bgr = (np.clip(rgb, 0.0, 1.0)[:, :, ::-1] * 255.0 + 0.5).astype(np.uint8)
+    ok, buf = cv2.imencode(".png", bgr)
+    if not ok:
+        raise RuntimeError("PNG encoding failed")
+    return buf.tobytes()
+
+
+def npy_bytes(array: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, array, allow_pickle=False)
+    return buf.getvalue()
+
+
+def write_frame(frame: Frame, out: Path, *, depth_out: Path | None = None, instance_out: Path | None = None) -> list[Path]:
+    """Write the PNG, and the depth (float32, m) and instance-id (int32) arrays when asked; returns the paths."""
+    files = [(out, png_bytes(frame.rgb))]
+    if depth_out is not None:
+        files.append((depth_out, npy_bytes(frame.depth.astype(np.float32))))
+    if instance_out is not None:
+        files.append((instance_out, npy_bytes(frame.instance.astype(np.int32))))
+    for path, data in files:
+        write_bytes(Path(path), data)
+    return [Path(p) for p, _ in files]
