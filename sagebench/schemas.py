@@ -21,10 +21,17 @@ def _semantic_map_schema() -> dict[str, Any]:
     return SemanticMap.model_json_schema()
 
 
+def _episode_schema() -> dict[str, Any]:
+    from sagebench.episodes.schema import episode_schema_json
+
+    return episode_schema_json()
+
+
 # file name in schemas/ -> function returning the schema; later stages add their formats here.
 SCHEMAS: dict[str, Callable[[], dict[str, Any]]] = {
     "scene.schema.json": _scene_schema,
     "semantic_map.schema.json": _semantic_map_schema,
+    "episode.arrow.json": _episode_schema,
 }
 
 

@@ -60,7 +60,8 @@ def shortcut_indices(nav: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """Indices into `cells` [K, 2] of the kept waypoints (first and last always kept).
 
     Greedy: from the current waypoint, extend the segment along the grid path while it stays clear;
-    the last clear cell becomes the next waypoint. Every kept segment passes `segment_clear`.
+    the last clear cell becomes the next waypoint. Then drop every waypoint whose neighbours see each
+    other, until none can go. Every kept segment passes `segment_clear`.
     """
     n = cells.shape[0]
     keep = np.empty(n, dtype=np.int64)
@@ -78,6 +79,18 @@ def shortcut_indices(nav: np.ndarray, cells: np.ndarray) -> np.ndarray:
     if n > 1:
         keep[m] = n - 1
         m += 1
+    changed = True
+    while changed:
+        changed = False
+        k = 1
+        while k < m - 1:
+            a, b = keep[k - 1], keep[k + 1]
+            if segment_clear(nav, cells[a, 0], cells[a, 1], cells[b, 0], cells[b, 1]):
+                keep[k:m - 1] = keep[k + 1:m]
+                m -= 1
+                changed = True
+            else:
+                k += 1
     return keep[:m]
 
 

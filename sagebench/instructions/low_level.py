@@ -2,7 +2,7 @@
 
 Base_Action reads the waypoint path as a person would say it: the agent starts facing the first
 segment; turns under 20 degrees are folded into walking straight, legs shorter than 0.25 m are
-folded into the turns around them; angles are rounded to 15 degrees and distances to half a metre
+folded into the turns around them, and a turn with no leg after it is dropped; angles are rounded to 15 degrees and distances to half a metre
 (whole metres from 10 m), with "about" when rounding moved the number.
 """
 
@@ -57,6 +57,8 @@ def path_steps(waypoints: np.ndarray) -> list[Step]:  # waypoints: [M, 4] (x, y,
             steps.append(Step("turn", turn))
         heading, leg = yaw, length
     _close_leg(steps, leg)
+    while steps and steps[-1].kind == "turn":  # turning on the spot at the goal is not worth saying
+        steps.pop()
     return steps
 
 

@@ -19,5 +19,10 @@ def run_demo(out: Path, *, seed: int = 0) -> Iterator[str]:
     yield summarise(scene)
     from sagebench.stages.build_scene import TopdownConfig, build_scene
 
-    yield build_scene(scene_dir, out, TopdownConfig(seed=seed)).summary()
+    built = build_scene(scene_dir, out, TopdownConfig(seed=seed))
+    yield built.summary()
+    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, gen_trajectories
+
+    for episodes in gen_trajectories(out, GenTrajectoriesConfig(seed=seed), scene_id=built.scene_id):
+        yield episodes.summary()
     yield f"results are in {out}"

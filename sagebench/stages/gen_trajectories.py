@@ -1,0 +1,222 @@
+"""`gen-trajectories`: A* episodes with low-level instructions, from build-scene's maps to Parquet shards.
+
+Reads RUN/scenes/<scene_id>/{topdown.npz, semantic_map.json, scene.json}; writes
+RUN/episodes/<scene_id>/part-NNNNN.parquet and paths.png, replacing the directory whole.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import Field, ValidationError
+
+from sagebench import ui
+from sagebench.astar.sampling import GridMap, SamplingConfig, SamplingResult, TargetSpec, Trajectory, sample_trajectories
+from sagebench.episodes.preview import render_paths
+from sagebench.episodes.shards import write_shards
+from sagebench.errors import ConfigError, DataError
+from sagebench.fileio import staged_dir, write_bytes
+from sagebench.instructions import instructions_for
+from sagebench.instructions.base import TrajectoryText
+from sagebench.instructions.naming import ObjectInfo, RoomInfo, object_names, room_names
+from sagebench.scene.loader import SCENE_FILE, parse_spec
+from sagebench.scene.model import SceneSpec
+from sagebench.topdown.semantic_map import SemanticMap
+
+TOPDOWN_FILE = "topdown.npz"
+SEMANTIC_FILE = "semantic_map.json"
+TARGET_KINDS = ("object", "door")  # what a trajectory may start or end at, besides rooms
+
+
+class GenTrajectoriesConfig(SamplingConfig):
+    """Settings of gen-trajectories: sampling plus what is written (defaults here, nowhere else)."""
+
+    shard_size: int = Field(default=1000, ge=1, description="Rows per Parquet shard.")
+    instructions: Literal["template", "none"] = Field(
+        default="template", description="template: Base_Action + Single_Goal rows; none: one bare row per trajectory.")
+    goal_radius_m: float = Field(
+        default=1.0, gt=0,
+        description="Success radius, m: the stand point is ~0.2-0.3 m from the target, so 1 m means next to it.")
+    preview_paths: int = Field(default=40, ge=0, description="Paths drawn in paths.png.")
+
+
+def make_config(**fields: object) -> GenTrajectoriesConfig:
+    """A config from the options given (None = keep the default); a bad value is a ConfigError naming the option."""
+    try:
+        return GenTrajectoriesConfig.model_validate({k: v for k, v in fields.items() if v is not None})
+    except ValidationError as err:
+        e = err.errors(include_url=False)[0]
+        option = "--" + "-".join(str(p) for p in e["loc"][:1]).replace("_", "-") if e["loc"] else None
+        raise ConfigError(e["msg"].removeprefix("Value error, "), field=option) from None
+
+
+@dataclass(frozen=True)
+class SceneEpisodes:
+    """What gen-trajectories wrote for one scene."""
+
+    scene_id: str
+    out_dir: Path
+    trajectories: int
+    rows: int
+    shards: list[Path]
+
+    def summary(self) -> str:
+        return (f"gen-trajectories {self.scene_id}: {self.trajectories} trajectories, {self.rows} episode rows "
+                f"in {len(self.shards)} shard(s) -> {self.out_dir}")
+
+
+def gen_trajectories(run_dir: Path, config: GenTrajectoriesConfig, *, scene_id: str | None = None) -> list[SceneEpisodes]:
+    """Sample, instruct and write the episodes of every scene in RUN_DIR/scenes (or only `scene_id`)."""
+    scenes_root = Path(run_dir) / "scenes"
+    if not scenes_root.is_dir():
+        raise DataError("no scenes/ directory: run build-scene on this run directory first", path=run_dir)
+    if scene_id is not None:
+        if not (scenes_root / scene_id).is_dir():
+            known = ", ".join(sorted(p.name for p in scenes_root.iterdir() if p.is_dir())) or "none"
+            raise ConfigError(f"no scene {scene_id!r} in {scenes_root} (scenes: {known})", field="--scene")
+        scene_dirs = [scenes_root / scene_id]
+    else:
+        scene_dirs = sorted(p for p in scenes_root.iterdir() if p.is_dir() and not p.name.startswith("."))
+        if not scene_dirs:
+            raise DataError("no scene directories: run build-scene first", path=scenes_root)
+    return [generate_scene(d, Path(run_dir) / "episodes" / d.name, config)
+            for d in ui.track(scene_dirs, "gen-trajectories")]
+
+
+def generate_scene(scene_dir: Path, out_dir: Path, config: GenTrajectoriesConfig) -> SceneEpisodes:
+    """One scene: read its maps, sample trajectories, write shards and paths.png into `out_dir` (replaced)."""
+    spec, smap, grid, occupancy = read_scene_inputs(scene_dir)
+    targets, names = scene_targets(spec, smap)
+    result = sample_trajectories(grid, targets, spec.scene_id, config)
+    _warn_if_short(spec.scene_id, result, config, n_targets=len(targets))
+    rows = episode_rows(spec.scene_id, result.trajectories, names, config)
+    with staged_dir(out_dir) as tmp:
+        shards = write_shards(rows, tmp, config.shard_size)
+        png = render_paths(grid.navigable, occupancy, [t.waypoints for t in result.trajectories[:config.preview_paths]],
+                           grid.resolution, grid.origin)
+        write_bytes(tmp / "paths.png", png)
+    return SceneEpisodes(spec.scene_id, out_dir, len(result.trajectories), len(rows),
+                         [out_dir / p.name for p in shards])
+
+
+def read_scene_inputs(scene_dir: Path) -> tuple[SceneSpec, SemanticMap, GridMap, np.ndarray]:
+    """The normalised spec, semantic map, navigable grid and occupancy [H, W] uint8 of one built scene."""
+    spec_path, smap_path, npz_path = scene_dir / SCENE_FILE, scene_dir / SEMANTIC_FILE, scene_dir / TOPDOWN_FILE
+    for path in (spec_path, smap_path, npz_path):
+        if not path.is_file():
+            raise DataError("missing: run build-scene first", path=path)
+    spec = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)
+    try:
+        smap = SemanticMap.model_validate_json(smap_path.read_bytes())
+    except ValidationError as err:
+        e = err.errors(include_url=False)[0]
+        raise DataError(e["msg"], path=smap_path, field=".".join(str(p) for p in e["loc"]) or None) from None
+    try:
+        with np.load(npz_path) as npz:
+            arrays = {k: npz[k] for k in ("navigable", "occupancy", "resolution", "origin") if k in npz.files}
+    except (OSError, ValueError, zipfile.BadZipFile) as err:
+        raise DataError(f"cannot read: {err}", path=npz_path) from None
+    for key in ("navigable", "occupancy", "resolution", "origin"):
+        if key not in arrays:
+            raise DataError("array missing", path=npz_path, field=key)
+    nav, occ = arrays["navigable"], arrays["occupancy"]
+    if nav.ndim != 2 or occ.shape != nav.shape:
+        raise DataError(f"navigable {nav.shape} and occupancy {occ.shape} must be the same [H, W] shape",
+                        path=npz_path, field="navigable")
+    origin = np.asarray(arrays["origin"], dtype=np.float64).ravel()
+    resolution = float(np.asarray(arrays["resolution"]).ravel()[0])
+    if origin.shape != (2,) or not resolution > 0:
+        raise DataError("origin must be [x, y] and resolution > 0", path=npz_path, field="origin")
+    grid = GridMap(np.ascontiguousarray(nav != 0, dtype=np.uint8), resolution, (float(origin[0]), float(origin[1])),
+                   float(spec.floor_height))
+    return spec, smap, grid, np.asarray(occ, dtype=np.uint8)
+
+
+def scene_targets(spec: SceneSpec, smap: SemanticMap) -> tuple[list[TargetSpec], dict[str, str]]:
+    """Targets that can be named uniquely, and target key -> referring expression.
+
+    Objects and doors standing in the agent's height band (not ceiling lamps) and rooms; an object's
+    attributes are its scene.json attributes plus its door state.
+    """
+    attrs = {o.instance_id: dict(o.attributes) for o in spec.objects}
+    top = smap.floor_height + smap.band_m[1]
+    instances = [i for i in smap.instances if i.kind in TARGET_KINDS]
+    infos = [ObjectInfo(i.instance_id, i.category, i.room,
+                        {**attrs.get(i.instance_id, {}), **({"state": i.door_state} if i.door_state else {})})
+             for i in instances]
+    rooms = [RoomInfo(r.id, r.type) for r in spec.rooms]
+    obj_names = object_names(infos, rooms)
+    rm_names = room_names(rooms, infos)
+    targets: list[TargetSpec] = []
+    names: dict[str, str] = {}
+    for inst in instances:
+        if inst.instance_id not in obj_names or inst.min_z > top or not inst.polygon.coordinates:
+            continue
+        key = f"object:{inst.instance_id}"
+        outlines = tuple(np.asarray(poly[0], dtype=np.float64) for poly in inst.polygon.coordinates)
+        targets.append(TargetSpec(key, "object", inst.instance_id, inst.room, outlines))
+        names[key] = obj_names[inst.instance_id]
+    for room in spec.rooms:
+        if room.id in rm_names:
+            key = f"room:{room.id}"
+            targets.append(TargetSpec(key, "room", None, room.id, (np.asarray(room.polygon, dtype=np.float64),)))
+            names[key] = rm_names[room.id]
+    return targets, names
+
+
+def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str, str],
+                 config: GenTrajectoriesConfig) -> list[dict[str, Any]]:
+    """One row per (trajectory, instruction); one bare row per trajectory when instructions are 'none'."""
+    rows = []
+    for traj in trajectories:
+        wps = traj.waypoints
+        base = {
+            "trajectory_id": traj.trajectory_id,
+            "scene_id": scene_id,
+            "start_instance_id": traj.start.instance_id,
+            "goal_instance_id": traj.goal.instance_id,
+            "start_room": traj.start.room_id,
+            "goal_room": traj.goal.room_id,
+            "start_position": wps[0, :3].tolist(),
+            "start_yaw": float(wps[0, 3]),
+            "goal_position": wps[-1, :3].tolist(),
+            "goal_radius": config.goal_radius_m,
+            "reference_path": wps.tolist(),
+            "geodesic_distance": traj.path_length_m,
+            "seed": config.seed,
+        }
+        text = TrajectoryText(wps, names[traj.start.key], names[traj.goal.key], traj.start.kind, traj.goal.kind)
+        rng = np.random.default_rng([config.seed, int(traj.trajectory_id, 16)])
+        instructions = instructions_for(text, config.instructions, rng)
+        if not instructions:
+            rows.append({**base, "episode_id": _episode_id(traj.trajectory_id, "none", "", 0),
+                         "instruction_level": None, "instruction_type": None, "instruction_text": None,
+                         "instruction_source": None})
+        counts: dict[tuple[str, str], int] = {}
+        for ins in instructions:
+            k = counts[(ins.level, ins.type)] = counts.get((ins.level, ins.type), -1) + 1
+            rows.append({**base, "episode_id": _episode_id(traj.trajectory_id, ins.level, ins.type, k),
+                         "instruction_level": ins.level, "instruction_type": ins.type,
+                         "instruction_text": ins.text, "instruction_source": ins.source})
+    return rows
+
+
+def _episode_id(trajectory_id: str, level: str, kind: str, index: int) -> str:
+    """Stable: the trajectory's id, the instruction's level and type, and its index among those of that type."""
+    return hashlib.sha256(f"{trajectory_id}|{level}|{kind}|{index}".encode()).hexdigest()[:16]
+
+
+def _warn_if_short(scene_id: str, result: SamplingResult, config: GenTrajectoriesConfig, *, n_targets: int) -> None:
+    got = len(result.trajectories)
+    if got >= config.per_scene:
+        return
+    why = ", ".join(f"{n} {reason}" for reason, n in result.rejected.items()) or "no rejections"
+    unreachable = f"; {len(result.unreachable_targets)} targets have no navigable cell within " \
+                  f"{config.approach_max_m} m" if result.unreachable_targets else ""
+    ui.warn(f"{scene_id}: {got} of {config.per_scene} trajectories: all {result.pairs_tried} ordered pairs of "
+            f"{n_targets} uniquely named targets tried ({why}){unreachable}")
