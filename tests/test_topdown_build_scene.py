@@ -1,0 +1,225 @@
+"""build-scene on tiny hand-built scenes with known answers, and its output contract on the demo scene."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import shapely
+import trimesh
+
+from sagebench.errors import ConfigError, SceneError
+from sagebench.scene import assets
+from sagebench.scene.loader import load_scene
+from sagebench.stages.build_scene import TopdownConfig, build_scene, make_config
+from sagebench.topdown.semantic_map import SemanticMap
+
+RES = 0.05
+
+
+def _box(lo, hi) -> trimesh.Trimesh:
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    return trimesh.creation.box(extents=hi - lo, transform=trimesh.transformations.translation_matrix((lo + hi) / 2))
+
+
+def write_scene(root: Path, rooms: list[tuple[str, list]], objects: list[dict]) -> Path:
+    """A scene directory: each object dict has category, kind, mesh (a Trimesh in world coordinates), extras."""
+    (root / "meshes").mkdir(parents=True)
+    entries = []
+    for i, obj in enumerate(objects, start=1):
+        name = f"meshes/{i}.ply"
+        obj["mesh"].export(root / name)
+        entry = {k: v for k, v in obj.items() if k != "mesh"} | {"instance_id": i, "mesh": name}
+        entries.append(entry)
+    spec = {"scene_id": root.name, "rooms": [{"id": r, "type": "room", "polygon": p} for r, p in rooms],
+            "objects": entries}
+    (root / "scene.json").write_text(json.dumps(spec))
+    return root
+
+
+def _rect(x0, y0, x1, y1) -> list:
+    return [[x0, y0], [x1, y0], [x1, y1], [x0, y1]]
+
+
+def _floor(x0, y0, x1, y1) -> dict:
+    return {"category": "floor", "kind": "floor", "mesh": _box((x0, y0, -0.05), (x1, y1, 0.0))}
+
+
+def two_rooms(root: Path, door_state: str) -> Path:
+    """Rooms a [0,3]x[0,3] and b [3.1,6.1]x[0,3], a 0.1 m wall between with a 1 m doorway at y 1..2 and a
+    door leaf in it; walls all round, 2.4 m high."""
+    h = 2.4
+    walls = [
+        _box((-0.1, -0.1, 0), (6.2, 0, h)), _box((-0.1, 3, 0), (6.2, 3.1, h)),
+        _box((-0.1, 0, 0), (0, 3, h)), _box((6.1, 0, 0), (6.2, 3, h)),
+        trimesh.util.concatenate([_box((3, 0, 0), (3.1, 1, h)), _box((3, 2, 0), (3.1, 3, h)),
+                                  _box((3, 1, 2.1), (3.1, 2, h))]),
+    ]
+    objects = [_floor(0, 0, 3, 3), _floor(3.1, 0, 6.1, 3)]
+    objects += [{"category": "wall", "kind": "wall", "mesh": w} for w in walls]
+    objects.append({"category": "door", "kind": "door", "mesh": _box((3.03, 1.025, 0), (3.07, 1.975, 2.05)),
+                    "door": {"state": door_state, "hinge": [3.05, 1.025, 0.0]}})
+    return write_scene(root, [("a", _rect(0, 0, 3, 3)), ("b", _rect(3.1, 0, 6.1, 3))], objects)
+
+
+def one_room(root: Path, things: list[dict]) -> Path:
+    return write_scene(root, [("r", _rect(0, 0, 4, 4))], [_floor(0, 0, 4, 4), *things])
+
+
+def _load(out: Path) -> tuple[dict, SemanticMap]:
+    with np.load(out / "topdown.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    return arrays, SemanticMap.model_validate_json((out / "semantic_map.json").read_text())
+
+
+def _cells_touching(arrays: dict, lo: tuple[float, float], hi: tuple[float, float]) -> np.ndarray:
+    """[H, W] bool, cells whose closed square meets the closed box [lo, hi], by plain arithmetic."""
+    ox, oy = arrays["origin"]
+    h, w = arrays["occupancy"].shape
+    x0 = ox + np.arange(w) * RES
+    y0 = oy + np.arange(h) * RES
+    cols = (x0 <= hi[0]) & (x0 + RES >= lo[0])
+    rows = (y0 <= hi[1]) & (y0 + RES >= lo[1])
+    return rows[:, None] & cols[None, :]
+
+
+@pytest.mark.parametrize("state, connected", [("closed", False), ("open", True), ("ajar", True)])
+def test_two_rooms_joined_by_a_door(tmp_path, state, connected):
+    res = build_scene(two_rooms(tmp_path / "two", state), tmp_path / "run")
+    arrays, sem = _load(res.out_dir)
+    assert sem.all_rooms_connected is connected
+    rooms = {r.room_id: r for r in sem.rooms}
+    assert rooms["a"].reachable_rooms == (["b"] if connected else [])
+    assert rooms["b"].reachable_rooms == (["a"] if connected else [])
+    assert rooms["a"].navigable_area_m2 > 5 and rooms["b"].navigable_area_m2 > 5
+    assert res.rooms_in_largest_group == (2 if connected else 1)
+    door = next(i for i in sem.instances if i.kind == "door")
+    assert door.door_state == state and door.blocks
+
+
+def test_table_top_blocks_at_default_band_and_only_legs_below_it(tmp_path):
+    x, y, w, d, leg = 2.013, 2.017, 1.2, 0.8, 0.05
+    table = assets.table(w, d, 0.75, (100, 100, 100), leg=leg)
+    table.apply_translation((x, y, 0))
+    scene = one_room(tmp_path / "t", [{"category": "table", "kind": "object", "mesh": table}])
+    inside = lambda a: _cells_touching(a, (0.15, 0.15), (3.85, 3.85))  # noqa: E731 - away from the room's edge
+
+    arrays, sem = _load(build_scene(scene, tmp_path / "run").out_dir)
+    top = _cells_touching(arrays, (x - w / 2, y - d / 2), (x + w / 2, y + d / 2))
+    blocked = arrays["occupancy"].astype(bool)
+    np.testing.assert_array_equal(blocked & inside(arrays), top & inside(arrays))
+    assert sem.instances[1].blocks
+
+    arrays, _ = _load(build_scene(scene, tmp_path / "run2", make_config(band_max=0.5)).out_dir)
+    legs = np.zeros_like(top)
+    for sx in (-1, 1):
+        for sy in (-1, 1):
+            cx, cy = x + sx * (w / 2 - leg), y + sy * (d / 2 - leg)
+            legs |= _cells_touching(arrays, (cx - leg / 2, cy - leg / 2), (cx + leg / 2, cy + leg / 2))
+    blocked = arrays["occupancy"].astype(bool)
+    np.testing.assert_array_equal(blocked & inside(arrays), legs & inside(arrays))
+    assert 4 * 4 <= legs.sum() <= 4 * 9
+
+
+def test_hanging_lamp_and_rug_do_not_block(tmp_path):
+    lamp = assets.ceiling_lamp(0.5, 0.5, 0.8, (250, 250, 200))  # lowest point 1.9 m
+    lamp.apply_translation((2.01, 2.02, 0))
+    rug = assets.rug(2.0, 1.4, 0.01, (200, 30, 30))
+    rug.apply_translation((2.01, 2.02, 0))
+    scene = one_room(tmp_path / "l", [{"category": "lamp", "kind": "object", "mesh": lamp},
+                                      {"category": "rug", "kind": "object", "mesh": rug}])
+    arrays, sem = _load(build_scene(scene, tmp_path / "run").out_dir)
+    room = _cells_touching(arrays, (0.05, 0.05), (3.95, 3.95))
+    assert not arrays["occupancy"][room].any()
+    assert [i.blocks for i in sem.instances] == [False, False, False]
+    # both still appear on the semantic map; the lamp shows where nothing else stands
+    names = list(arrays["category_names"])
+    assert {names[c] for c in np.unique(arrays["category"])} == {"background", "floor", "lamp", "rug"}
+
+
+def test_outside_the_floor_plan_blocks_and_inflation_clears_the_walls(tmp_path):
+    arrays, sem = _load(build_scene(two_rooms(tmp_path / "two", "open"), tmp_path / "run").out_dir)
+    ox, oy = arrays["origin"]
+    h, w = arrays["occupancy"].shape
+    xs, ys = ox + (np.arange(w) + 0.5) * RES, oy + (np.arange(h) + 0.5) * RES
+    outside = (xs[None, :] < -0.1) | (xs[None, :] > 6.2) | (ys[:, None] < -0.1) | (ys[:, None] > 3.1)
+    assert arrays["occupancy"][outside].all()
+    nav = arrays["navigable"].astype(bool)
+    near_wall = (xs[None, :] < 0.2 - 1e-9) | (xs[None, :] > 5.9 + 1e-9) | (ys[:, None] < 0.2 - 1e-9)
+    assert not nav[near_wall].any()
+    assert sem.navigable_area_m2 == pytest.approx(nav.sum() * RES * RES, abs=1e-3)
+
+
+def test_without_rooms_the_floor_meshes_are_the_plan(tmp_path):
+    scene = write_scene(tmp_path / "nr", [], [_floor(0, 0, 2, 2)])
+    arrays, sem = _load(build_scene(scene, tmp_path / "run").out_dir)
+    assert sem.rooms == [] and sem.all_rooms_connected
+    free = (arrays["occupancy"] == 0).sum() * RES * RES
+    assert free == pytest.approx(4.0, rel=0.06)
+
+
+def test_no_rooms_and_no_floor_is_an_error(tmp_path):
+    scene = write_scene(tmp_path / "bad", [], [{"category": "box", "kind": "object", "mesh": _box((0, 0, 0), (1, 1, 1))}])
+    with pytest.raises(SceneError, match="no rooms and no floor meshes: cannot tell where the floor is"):
+        build_scene(scene, tmp_path / "run")
+    assert not (tmp_path / "run" / "scenes" / "bad").exists()
+
+
+def test_config_errors_name_the_option():
+    with pytest.raises(ConfigError, match="band_max .* must be above band_min"):
+        make_config(band_min=0.5, band_max=0.4)
+    with pytest.raises(ConfigError, match="^agent_radius: "):
+        make_config(agent_radius=-1.0)
+    assert make_config() == TopdownConfig()
+    assert make_config(agent_radius=0.3).agent.radius == 0.3
+
+
+@pytest.fixture(scope="module")
+def demo_built(demo_scene_dir, tmp_path_factory) -> Path:
+    return build_scene(demo_scene_dir, tmp_path_factory.mktemp("run")).out_dir
+
+
+def test_outputs_follow_the_contract(demo_built):
+    arrays, sem = _load(demo_built)
+    dtypes = {k: v.dtype for k, v in arrays.items()}
+    assert dtypes["instance"] == np.int32 and dtypes["category"] == np.int16
+    assert dtypes["occupancy"] == np.uint8 and dtypes["navigable"] == np.uint8 and dtypes["region"] == np.int32
+    assert arrays["resolution"] == RES and arrays["origin"].shape == (2,)
+    shape = arrays["occupancy"].shape
+    assert all(arrays[k].shape == shape for k in ("instance", "category", "navigable", "region"))
+    assert set(np.unique(arrays["occupancy"])) == {0, 1}
+    assert not (arrays["navigable"] & arrays["occupancy"]).any()
+    assert list(arrays["category_names"]) == sem.categories
+    assert tuple(sem.origin) == tuple(arrays["origin"]) and tuple(sem.shape) == shape
+    # category raster is the instance raster seen through the category table
+    by_id = {i.instance_id: sem.categories.index(i.category) for i in sem.instances}
+    lut = np.zeros(max(by_id) + 1, np.int16)
+    for k, v in by_id.items():
+        lut[k] = v
+    np.testing.assert_array_equal(arrays["category"], lut[arrays["instance"]])
+    # the run's scene directory loads on its own
+    scene = load_scene(demo_built)
+    assert len(scene.meshes) == len(sem.instances)
+    for inst in sem.instances:
+        geom = shapely.geometry.shape(inst.polygon.model_dump())
+        assert math.isclose(geom.area, inst.area_m2, rel_tol=1e-3, abs_tol=1e-3)
+
+
+def test_demo_rooms_all_reachable_through_open_doors(demo_built):
+    _, sem = _load(demo_built)
+    assert len(sem.rooms) == 5 and sem.all_rooms_connected
+    main = max(sem.regions, key=lambda r: r.area_m2)
+    assert sorted(main.rooms) == sorted(r.room_id for r in sem.rooms)
+    doors = [i for i in sem.instances if i.kind == "door"]
+    assert {d.door_state for d in doors} == {"open", "ajar", "closed"}
+
+
+def test_same_inputs_give_identical_bytes(demo_scene_dir, demo_built, tmp_path):
+    again = build_scene(demo_scene_dir, tmp_path).out_dir
+    names = sorted(p.relative_to(demo_built) for p in demo_built.rglob("*") if p.is_file())
+    assert names == sorted(p.relative_to(again) for p in again.rglob("*") if p.is_file())
+    for name in names:
+        assert (demo_built / name).read_bytes() == (again / name).read_bytes(), name
