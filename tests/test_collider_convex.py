@@ -1,0 +1,119 @@
+"""Convex-piece detection: exact parts for boxes and cylinders, concave pieces left for CoACD."""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from sagebench.collider_export.convex import (
+    MIN_THICKNESS,
+    face_components,
+    hull_part,
+    is_convex_solid,
+    is_convex_solid_reference,
+    split_convex,
+    weld,
+)
+
+
+def u_prism(width: float = 0.6, depth: float = 0.4, wall: float = 0.15, height: float = 0.3) -> trimesh.Trimesh:
+    """A closed U-shaped extrusion (concave, volume known in closed form)."""
+    w, d, t = width, depth, wall
+    pts = np.array([(0, 0), (w, 0), (w, 0.1), (w, d), (w - t, d), (w - t, 0.1), (t, 0.1), (t, d), (0, d), (0, 0.1)])
+    tris = np.array([(0, 1, 2), (0, 2, 5), (0, 5, 6), (0, 6, 9), (5, 2, 3), (5, 3, 4), (9, 6, 7), (9, 7, 8)])
+    return trimesh.creation.extrude_triangulation(pts, tris, height)
+
+
+def test_u_prism_fixture_is_what_it_claims():
+    m = u_prism()
+    assert m.is_watertight and np.isclose(m.volume, (0.6 * 0.1 + 2 * 0.15 * 0.3) * 0.3)
+
+
+def test_weld_merges_duplicated_vertices_of_a_triangle_soup():
+    box = trimesh.creation.box((1, 2, 3))
+    soup_v = box.vertices[box.faces].reshape(-1, 3)
+    soup_f = np.arange(len(soup_v)).reshape(-1, 3)
+    v, f = weld(soup_v, soup_f)
+    assert len(v) == 8 and len(f) == 12
+    assert np.allclose(trimesh.Trimesh(v, f).volume, 6.0)
+
+
+def test_face_components_separates_concatenated_boxes():
+    parts = [trimesh.creation.box((1, 1, 1)).apply_translation((3 * i, 0, 0)) for i in range(3)]
+    m = trimesh.util.concatenate(parts)
+    comps = face_components(m.faces, len(m.vertices))
+    assert [len(c) for c in comps] == [12, 12, 12]
+
+
+def test_boxes_and_cylinders_are_exact_parts():
+    parts = [trimesh.creation.box((1, 0.5, 0.2)), trimesh.creation.cylinder(0.1, 1.0, sections=16)]
+    parts[1].apply_translation((2, 0, 0))
+    m = trimesh.util.concatenate(parts)
+    split = split_convex(m.vertices, m.faces)
+    assert split.concave == []
+    assert sorted(round(p.volume, 6) for p in split.parts) == sorted(round(p.volume, 6) for p in parts)
+
+
+def test_boxes_touching_at_corners_stay_separate_parts():
+    """A tub of five boxes whose corners coincide (one vertex-connected piece) is still five exact parts."""
+    base = trimesh.creation.box((1.0, 0.6, 0.06)).apply_translation((0, 0, 0.03))
+    wall = trimesh.creation.box((1.0, 0.06, 0.5)).apply_translation((0, 0.27, 0.25))
+    m = trimesh.util.concatenate([base, wall])
+    split = split_convex(m.vertices, m.faces)
+    assert split.concave == [] and len(split.parts) == 2
+
+
+def test_u_prism_is_left_for_coacd():
+    m = u_prism()
+    split = split_convex(m.vertices, m.faces)
+    assert split.parts == [] and len(split.concave) == 1
+    v, f = split.concave[0]
+    assert np.isclose(trimesh.Trimesh(v, f).volume, m.volume)
+
+
+def test_flat_piece_becomes_a_padded_part():
+    quad_v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    quad_f = np.array([[0, 1, 2], [0, 2, 3]])
+    split = split_convex(quad_v, quad_f)
+    (part,) = split.parts
+    assert np.isclose(np.ptp(part.vertices[:, 2]), MIN_THICKNESS)
+    assert np.isclose(part.volume, MIN_THICKNESS)
+
+
+def test_hull_part_is_closed_and_outward():
+    part = hull_part(np.random.default_rng(0).normal(size=(50, 3)))
+    mesh = trimesh.Trimesh(part.vertices, part.faces)
+    assert mesh.is_watertight and mesh.volume > 0 and np.isclose(mesh.volume, part.volume)
+
+
+@st.composite
+def solids(draw):
+    """A random box, a random convex hull, or a random U prism (concave), in a random pose."""
+    kind = draw(st.sampled_from(["box", "hull", "u"]))
+    seed = draw(st.integers(0, 2**31 - 1))
+    rng = np.random.default_rng(seed)
+    if kind == "box":
+        m = trimesh.creation.box(rng.uniform(0.05, 2.0, 3))
+    elif kind == "hull":
+        m = trimesh.convex.convex_hull(rng.normal(size=(30, 3)))
+    else:
+        m = u_prism(width=rng.uniform(0.5, 1.0), wall=rng.uniform(0.05, 0.2), height=rng.uniform(0.1, 1.0))
+    m.apply_transform(trimesh.transformations.random_rotation_matrix(rng.random(3)))
+    return kind, m
+
+
+@settings(max_examples=40, deadline=None)
+@given(solids())
+def test_volume_test_agrees_with_face_plane_reference(case):
+    kind, m = case
+    fast = is_convex_solid(m.vertices, m.faces, tolerance=0.002)
+    assert fast == is_convex_solid_reference(m.vertices, m.faces)
+    assert fast == (kind != "u")
+
+
+def test_open_box_is_not_a_convex_solid():
+    box = trimesh.creation.box((1, 1, 1))
+    assert not is_convex_solid(box.vertices, box.faces[:-2], tolerance=0.002)
+    assert not is_convex_solid_reference(box.vertices, box.faces[:-2])
