@@ -97,7 +97,7 @@ def inflate(occupancy: np.ndarray, radius: float, resolution: float) -> np.ndarr
     border is not treated as blocked, so callers keep a blocked margin (outside the floor plan).
     """
     free = occupancy == 0
-    if not free.any():
+    if free.all() or not free.any():
         return free
     dist = ndimage.distance_transform_edt(free) * resolution
     return free & (dist >= radius - 1e-9)
