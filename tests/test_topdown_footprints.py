@@ -1,0 +1,70 @@
+"""Footprints from surface samples: known areas, per-part hulls, determinism."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import shapely
+import trimesh
+
+from sagebench.scene import assets
+from sagebench.stages.build_scene import TopdownConfig
+from sagebench.topdown.footprints import footprint, footprint_reference, mesh_parts, sample_surface
+
+DENSITY = TopdownConfig().sample_density
+
+
+def _fp(mesh: trimesh.Trimesh, seed: int = 0):
+    tris, part = mesh_parts(mesh)
+    return footprint(tris, part, DENSITY, np.random.default_rng(seed), min_width=0.05)
+
+
+@pytest.mark.parametrize("extents", [(1.0, 0.6, 0.5), (0.4, 0.4, 0.9), (2.0, 0.9, 0.75)])
+def test_box_footprint_area_within_one_percent(extents):
+    box = trimesh.creation.box(extents=extents)
+    box.apply_transform(trimesh.transformations.rotation_matrix(0.3, [0, 0, 1]))
+    assert _fp(box).area == pytest.approx(extents[0] * extents[1], rel=0.01)
+
+
+def test_l_sofa_is_an_l_not_its_bounding_rectangle():
+    sofa = assets.sofa_l(2.3, 1.6, 0.85, (0, 0, 200))
+    fp = _fp(sofa)
+    exact = footprint_reference(*mesh_parts(sofa))
+    assert fp.area == pytest.approx(exact.area, rel=0.01)
+    assert fp.symmetric_difference(exact).area < 0.01 * exact.area
+    assert fp.area < 0.8 * shapely.box(*fp.bounds).area
+
+
+def test_table_footprint_is_its_top_and_legs_are_parts():
+    table = assets.table(1.2, 0.8, 0.75, (0, 0, 0))
+    tris, part = mesh_parts(table)
+    assert len(np.unique(part)) == 5
+    assert _fp(table).area == pytest.approx(1.2 * 0.8, rel=0.01)
+
+
+def test_parts_join_split_vertices_and_separate_pieces():
+    box = trimesh.creation.box(extents=(1, 1, 1))
+    unmerged = trimesh.Trimesh(box.vertices[box.faces].reshape(-1, 3), np.arange(36).reshape(12, 3), process=False)
+    assert len(np.unique(mesh_parts(unmerged)[1])) == 1
+    two = trimesh.util.concatenate([box, box.copy().apply_translation((3, 0, 0))])
+    tris, part = mesh_parts(two)
+    assert len(np.unique(part)) == 2
+    fp = _fp(two)
+    assert fp.geom_type == "MultiPolygon" and fp.area == pytest.approx(2.0, rel=0.01)
+
+
+def test_a_vertical_panel_still_has_a_footprint():
+    panel = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]], [[0, 1, 2], [0, 2, 3]], process=False)
+    assert _fp(panel).area == pytest.approx(1.0 * 0.05, rel=0.05)
+
+
+def test_samples_are_uniform_by_area_and_seeded():
+    big = trimesh.creation.box(extents=(1, 1, 0.001))  # top and bottom carry almost all the area
+    tris, _ = mesh_parts(big)
+    pts = sample_surface(tris, 20000, np.random.default_rng(1))
+    assert np.abs(pts[:, 2]).max() <= 0.0005 + 1e-12
+    assert abs((pts[:, 0] < 0).mean() - 0.5) < 0.02
+    again = sample_surface(tris, 20000, np.random.default_rng(1))
+    np.testing.assert_array_equal(pts, again)
+    assert _fp(assets.plant(0.5, 0.5, 1.1, (0, 0, 0)), seed=3).equals_exact(
+        _fp(assets.plant(0.5, 0.5, 1.1, (0, 0, 0)), seed=3), 0.0)
