@@ -34,3 +34,16 @@ def demo_scene_dir(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("demo") / "demo_apartment_0"
     write_synth_scene(out, seed=0)
     return out
+
+
+@pytest.fixture(scope="session")
+def demo_built_run(demo_scene_dir, tmp_path_factory) -> Path:
+    """A run directory holding build-scene's output for the demo apartment (scenes/demo_apartment_0/).
+
+    Shared and read-only: copy `scenes/` into your own run directory before writing into one.
+    """
+    from sagebench.stages.build_scene import build_scene
+
+    run = tmp_path_factory.mktemp("demo_run")
+    build_scene(demo_scene_dir, run)
+    return run
