@@ -175,6 +175,40 @@ def render_cmd(
         typer.echo(f"wrote {path}")
 
 
+@app.command("export-usd")
+def export_usd_cmd(
+    run_dir: Annotated[Path, typer.Argument(help="Run directory that build-scene wrote (RUN/scenes/<id>/).")],
+    scene: Annotated[str | None, typer.Option("--scene", help="Export only this scene id (default: every scene).")] = None,
+    cache_dir: Annotated[
+        Path | None, typer.Option("--cache-dir", help="CoACD result cache (default: the user cache directory).")
+    ] = None,
+    workers: Annotated[int | None, typer.Option(help="Processes running CoACD in parallel (default 1).")] = None,
+    coacd_threshold: Annotated[
+        float | None, typer.Option(help="CoACD concavity threshold; smaller gives more parts (default 0.05).")
+    ] = None,
+    coacd_max_hulls: Annotated[
+        int | None, typer.Option(help="Most CoACD parts per concave piece, -1 for no cap (default -1).")
+    ] = None,
+    coacd_preprocess: Annotated[
+        str | None, typer.Option(help="CoACD manifold preprocessing: auto, on or off (default auto).")
+    ] = None,
+) -> None:
+    """Decompose colliders and write each scene's USD stage and MuJoCo model.
+
+    Reads RUN_DIR/scenes/<id>/scene.json, its meshes and gaussians.ply.
+
+    Writes RUN_DIR/scenes/<id>/colliders/ (convex parts as STL + colliders.json), scene.usda
+    (3D Gaussians, invisible colliders, semantics, physics) and scene.xml (MJCF); CoACD results go
+    to the cache.
+    """
+    from sagebench.stages.export_usd import export_usd, make_config
+
+    config = make_config(coacd_threshold=coacd_threshold, coacd_max_hulls=coacd_max_hulls,
+                         coacd_preprocess=coacd_preprocess, workers=workers)
+    for result in export_usd(run_dir, scene_id=scene, config=config, cache_dir=cache_dir):
+        typer.echo(result.line())
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console entry point: the one place where errors become exit status 2."""
     try:
