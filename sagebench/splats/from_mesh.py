@@ -20,24 +20,27 @@ def sample_surface(mesh: trimesh.Trimesh, spacing: float, rng: np.random.Generat
     """Surface samples on a square lattice `spacing` m apart, on the faces where `faces` [F] bool is set.
 
     Each face takes the points of a lattice laid in its plane, with axes fixed by the face normal
-    (in_plane_axes) and one random offset for the whole mesh, that fall inside it: coplanar faces
-    share a lattice (no seams along the diagonal of a quad), and a face of area A gets A / spacing^2
-    samples on average however small it is. Returns face index [M] int64 and barycentric
+    (in_plane_axes) and a random offset per plane, that fall inside it: coplanar faces share a lattice
+    (no seams along the diagonal of a quad), and a face of area A gets A / spacing^2 samples on
+    average however small it is. Returns face index [M] int64 and barycentric
     coordinates [M, 3] float64.
     """
     if spacing <= 0:
         raise ValueError(f"spacing must be positive, got {spacing}")
-    offset = rng.random(2)
     tri = np.asarray(mesh.triangles, dtype=np.float64)
     normals = np.asarray(mesh.face_normals, dtype=np.float64)
     keep = mesh.area_faces > 0
     if faces is not None:
         keep &= faces
     ids = np.flatnonzero(keep)
+    # one random lattice offset per plane (normal and distance from the origin, to 1 um)
+    planes = np.round(np.column_stack([normals[ids], np.einsum("fc,fc->f", normals[ids], tri[ids, 0])]), 6)
+    _, plane = np.unique(planes, axis=0, return_inverse=True)
+    offset = rng.random((plane.max() + 1 if len(plane) else 0, 2))[plane.ravel()]
     t1, t2 = in_plane_axes(normals[ids])
     # vertices in lattice units: [F, 3 corners, 2]
     uv = np.stack([np.einsum("fkc,fc->fk", tri[ids], t1), np.einsum("fkc,fc->fk", tri[ids], t2)], axis=2) / spacing
-    uv -= offset
+    uv -= offset[:, None, :]
     lo = np.floor(uv.min(axis=1)).astype(np.int64)
     span = np.ceil(uv.max(axis=1)).astype(np.int64) - lo + 1  # [F, 2] lattice points per axis to try
     n_try = span[:, 0] * span[:, 1]
@@ -74,16 +77,18 @@ def surface_rgb(mesh: trimesh.Trimesh, face: np.ndarray, bary: np.ndarray) -> np
         return np.asarray(visual.face_colors, dtype=np.float64)[face, :3] / 255.0
     if visual.kind == "texture":
         material = visual.material
-        factor = _base_colour(material)
         image = getattr(material, "baseColorTexture", None) or getattr(material, "image", None)
         if image is not None and visual.uv is not None and len(visual.uv) == len(mesh.vertices):
+            # glTF multiplies the texture by baseColorFactor; other materials' colour is only a fallback
+            base = getattr(material, "baseColorFactor", None)
+            factor = np.ones(3) if base is None else np.asarray(base, np.float64)[:3] / 255.0
             uv = np.einsum("mk,mkc->mc", bary, np.asarray(visual.uv, dtype=np.float64)[corners])
             texels = np.asarray(image.convert("RGB"), dtype=np.float64) / 255.0
             h, w = texels.shape[:2]
             col = np.floor(np.mod(uv[:, 0], 1.0) * w).astype(np.int64).clip(0, w - 1)
             row = np.floor((1.0 - np.mod(uv[:, 1], 1.0)) * h).astype(np.int64).clip(0, h - 1)
             return texels[row, col] * factor
-        return np.tile(factor, (len(face), 1))
+        return np.tile(_base_colour(material), (len(face), 1))
     return np.tile(DEFAULT_RGB, (len(face), 1))
 
 
