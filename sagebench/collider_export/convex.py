@@ -78,7 +78,8 @@ def hull_part(points: np.ndarray) -> ConvexPart:
 def _principal_extents(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Principal directions [3, 3] (rows) of a point set and its extent [3] along each, thinnest last."""
     centred = points - points.mean(axis=0)
-    _, _, vt = np.linalg.svd(centred, full_matrices=True)
+    _, vecs = np.linalg.eigh(centred.T @ centred)  # ascending eigenvalues: thinnest direction first
+    vt = vecs.T[::-1]
     return vt, np.ptp(centred @ vt.T, axis=0)
 
 

@@ -1,0 +1,241 @@
+"""`sagebench export-usd`: a tiny hand-made run and the demo run, read back with pxr and MuJoCo."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+import trimesh
+from pxr import Usd, UsdGeom, UsdPhysics, UsdSemantics, UsdValidation, UsdVol
+
+from sagebench.scene.loader import door_pose, load_scene, write_normalised_scene
+from sagebench.splats.model import Gaussians
+from sagebench.splats.ply import read_ply, write_ply
+from tests.test_collider_convex import u_prism
+
+FAST = ["--coacd-preprocess", "off", "--coacd-max-hulls", "8"]
+WALL_X = 4.0  # inner face of the east wall
+
+
+def _box(size, centre) -> trimesh.Trimesh:
+    return trimesh.creation.box(size).apply_translation(centre)
+
+
+def _gaussians(counts: dict[int, int], seed: int = 0) -> Gaussians:
+    rng = np.random.default_rng(seed)
+    ids = np.concatenate([np.full(n, i, np.int32) for i, n in counts.items()])
+    n = len(ids)
+    return Gaussians(rng.normal(size=(n, 3)).astype(np.float32), np.tile(np.float32([1, 0, 0, 0]), (n, 1)),
+                     np.full((n, 3), -4.0, np.float32), np.zeros(n, np.float32),
+                     rng.normal(size=(n, 1, 3)).astype(np.float32), ids)
+
+
+def write_tiny_scene(src: Path) -> None:
+    """Floor, east wall, a two-box chair, a U-shaped planter (concave: CoACD) and an open door."""
+    meshes = {
+        "meshes/floor.ply": _box((4, 3, 0.05), (2, 1.5, -0.025)),
+        "meshes/wall.ply": _box((0.1, 3, 2.7), (WALL_X + 0.05, 1.5, 1.35)),
+        "meshes/chair.ply": trimesh.util.concatenate([_box((0.5, 0.5, 0.05), (0, 0, 0.45)),
+                                                      _box((0.05, 0.05, 0.45), (0.2, 0.2, 0.225))]),
+        "meshes/planter.obj": u_prism(),
+        "meshes/door.ply": _box((0.9, 0.04, 2.0), (0, 0, 1.0)),
+    }
+    for rel, mesh in meshes.items():
+        (src / rel).parent.mkdir(parents=True, exist_ok=True)
+        mesh.export(src / rel)
+    spec = {
+        "scene_id": "tiny", "units": "m", "up_axis": "Z",
+        "rooms": [{"id": "room_0", "type": "kitchen", "polygon": [[0, 0], [4, 0], [4, 3], [0, 3]]}],
+        "objects": [
+            {"instance_id": 1, "category": "floor", "kind": "floor", "mesh": "meshes/floor.ply", "room_id": "room_0"},
+            {"instance_id": 2, "category": "wall", "kind": "wall", "mesh": "meshes/wall.ply",
+             "attributes": {"colour": "white"}},
+            {"instance_id": 3, "category": "chair", "mesh": "meshes/chair.ply", "room_id": "room_0",
+             "transform": {"translation": [1.0, 1.0, 0.0], "rotation_wxyz": [0.9238795, 0, 0, 0.3826834]},
+             "attributes": {"colour": "red", "material": "wood"}},
+            {"instance_id": 4, "category": "planter", "mesh": "meshes/planter.obj", "room_id": "room_0",
+             "transform": {"translation": [2.0, 1.5, 0.0]}},
+            {"instance_id": 5, "category": "door", "kind": "door", "mesh": "meshes/door.ply", "room_id": "room_0",
+             "transform": {"translation": [0.6, 0.2, 0.0]},
+             "door": {"state": "open", "hinge": [0.15, 0.2, 0.0], "swing": 1}},
+        ],
+    }
+    (src / "scene.json").write_text(json.dumps(spec))
+
+
+COUNTS = {0: 4, 1: 10, 2: 11, 3: 12, 4: 13, 5: 14}
+
+
+def make_run(tmp_path: Path, counts: dict[int, int] = COUNTS) -> Path:
+    src, run = tmp_path / "src", tmp_path / "run"
+    write_tiny_scene(src)
+    scene_dir = run / "scenes" / "tiny"
+    write_normalised_scene(load_scene(src), scene_dir)
+    write_ply(scene_dir / "gaussians.ply", _gaussians(counts))
+    return run
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    """The tiny run exported twice with one cache: (run dir, first stdout, second stdout, file hashes of each)."""
+    from sagebench.cli import main
+
+    tmp = tmp_path_factory.mktemp("tiny")
+    run, cache = make_run(tmp), tmp / "cache"
+    outs, hashes = [], []
+    for _ in range(2):
+        with pytest.raises(SystemExit) as exc:
+            main(["export-usd", str(run), "--cache-dir", str(cache), *FAST])
+        assert exc.value.code in (0, None)
+        hashes.append(_hashes(run / "scenes" / "tiny"))
+    return run, hashes
+
+
+def _hashes(d: Path) -> dict[str, str]:
+    return {p.relative_to(d).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(d.rglob("*"))
+            if p.is_file()}
+
+
+def test_cold_then_warm_cache_and_messages(tmp_path, run_cli):
+    run = make_run(tmp_path)
+    code, out, _ = run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", *FAST)
+    assert code == 0
+    assert "tiny: 5 objects" in out and "CoACD 1 run / 0 cached / 0 failed" in out and "64 Gaussians" in out
+    code, out, _ = run_cli("export-usd", run, "--scene", "tiny", "--cache-dir", tmp_path / "cache", *FAST)
+    assert code == 0 and "CoACD 0 run / 1 cached / 0 failed" in out
+
+
+def test_outputs_are_byte_identical_on_a_rerun(tiny):
+    _, (first, second) = tiny
+    assert first == second
+    assert {"scene.usda", "scene.xml", "colliders/colliders.json", "colliders/planter_4/part_000.stl"} <= set(first)
+
+
+def test_usd_objects_semantics_gaussians_and_transforms(tiny):
+    run, _ = tiny
+    scene = load_scene(run / "scenes" / "tiny")
+    stage = Usd.Stage.Open(str(run / "scenes" / "tiny" / "scene.usda"))
+    assert UsdGeom.GetStageMetersPerUnit(stage) == 1.0 and UsdGeom.GetStageUpAxis(stage) == "Z"
+    cache = UsdGeom.XformCache()
+    for obj in scene.spec.objects:
+        prim = stage.GetPrimAtPath(f"/World/Objects/{obj.category}_{obj.instance_id}")
+        assert prim.GetAttribute("sagebench:instanceId").Get() == obj.instance_id
+        assert UsdSemantics.LabelsAPI(prim, "class").GetLabelsAttr().Get() == [obj.category]
+        field = UsdVol.ParticleField3DGaussianSplat(prim.GetChild("Gaussians"))
+        assert len(field.GetPositionsAttr().Get()) == COUNTS[obj.instance_id]
+        # the colliders, placed by the stage's transforms, span the scene's world mesh
+        pts = []
+        for part in prim.GetChild("Colliders").GetChildren():
+            assert UsdGeom.Imageable(part).ComputeVisibility() == "invisible"
+            assert part.HasAPI(UsdPhysics.CollisionAPI) and part.HasAPI(UsdPhysics.MeshCollisionAPI)
+            m = np.array(cache.GetLocalToWorldTransform(part)).T
+            p = np.array(UsdGeom.Mesh(part).GetPointsAttr().Get(), dtype=np.float64)
+            pts.append(p @ m[:3, :3].T + m[:3, 3])
+        assert np.allclose(trimesh.PointCloud(np.concatenate(pts)).bounds, scene.meshes[obj.instance_id].bounds,
+                           atol=1e-5)
+        expect = obj.transform.as_matrix() if obj.door is None else door_pose(obj.door) @ obj.transform.as_matrix()
+        assert np.allclose(np.array(cache.GetLocalToWorldTransform(prim)).T, expect, atol=1e-9)
+    assert stage.GetPrimAtPath("/World/Objects/chair_3").HasAPI(UsdPhysics.RigidBodyAPI)
+    assert not stage.GetPrimAtPath("/World/Objects/planter_4").HasAPI(UsdPhysics.RigidBodyAPI)
+    assert stage.GetPrimAtPath("/World/Objects/door_5/Hinge").IsA(UsdPhysics.RevoluteJoint)
+    assert len(stage.GetPrimAtPath("/World/Background/Gaussians").GetAttribute("positions").Get()) == COUNTS[0]
+    ctx = UsdValidation.ValidationContext(UsdValidation.ValidationRegistry().GetOrLoadAllValidators())
+    errors = [e.GetMessage() for e in ctx.Validate(stage) if e.GetType() == UsdValidation.ValidationErrorType.Error]
+    assert errors == []
+
+
+def test_mujoco_loads_and_rays_hit_known_surfaces(tiny):
+    run, _ = tiny
+    m = mujoco.MjModel.from_xml_path(str(run / "scenes" / "tiny" / "scene.xml"))
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    geom = np.zeros(1, np.int32)
+
+    def ray(origin, direction):
+        dist = mujoco.mj_ray(m, d, np.array(origin, float), np.array(direction, float), None, 1, -1, geom)
+        return dist, m.geom(geom[0]).name
+
+    dist, name = ray((1.0, 2.5, 1.0), (1.0, 0.0, 0.0))
+    assert name.startswith("wall_2_") and dist == pytest.approx(WALL_X - 1.0, abs=0.02)
+    # down the U's notch (x 2.15..2.45, open towards +y) to its base bar at y = 1.6: CoACD parts, not a hull
+    dist, name = ray((2.3, 2.5, 0.15), (0.0, -1.0, 0.0))
+    assert name.startswith("planter_4_") and dist == pytest.approx(0.9, abs=0.02)
+
+
+def test_colliders_index_lists_every_part(tiny):
+    run, _ = tiny
+    index = json.loads((run / "scenes" / "tiny" / "colliders" / "colliders.json").read_text())
+    by_id = {o["instance_id"]: o for o in index["objects"]}
+    assert by_id[3]["exact_parts"] == 2 and by_id[3]["concave_pieces"] == []
+    assert [p["method"] for p in by_id[4]["concave_pieces"]] == ["coacd"] and len(by_id[4]["parts"]) >= 3
+    for obj in index["objects"]:
+        for rel in obj["parts"]:
+            assert trimesh.load(run / "scenes" / "tiny" / "colliders" / rel).is_watertight
+
+
+def test_without_gaussians_the_stage_still_gets_colliders(tmp_path, run_cli):
+    run = make_run(tmp_path)
+    (run / "scenes" / "tiny" / "gaussians.ply").unlink()
+    code, out, err = run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", *FAST)
+    assert code == 0 and "0 Gaussians" in out
+    assert "gaussians.ply: not found; the stage gets colliders and semantics but no Gaussians" in err
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--scene", "nope"], "no scene 'nope' in this run (run build-scene first)"),
+        (["--coacd-threshold", "0"], "error: coacd_threshold: Input should be greater than 0"),
+        (["--coacd-preprocess", "maybe"], "error: coacd_preprocess: Input should be 'auto', 'on' or 'off'"),
+        (["--workers", "0"], "error: workers: Input should be greater than or equal to 1"),
+    ],
+)
+def test_bad_options_exit_2_and_write_nothing(tmp_path, run_cli, args, message):
+    run = make_run(tmp_path)
+    before = _hashes(run)
+    code, _, err = run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", *args)
+    assert code == 2 and message in err
+    assert _hashes(run) == before
+
+
+def test_run_without_scenes_is_an_error(tmp_path, run_cli):
+    code, _, err = run_cli("export-usd", tmp_path, "--cache-dir", tmp_path / "cache")
+    assert code == 2
+    assert err == f"error: {tmp_path}: no scenes/<id>/scene.json in this run directory (run build-scene first)\n"
+
+
+def test_gaussians_of_an_unknown_object_are_an_error(tmp_path, run_cli):
+    run = make_run(tmp_path, {**COUNTS, 99: 2})
+    before = _hashes(run)
+    code, _, err = run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", *FAST)
+    assert code == 2
+    assert "gaussians.ply: instance_id: instance_id 99 is not an object of scene.json" in err
+    assert _hashes(run) == before
+
+
+def test_demo_scene_exports_with_exact_parts_only(demo_scene_dir, tmp_path, run_cli):
+    """The demo apartment after build-scene: no CoACD needed, every object and Gaussian in the stage."""
+    from sagebench.stages.build_scene import build_scene
+
+    built = build_scene(demo_scene_dir, tmp_path / "run")
+    code, out, _ = run_cli("export-usd", tmp_path / "run", "--cache-dir", tmp_path / "cache")
+    assert code == 0 and "CoACD 0 run / 0 cached / 0 failed" in out
+    scene_dir = built.out_dir
+    g = read_ply(scene_dir / "gaussians.ply")
+    stage = Usd.Stage.Open(str(scene_dir / "scene.usda"))
+    spec = load_scene(scene_dir).spec
+    total = 0
+    for obj in spec.objects:
+        prim = stage.GetPrimAtPath(f"/World/Objects/{obj.category}_{obj.instance_id}")
+        assert prim.IsValid()
+        splat = prim.GetChild("Gaussians")
+        n = len(splat.GetAttribute("positions").Get()) if splat.IsValid() else 0
+        assert n == int((g.instance_id == obj.instance_id).sum())
+        total += n
+    assert total == int((g.instance_id != 0).sum())
+    model = mujoco.MjModel.from_xml_path(str(scene_dir / "scene.xml"))
+    assert model.nbody == len(spec.objects) + 1
