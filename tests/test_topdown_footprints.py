@@ -68,3 +68,9 @@ def test_samples_are_uniform_by_area_and_seeded():
     np.testing.assert_array_equal(pts, again)
     assert _fp(assets.plant(0.5, 0.5, 1.1, (0, 0, 0)), seed=3).equals_exact(
         _fp(assets.plant(0.5, 0.5, 1.1, (0, 0, 0)), seed=3), 0.0)
+
+
+def test_a_turned_vertical_panel_is_widened_too():
+    panel = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]], [[0, 1, 2], [0, 2, 3]], process=False)
+    panel.apply_transform(trimesh.transformations.rotation_matrix(0.7, [0, 0, 1]))
+    assert _fp(panel).area == pytest.approx(1.0 * 0.05, rel=0.05)

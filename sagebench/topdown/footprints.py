@@ -11,6 +11,7 @@ import math
 import numpy as np
 import shapely
 import trimesh
+from scipy.spatial import ConvexHull, QhullError
 from shapely.geometry.base import BaseGeometry
 
 MIN_PART_POINTS = 16  # even a tiny part gets enough samples for a hull
@@ -54,17 +55,29 @@ def footprint(tris: np.ndarray, part: np.ndarray, density: float, rng: np.random
     """
     if len(tris) == 0:
         return shapely.Polygon()
-    points, labels = [], []
+    hulls = []
     for p in np.unique(part):
         pt = tris[part == p]
         area = 0.5 * np.linalg.norm(np.cross(pt[:, 1] - pt[:, 0], pt[:, 2] - pt[:, 0]), axis=1).sum()
         n = max(MIN_PART_POINTS, math.ceil(area * density))
-        points.append(sample_surface(pt, n, rng)[:, :2])
-        labels.append(np.full(n, len(labels)))
-    hulls = shapely.convex_hull(shapely.multipoints(np.concatenate(points), indices=np.concatenate(labels)))
-    thin = shapely.area(hulls) <= 0
-    hulls[thin] = shapely.buffer(hulls[thin], min_width / 2, cap_style="square", join_style="mitre")
+        hulls.append(hull_2d(sample_surface(pt, n, rng)[:, :2], min_width))
     return shapely.union_all(hulls)
+
+
+def hull_2d(points: np.ndarray, min_width: float) -> shapely.Polygon:
+    """Convex hull of [N, 2] points as a polygon; a segment or point hull is widened to `min_width`."""
+    try:
+        poly = shapely.Polygon(points[ConvexHull(points).vertices])
+    except QhullError:  # all points on one line or at one point
+        poly = shapely.MultiPoint(points).convex_hull
+    if poly.area > 1e-6 * poly.length:
+        return poly
+    # thinner than a micrometre: a vertical panel seen from above becomes a strip along its longest chord
+    key = points[:, 0] + 1e-3 * points[:, 1]  # along the chord, whichever way it runs
+    a, b = points[np.argmin(key)], points[np.argmax(key)]
+    if np.allclose(a, b):
+        return shapely.Point(a).buffer(min_width / 2, cap_style="square")
+    return shapely.LineString([a, b]).buffer(min_width / 2, cap_style="flat")
 
 
 def footprint_reference(tris: np.ndarray, part: np.ndarray) -> BaseGeometry:
