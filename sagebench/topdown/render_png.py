@@ -1,5 +1,5 @@
 """topdown.png for people: categories coloured with a legend, outlines, dark walls, doors by state,
-the navigable floor tinted, and a scale bar. North (+y) is up."""
+the navigable floor tinted, and a scale bar. North (+y) is up; objects that do not block are faded."""
 
 from __future__ import annotations
 
@@ -57,6 +57,8 @@ def render_topdown(td: Topdown) -> bytes:
         else:
             colour = category_colour(inst.category_id)
             legend.setdefault(inst.category, colour)
+            if not inst.blocks:  # above or below the agent's band (a ceiling lamp, a rug): drawn faded
+                colour = tuple(int(round((a + b) / 2)) for a, b in zip(colour, FLOOR))
         lut[inst.instance_id] = colour
     img = lut[td.instance].astype(np.float32)
     floor_ids = np.array([i.instance_id for i in sem.instances if i.kind == "floor"], dtype=np.int64)
