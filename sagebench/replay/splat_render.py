@@ -77,6 +77,15 @@ def _project(means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, width, h
             continue
         px = r00 * mx + r01 * my + r02 * mz + t0
         py = r10 * mx + r11 * my + r12 * mz + t1
+        # cheap conservative cull of Gaussians whose 3-sigma extent cannot reach the image: the projected
+        # sigma is at most the largest scale times the Frobenius norm of the (clamped) Jacobian
+        u, v = fx * px / pz + cx, fy * py / pz + cy
+        smax = math.exp(max(log_scales[i, 0], log_scales[i, 1], log_scales[i, 2]))
+        rx, ry = min(abs(px / pz), limx), min(abs(py / pz), limy)
+        jnorm = math.sqrt(fx * fx * (1.0 + rx * rx) + fy * fy * (1.0 + ry * ry)) / pz
+        reach = 3.0 * math.sqrt(smax * smax * jnorm * jnorm + DILATION) + 1.0
+        if u + reach < 0.0 or u - reach > width or v + reach < 0.0 or v - reach > height:
+            continue
         # R S, with R from the normalised quaternion
         qw, qx, qy, qz = float(quats[i, 0]), float(quats[i, 1]), float(quats[i, 2]), float(quats[i, 3])
         qn = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
@@ -106,7 +115,6 @@ def _project(means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, width, h
             continue
         mid = 0.5 * (ca + cc)
         radius = math.ceil(3.0 * math.sqrt(mid + math.sqrt(max(0.1, mid * mid - det))))
-        u, v = fx * px / pz + cx, fy * py / pz + cy
         x0 = min(max(int(math.floor((u - radius) / TILE)), 0), gx)
         x1 = min(max(int(math.floor((u + radius) / TILE)) + 1, 0), gx)
         y0 = min(max(int(math.floor((v - radius) / TILE)), 0), gy)
