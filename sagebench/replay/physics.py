@@ -1,14 +1,19 @@
 """MuJoCo replay of commanded paths: a velocity-driven cylinder agent follows waypoints through the colliders.
 
 The agent (AgentConfig radius/height) sits on planar joints: slide-x and slide-y on a body that carries the
-cylinder, and a yaw hinge on a child body that carries only the drive site. Contacts therefore push the
-agent but never twist its heading, and the cylinder (symmetric about z) needs no yaw. Three velocity
-actuators act through the site: forward speed v and lateral speed (always commanded 0) along the heading,
-and turn rate omega. Their gains are deadbeat (kv = mass / dt with the Euler integrator: the commanded
-velocity is reached in one step) and the forward force is capped at what that takes, so a wall stops the
-agent instead of being tunnelled through; the lateral cap is a tenth of that, so a brushed corner pushes the
-agent aside. The cylinder spans floor + 0.05 m to floor + height (DESIGN's occupancy band) and every plane
-geom (the MJCF's ground) stops colliding, so floor contacts never happen. Contacts are frictionless.
+collision shape, and a yaw hinge on a child body that carries only the drive site. Contacts therefore push the
+agent but never twist its heading. The shape is a 32-sided prism circumscribing the cylinder (at most 1 mm
+wider): MuJoCo's polytope collision gives exact depths and the radial normal at a corner, while its
+cylinder-versus-mesh contacts report the box face's normal at vertical edges (the agent snags on every
+corner) and libccd's MPR over-states face depths several-fold. The prism spans floor + 0.05 m to
+floor + height (DESIGN's occupancy band); plane geoms (the MJCF's ground) and the bodies named as floors stop
+colliding, so floor contacts never happen. Contacts are frictionless.
+
+Three velocity actuators act through the site: forward speed v and lateral speed (always commanded 0) along
+the heading, and turn rate omega. Their gains are deadbeat (kv = mass / dt with the Euler integrator: the
+commanded velocity is reached in one step) and the forward force is capped at what that takes, so a wall
+stops the agent instead of being tunnelled through; the lateral cap is a tenth of that, so a brushed corner
+pushes the agent aside.
 
 Per step t (from pose t-1 to pose t) the record holds the command, the achieved motion, whether the
 agent touched anything at pose t-1 (contact sensor, deepest contact) and the collision intensity
@@ -42,6 +47,7 @@ AGENT_MASS = 20.0  # kg, translating body; only the ratio to the gains matters
 HEADING_MASS = 1.0  # kg
 HEADING_IZZ = 1.0  # kg m^2
 LATERAL_FORCE_FRACTION = 0.1  # of the forward force cap
+PRISM_SIDES = 32
 _CONTACT_DATA = 1 | 8  # contact sensor fields: found, dist (mjtConDataField bits)
 _REDUCE_MINDIST = 1
 
@@ -60,6 +66,8 @@ class ReplayConfig(BaseModel):
     yaw_tolerance: float = Field(default=1e-3, gt=0, description="A turn-in-place waypoint's yaw is reached this close, rad.")
     time_factor: float = Field(default=1.5, ge=1, description="Time limit = time_factor x ideal time + time_slack.")
     time_slack: float = Field(default=3.0, ge=0, description="Seconds added to the time limit.")
+    stall_time: float = Field(default=2.0, gt=0,
+                              description="The replay stops when the agent came no nearer its waypoint for this long, s.")
 
 
 @dataclass(frozen=True)
@@ -87,7 +95,9 @@ class ReplayRecord:
     contact      [T] bool        the agent touched a collider when the step began
     penetration  [T] float64     depth of the deepest such contact, m (0 without contact)
     intensity    [T] float64     collision intensity c(t) in [0, 1]
-    finished     bool            the controller reached the last waypoint (else the time limit ended it)
+    outcome      str             how it ended: 'reached' (the last waypoint), 'stalled' (no progress towards the
+                                 current waypoint for stall_time: something blocks it) or 'time_limit'
+    waypoint     int             the waypoint it was heading for at the end (len(path) - 1 when reached)
     """
 
     poses: np.ndarray
@@ -96,7 +106,8 @@ class ReplayRecord:
     contact: np.ndarray
     penetration: np.ndarray
     intensity: np.ndarray
-    finished: bool
+    outcome: str
+    waypoint: int
 
     @property
     def steps(self) -> int:
@@ -108,29 +119,35 @@ def build_replay_model(
     *,
     agent: AgentConfig = AgentConfig(),
     floor_z: float = 0.0,
+    floor_bodies: Sequence[str] = (),
     config: ReplayConfig = ReplayConfig(),
 ) -> ReplayModel:
-    """Add the agent to a scene (an MjSpec, left untouched, or a path to scene.xml) and compile it."""
+    """Add the agent to a scene (an MjSpec, left untouched, or a path to scene.xml) and compile it.
+
+    `floor_bodies` names bodies whose geoms are floor (slabs of kind floor) and must not collide.
+    """
     spec = mujoco.MjSpec.from_file(str(scene)) if isinstance(scene, str | Path) else scene.copy()
     dt = config.timestep
     spec.option.timestep = dt
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_EULER
     spec.option.gravity = [0.0, 0.0, 0.0]
-    # MuJoCo 4's native CCD reports a box face's normal when a cylinder meets a vertical edge, which snags
-    # the agent on every corner; libccd's MPR gives the radial normal, so a brushed corner deflects it.
-    spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_NATIVECCD
+    floors = set(floor_bodies)
+    missing = floors - {b.name for b in spec.bodies}
+    if missing:
+        raise ValueError(f"floor_bodies: no body named {sorted(missing)[0]!r} in the scene")
     for geom in spec.geoms:
-        if geom.type == mujoco.mjtGeom.mjGEOM_PLANE:
+        if geom.type == mujoco.mjtGeom.mjGEOM_PLANE or geom.parent.name in floors:
             geom.contype = 0
             geom.conaffinity = 0
+    spec.compiler.fusestatic = True  # the scene's jointless bodies join the world: a step takes a third of the time
 
     body = spec.worldbody.add_body(name=AGENT_BODY, pos=[0.0, 0.0, floor_z])
     body.mass, body.inertia, body.explicitinertial = AGENT_MASS, [1.0, 1.0, 1.0], True
     body.add_joint(name=f"{AGENT_BODY}_x", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[1, 0, 0])
     body.add_joint(name=f"{AGENT_BODY}_y", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 1, 0])
-    half = (agent.height - FLOOR_CLEARANCE) / 2
-    body.add_geom(name=AGENT_GEOM, type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[agent.radius, half, 0.0],
-                  pos=[0.0, 0.0, FLOOR_CLEARANCE + half], condim=1, priority=1, contype=1, conaffinity=1)
+    spec.add_mesh(name=AGENT_GEOM, uservert=agent_prism(agent.radius, FLOOR_CLEARANCE, agent.height).ravel().tolist())
+    body.add_geom(name=AGENT_GEOM, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=AGENT_GEOM, condim=1, priority=1,
+                  contype=1, conaffinity=1)
     heading = body.add_body(name=HEADING_BODY)
     heading.mass, heading.inertia, heading.explicitinertial = HEADING_MASS, [1.0, 1.0, HEADING_IZZ], True
     heading.add_joint(name=f"{AGENT_BODY}_yaw", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1])
@@ -152,6 +169,14 @@ def build_replay_model(
     qpos = tuple(int(model.jnt_qposadr[model.joint(f"{AGENT_BODY}_{n}").id]) for n in ("x", "y", "yaw"))
     sensor = int(model.sensor_adr[model.nsensor - 1])
     return ReplayModel(model=model, config=config, floor_z=float(floor_z), qpos=qpos, sensor=sensor)  # type: ignore[arg-type]
+
+
+def agent_prism(radius: float, z0: float, z1: float, sides: int = PRISM_SIDES) -> np.ndarray:
+    """[2 * sides, 3] vertices of a prism whose side faces touch the cylinder of `radius` (z0..z1, m)."""
+    r = radius / math.cos(math.pi / sides)
+    angle = (np.arange(sides) + 0.5) * 2 * math.pi / sides
+    ring = np.column_stack([r * np.cos(angle), r * np.sin(angle)])
+    return np.vstack([np.column_stack([ring, np.full(sides, z)]) for z in (z0, z1)])
 
 
 # ---------------------------------------------------------------- the path-following controller
@@ -206,18 +231,41 @@ def time_limit(path: np.ndarray, config: ReplayConfig) -> float:
     return config.time_factor * ideal + config.time_slack
 
 
-def _control(paths: _Paths, rows: np.ndarray, idx: np.ndarray, pose: np.ndarray, config: ReplayConfig
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """One controller tick for the paths `rows` [B] heading for waypoints `idx` [B] from poses [B, 3] (x, y, yaw).
+@dataclass
+class _Follow:
+    """The controller's memory per path [B]: target waypoint, nearest approach to it (distance m and heading
+    error rad) and the step of the last progress."""
+
+    idx: np.ndarray
+    best_dist: np.ndarray
+    best_err: np.ndarray
+    progress_step: np.ndarray
+
+    @classmethod
+    def start(cls, paths: Sequence[np.ndarray]) -> _Follow:
+        b = len(paths)
+        return cls(idx=np.array([min(1, len(p) - 1) for p in paths]), best_dist=np.full(b, np.inf),
+                   best_err=np.full(b, np.inf), progress_step=np.zeros(b, dtype=np.int64))
+
+
+REACHED, STALLED, TIME_LIMIT = 1, 2, 3
+OUTCOMES = {REACHED: "reached", STALLED: "stalled", TIME_LIMIT: "time_limit"}
+_PROGRESS_DIST = 0.01  # m nearer the waypoint, or
+_PROGRESS_ANGLE = 0.05  # rad nearer its heading, counts as progress
+
+
+def _control(paths: _Paths, rows: np.ndarray, follow: _Follow, pose: np.ndarray, step: int, config: ReplayConfig
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One controller tick for the paths `rows` [B] from poses [B, 3] (x, y, yaw); updates `follow` at `rows`.
 
     Turn-then-drive: a waypoint is reached within waypoint_tolerance (a turn command when its yaw is within
     yaw_tolerance too); the agent turns at up to max_turn_rate towards the next one and drives only while the
     heading error is below turn_in_place, at up to max_speed and never past the waypoint, so it traces the
-    polyline. Returns v [B] m/s, omega [B] rad/s, done [B] (last waypoint reached: stop) and the new idx [B].
+    polyline. Returns v [B] m/s, omega [B] rad/s and the outcome [B] (0 while running, else REACHED/STALLED).
     """
     dt = config.timestep
     xy, yaw = pose[:, :2], pose[:, 2]
-    idx = idx.copy()
+    idx = follow.idx[rows].copy()
     while True:
         target = paths.xy[rows, idx]
         dist = np.linalg.norm(target - xy, axis=1)
@@ -229,14 +277,24 @@ def _control(paths: _Paths, rows: np.ndarray, idx: np.ndarray, pose: np.ndarray,
         if not advance.any():
             break
         idx[advance] += 1
-    done = reached & last
     bearing = np.arctan2(target[:, 1] - xy[:, 1], target[:, 0] - xy[:, 0])
     err = np.where(turn, yaw_err, _wrap(bearing - yaw))
     omega = np.clip(err / dt, -config.max_turn_rate, config.max_turn_rate)
     drive = ~turn & (np.abs(err) <= config.turn_in_place)
     v = np.where(drive, np.minimum(config.max_speed, dist / dt) * np.cos(err), 0.0)
-    v[done], omega[done] = 0.0, 0.0
-    return v, omega, done, idx
+
+    new_target = idx != follow.idx[rows]
+    best_dist = np.where(new_target, np.inf, follow.best_dist[rows])
+    best_err = np.where(new_target, np.inf, follow.best_err[rows])
+    progress = new_target | (dist < best_dist - _PROGRESS_DIST) | (np.abs(err) < best_err - _PROGRESS_ANGLE)
+    follow.idx[rows] = idx
+    follow.best_dist[rows] = np.where(progress, dist, best_dist)
+    follow.best_err[rows] = np.where(progress, np.abs(err), best_err)
+    follow.progress_step[rows] = np.where(progress, step, follow.progress_step[rows])
+    stalled = (step - follow.progress_step[rows]) * dt >= config.stall_time
+    outcome = np.where(reached & last, REACHED, np.where(stalled, STALLED, 0))
+    v[outcome > 0], omega[outcome > 0] = 0.0, 0.0
+    return v, omega, outcome
 
 
 # ---------------------------------------------------------------- stepping
@@ -258,13 +316,8 @@ class _Log:
         self.sensor.append(np.array(sensor, dtype=np.float64))
 
 
-def _start(paths: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Start poses [B, 3] (x, y, yaw of row 0) and first target waypoints [B]."""
-    starts = np.array([[p[0, 0], p[0, 1], p[0, 3]] for p in paths], dtype=np.float64)
-    return starts, np.array([min(1, len(p) - 1) for p in paths])
-
-
-def _records(rm: ReplayModel, starts: np.ndarray, log: _Log, finished: np.ndarray) -> list[ReplayRecord]:
+def _records(rm: ReplayModel, starts: np.ndarray, log: _Log, outcome: np.ndarray, follow: _Follow
+             ) -> list[ReplayRecord]:
     """Group the log by path and derive achieved motion and collision intensity."""
     dt = rm.timestep
     rows = np.concatenate(log.rows) if log.rows else np.zeros(0, dtype=np.int64)
@@ -290,7 +343,8 @@ def _records(rm: ReplayModel, starts: np.ndarray, log: _Log, finished: np.ndarra
         achieved = np.vstack([np.zeros((1, 2)), np.column_stack([forward / dt, np.diff(pose[:, 2]) / dt])])
         poses = np.column_stack([pose[:, :2], np.full(n, rm.floor_z), _wrap(pose[:, 2])])
         out.append(ReplayRecord(poses=poses, command=command, achieved=achieved, contact=contact,
-                                penetration=penetration, intensity=intensity, finished=bool(finished[b])))
+                                penetration=penetration, intensity=intensity, outcome=OUTCOMES[int(outcome[b])],
+                                waypoint=int(follow.idx[b])))
     return out
 
 
@@ -305,16 +359,17 @@ def replay_one(rm: ReplayModel, path: np.ndarray) -> ReplayRecord:
     """
     paths = [_check_path(path, 0)]
     config, m = rm.config, rm.model
-    packed, (starts, idx), max_steps = _pack(paths, config), _start(paths), _max_steps(paths, config)[0]
+    packed, follow, max_steps = _pack(paths, config), _Follow.start(paths), _max_steps(paths, config)[0]
+    starts = np.array([[path[0, 0], path[0, 1], path[0, 3]]], dtype=np.float64)
     q = list(rm.qpos)
     d = mujoco.MjData(m)
     d.qpos[q] = starts[0]
     rows, log = np.zeros(1, dtype=np.int64), _Log()
-    finished = np.zeros(1, dtype=bool)
+    outcome = np.full(1, TIME_LIMIT)
     for step in range(max_steps + 1):
-        v, omega, done, idx = _control(packed, rows, idx, d.qpos[q][None], config)
-        if done[0]:
-            finished[0] = True
+        v, omega, ended = _control(packed, rows, follow, d.qpos[q][None], step, config)
+        if ended[0]:
+            outcome[0] = ended[0]
             break
         if step == max_steps:
             break
@@ -322,7 +377,7 @@ def replay_one(rm: ReplayModel, path: np.ndarray) -> ReplayRecord:
         d.qacc_warmstart[:] = 0.0
         mujoco.mj_step(m, d)
         log.add(rows, d.qpos[q][None], [[v[0], omega[0]]], d.sensordata[rm.sensor: rm.sensor + 2][None])
-    return _records(rm, starts, log, finished)[0]
+    return _records(rm, starts, log, outcome, follow)[0]
 
 
 def replay_batch(rm: ReplayModel, paths: Sequence[np.ndarray], *, threads: int = 2) -> list[ReplayRecord]:
@@ -334,7 +389,8 @@ def replay_batch(rm: ReplayModel, paths: Sequence[np.ndarray], *, threads: int =
     if not paths:
         return []
     config, m = rm.config, rm.model
-    packed, (starts, idx), max_steps = _pack(paths, config), _start(paths), _max_steps(paths, config)
+    packed, follow, max_steps = _pack(paths, config), _Follow.start(paths), _max_steps(paths, config)
+    starts = np.array([[p[0, 0], p[0, 1], p[0, 3]] for p in paths], dtype=np.float64)
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     qcols = mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_TIME) + np.array(rm.qpos)
     d = mujoco.MjData(m)
@@ -344,14 +400,14 @@ def replay_batch(rm: ReplayModel, paths: Sequence[np.ndarray], *, threads: int =
         mujoco.mj_getState(m, d, state[b], spec)
     datas = [mujoco.MjData(m) for _ in range(max(1, threads))]
     active = np.arange(len(paths))
-    finished = np.zeros(len(paths), dtype=bool)
+    outcome = np.full(len(paths), TIME_LIMIT)
     log = _Log()
     ctrl = np.zeros((len(paths), 1, m.nu))
     with rollout.Rollout(nthread=max(1, threads)) as pool:
         for step in range(int(max_steps.max()) + 1):
-            v, omega, done, idx[active] = _control(packed, active, idx[active], state[active][:, qcols], config)
-            finished[active[done]] = True
-            keep = ~done & (step < max_steps[active])
+            v, omega, ended = _control(packed, active, follow, state[active][:, qcols], step, config)
+            outcome[active[ended > 0]] = ended[ended > 0]
+            keep = (ended == 0) & (step < max_steps[active])
             active, v, omega = active[keep], v[keep], omega[keep]
             if not len(active):
                 break
@@ -362,4 +418,4 @@ def replay_batch(rm: ReplayModel, paths: Sequence[np.ndarray], *, threads: int =
             state[active] = out_state[:, 0]
             log.add(active, state[active][:, qcols], np.column_stack([v, omega]),
                     sensordata[:, 0, rm.sensor: rm.sensor + 2])
-    return _records(rm, starts, log, finished)
+    return _records(rm, starts, log, outcome, follow)

@@ -1,0 +1,95 @@
+"""The verdict on one replayed trajectory: metrics (CSR, ICP, PS, ...) and the reasons it fails, if any.
+
+Reasons (a trajectory passes when it has none):
+- `collision`: the agent touched a collider and either a contact was deeper than penetration_tolerance, or
+  contact pushed it more than deviation_tolerance off the commanded polyline, or contact stopped it short of
+  the end (the replay stalled or ran out of time more than deviation_tolerance from the last waypoint).
+  Brushes within the maps' precision (paths are planned on 0.05 m cells) move the agent a few centimetres
+  and pass.
+- `goal_not_reached`: the replay ended farther than goal_radius from the goal (SR = 0).
+- `left_corridor`: CSR below min_csr (the agent left the corridor around the reference path).
+- `incomplete`: the replay stopped short of the end without any contact (a controller limit, not a collider).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from sagebench.metrics import MetricConfig, score_episode
+from sagebench.metrics.polyline import distance_to_polyline, path_length
+from sagebench.replay.physics import ReplayRecord
+
+REASONS = ("collision", "goal_not_reached", "left_corridor", "incomplete")
+
+
+class CheckConfig(BaseModel):
+    """Tolerances of the verdict."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    penetration_tolerance: float = Field(
+        default=0.03, ge=0, description="Deepest contact allowed, m (half a 0.05 m map cell, plus 5 mm).")
+    deviation_tolerance: float = Field(
+        default=0.10, ge=0, description="How far contact may push the agent off the commanded polyline, m.")
+    min_csr: float = Field(default=1.0, ge=0, le=1, description="Lowest CSR that passes.")
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Metrics and failure reasons of one replayed trajectory (metres, seconds)."""
+
+    reasons: tuple[str, ...]
+    reached_goal: bool
+    collision_free: bool
+    final_distance: float  # NE
+    csr: float
+    icp: float
+    ps: float
+    ndtw: float
+    path_length: float  # replayed
+    reference_length: float
+    max_penetration: float
+    max_deviation: float  # farthest replayed pose from the commanded polyline
+    contact_steps: int
+    steps: int
+    duration: float
+    outcome: str
+
+    @property
+    def passed(self) -> bool:
+        return not self.reasons
+
+
+def judge(
+    record: ReplayRecord,
+    reference_path: np.ndarray,
+    goal: np.ndarray,
+    *,
+    goal_radius: float,
+    geodesic_distance: float,
+    timestep: float,
+    config: CheckConfig = CheckConfig(),
+    metrics: MetricConfig = MetricConfig(),
+) -> Verdict:
+    """Score a replay of `reference_path` [M, 4] against `goal` [>=2] and list what is wrong with it."""
+    ref = np.asarray(reference_path, dtype=np.float64)
+    scores = score_episode(record.poses, ref, goal, goal_radius=goal_radius, geodesic_distance=geodesic_distance,
+                           stopped=True, collision_intensity=record.intensity, config=metrics)
+    deviation = float(distance_to_polyline(record.poses, ref).max())
+    end_gap = float(np.linalg.norm(record.poses[-1, :2] - ref[-1, :2]))
+    touched = bool(record.contact.any())
+    short = record.outcome != "reached" and end_gap > config.deviation_tolerance
+    penetration = float(record.penetration.max())
+    collision = touched and (penetration > config.penetration_tolerance or deviation > config.deviation_tolerance
+                             or short)
+    reasons = [name for name, bad in (("collision", collision), ("goal_not_reached", scores.sr < 1.0),
+                                      ("left_corridor", scores.csr < config.min_csr),
+                                      ("incomplete", short and not touched)) if bad]
+    return Verdict(reasons=tuple(reasons), reached_goal=scores.sr >= 1.0, collision_free=not collision,
+                   final_distance=scores.ne, csr=scores.csr, icp=scores.icp, ps=scores.ps, ndtw=scores.ndtw,
+                   path_length=scores.path_length, reference_length=path_length(ref), max_penetration=penetration,
+                   max_deviation=deviation, contact_steps=int(record.contact.sum()), steps=record.steps,
+                   duration=record.steps * timestep, outcome=record.outcome)
