@@ -47,3 +47,25 @@ def demo_built_run(demo_scene_dir, tmp_path_factory) -> Path:
     run = tmp_path_factory.mktemp("demo_run")
     build_scene(demo_scene_dir, run)
     return run
+
+
+@pytest.fixture(scope="session")
+def room_mjcf() -> str:
+    """MJCF of a 6 x 6 m test room for the replay tests: a wall slab at x = 3 (x 2.95..3.05, 2.5 m tall),
+    a table x 1.1..1.9, y 0.1..0.9 (0.75 m), a floor slab body `floor_3` and the ground plane, all mesh
+    geoms in bodies named like export-usd's (`<category>_<instance_id>`)."""
+
+    def box(name: str, lo: tuple[float, float, float], hi: tuple[float, float, float]) -> str:
+        v = [(x, y, z) for z in (lo[2], hi[2]) for y in (lo[1], hi[1]) for x in (lo[0], hi[0])]
+        return f"<mesh name='{name}' vertex='{' '.join(f'{a} {b} {c}' for a, b, c in v)}'/>"
+
+    return f"""<mujoco model='room'>
+  <asset>{box('wall', (2.95, -3, 0), (3.05, 3, 2.5))}{box('table', (1.1, 0.1, 0), (1.9, 0.9, 0.75))}
+         {box('slab', (-3, -3, -0.1), (3, 3, 0.0))}</asset>
+  <worldbody>
+    <geom name='ground' type='plane' size='0 0 1'/>
+    <body name='wall_1'><geom name='wall_1_p000' type='mesh' mesh='wall'/></body>
+    <body name='table_2'><geom name='table_2_p000' type='mesh' mesh='table'/></body>
+    <body name='floor_3'><geom name='floor_3_p000' type='mesh' mesh='slab'/></body>
+  </worldbody>
+</mujoco>"""

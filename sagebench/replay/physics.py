@@ -60,7 +60,7 @@ class ReplayConfig(BaseModel):
     timestep: float = Field(default=0.05, gt=0, le=0.2, description="Physics and control step, s.")
     max_speed: float = Field(default=0.8, gt=0, description="Forward speed limit, m/s.")
     max_turn_rate: float = Field(default=1.5, gt=0, description="Turn-rate limit, rad/s.")
-    turn_in_place: float = Field(default=0.2, gt=0, lt=math.pi / 2,
+    turn_in_place: float = Field(default=0.1, gt=0, lt=math.pi / 2,
                                  description="Heading error above which the agent turns without driving, rad.")
     waypoint_tolerance: float = Field(default=0.02, gt=0, description="A waypoint counts as reached this close, m.")
     yaw_tolerance: float = Field(default=1e-3, gt=0, description="A turn-in-place waypoint's yaw is reached this close, rad.")
