@@ -16,19 +16,19 @@ def grid_graph(navigable: np.ndarray) -> coo_matrix:
     """Sparse [H*W, H*W] adjacency in cells: 1 for a straight step, sqrt(2) for a diagonal with both sides free."""
     nav = np.asarray(navigable).astype(bool)
     h, w = nav.shape
+    idx = np.arange(h * w).reshape(h, w)
     rows, cols, vals = [], [], []
     for dr, dc in ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)):
-        for r in range(h):
-            for c in range(w):
-                nr, nc = r + dr, c + dc
-                if not (nav[r, c] and 0 <= nr < h and 0 <= nc < w and nav[nr, nc]):
-                    continue
-                if dr and dc and not (nav[r, nc] and nav[nr, c]):
-                    continue
-                rows.append(r * w + c)
-                cols.append(nr * w + nc)
-                vals.append(math.sqrt(2.0) if dr and dc else 1.0)
-    return coo_matrix((vals, (rows, cols)), shape=(h * w, h * w))
+        # every cell (r, c) whose neighbour (r + dr, c + dc) lies inside the grid
+        src = (slice(max(-dr, 0), h - max(dr, 0)), slice(max(-dc, 0), w - max(dc, 0)))
+        dst = (slice(max(dr, 0), h + min(dr, 0)), slice(max(dc, 0), w + min(dc, 0)))
+        ok = nav[src] & nav[dst]
+        if dr and dc:  # no corner cutting: both orthogonal neighbours (r + dr, c) and (r, c + dc) free
+            ok &= nav[dst[0], src[1]] & nav[src[0], dst[1]]
+        rows.append(idx[src][ok])
+        cols.append(idx[dst][ok])
+        vals.append(np.full(int(ok.sum()), math.sqrt(2.0) if dr and dc else 1.0))
+    return coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(h * w, h * w))
 
 
 def dijkstra_costs(navigable: np.ndarray, start: tuple[int, int], resolution: float) -> np.ndarray:
