@@ -25,8 +25,22 @@ def grid_and_endpoints(draw):
     return nav, start, goal
 
 
+@st.composite
+def rooms_and_endpoints(draw):
+    """Open floors with rectangular obstacles: long straight and diagonal runs, where jump points matter."""
+    h, w = draw(st.integers(8, 48)), draw(st.integers(8, 48))
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    nav = np.ones((h, w), dtype=np.uint8)
+    for _ in range(draw(st.integers(0, 12))):
+        r, c = rng.integers(0, h), rng.integers(0, w)
+        nav[r:r + rng.integers(1, h // 2 + 1), c:c + rng.integers(1, w // 2 + 1)] = 0
+    start = (draw(st.integers(0, h - 1)), draw(st.integers(0, w - 1)))
+    goal = (draw(st.integers(0, h - 1)), draw(st.integers(0, w - 1)))
+    return nav, start, goal
+
+
 @settings(max_examples=300, deadline=None)
-@given(grid_and_endpoints())
+@given(st.one_of(grid_and_endpoints(), rooms_and_endpoints()))
 def test_cost_equals_dijkstra_and_no_path_exactly_when_dijkstra_has_none(case):
     nav, start, goal = case
     got = astar(nav, start, goal, RES)
@@ -37,7 +51,7 @@ def test_cost_equals_dijkstra_and_no_path_exactly_when_dijkstra_has_none(case):
 
 
 @settings(max_examples=300, deadline=None)
-@given(grid_and_endpoints())
+@given(st.one_of(grid_and_endpoints(), rooms_and_endpoints()))
 def test_path_is_legal_moves_on_navigable_cells(case):
     nav, start, goal = case
     got = astar(nav, start, goal, RES)
