@@ -122,12 +122,15 @@ def build_scene_cmd(
 def gen_trajectories_cmd(
     run_dir: Annotated[Path, typer.Argument(help="Run directory that build-scene wrote (RUN/scenes/<id>/).")],
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene id (default: every scene).")] = None,
-    per_scene: Annotated[int | None, typer.Option(help="Distinct trajectories per scene [default: 200].")] = None,
-    seed: Annotated[int | None, typer.Option(help="Seed of sampling and wording [default: 0].")] = None,
-    shard_size: Annotated[int | None, typer.Option(help="Episode rows per Parquet shard [default: 1000].")] = None,
+    per_scene: Annotated[int | None, typer.Option(help="Distinct trajectories per scene (default 200).")] = None,
+    seed: Annotated[int | None, typer.Option(help="Seed of sampling and wording (default 0).")] = None,
+    shard_size: Annotated[int | None, typer.Option(help="Episode rows per Parquet shard (default 1000).")] = None,
     instructions: Annotated[
-        str | None, typer.Option(help="template: Base_Action + Single_Goal rows; none: bare trajectories [default: template].")
+        str | None, typer.Option(help="template: Base_Action + Single_Goal rows; none: bare trajectories (default template).")
     ] = None,
+    min_geodesic: Annotated[float | None, typer.Option(help="Shortest accepted path, m (default 2).")] = None,
+    max_geodesic: Annotated[float | None, typer.Option(help="Longest accepted path, m (default 20).")] = None,
+    goal_radius: Annotated[float | None, typer.Option(help="Success radius written with each episode, m (default 1).")] = None,
 ) -> None:
     """Sample A* trajectories between objects and rooms and write them with low-level instructions.
 
@@ -136,7 +139,8 @@ def gen_trajectories_cmd(
     """
     from sagebench.stages.gen_trajectories import gen_trajectories, make_config
 
-    config = make_config(per_scene=per_scene, seed=seed, shard_size=shard_size, instructions=instructions)
+    config = make_config(per_scene=per_scene, seed=seed, shard_size=shard_size, instructions=instructions,
+                         min_geodesic_m=min_geodesic, max_geodesic_m=max_geodesic, goal_radius_m=goal_radius)
     for result in gen_trajectories(run_dir, config, scene_id=scene):
         typer.echo(result.summary())
 

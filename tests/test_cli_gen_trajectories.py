@@ -81,12 +81,14 @@ def test_same_seed_gives_byte_identical_shards(run_cli, generated, tmp_path):
 def test_options_shard_size_per_scene_seed_and_none(run_cli, demo_built_run, tmp_path):
     run = _run_dir(demo_built_run, tmp_path)
     code, out, _ = run_cli("gen-trajectories", run, "--scene", SCENE, "--per-scene", "25", "--shard-size", "20",
-                           "--seed", "3", "--instructions", "none")
+                           "--seed", "3", "--instructions", "none", "--min-geodesic", "4", "--max-geodesic", "9",
+                           "--goal-radius", "0.5")
     assert code == 0
     shards = sorted((run / "episodes" / SCENE).glob("part-*.parquet"))
     assert [pq.read_metadata(p).num_rows for p in shards] == [20, 5]
     rows = read_episodes(run / "episodes" / SCENE).to_pylist()
     assert {r["instruction_text"] for r in rows} == {None} and {r["seed"] for r in rows} == {3}
+    assert {r["goal_radius"] for r in rows} == {0.5} and all(4 <= r["geodesic_distance"] <= 9 for r in rows)
 
 
 def test_asking_for_more_than_the_scene_allows_warns_with_the_reason(run_cli, demo_built_run, tmp_path):
@@ -101,6 +103,8 @@ def test_asking_for_more_than_the_scene_allows_warns_with_the_reason(run_cli, de
     (["--per-scene", "0"], "error: --per-scene: Input should be greater than or equal to 1"),
     (["--instructions", "llm"], "error: --instructions: Input should be 'template' or 'none'"),
     (["--scene", "nope"], "error: --scene: no scene 'nope' in"),
+    (["--goal-radius", "0"], "error: --goal-radius: Input should be greater than 0"),
+    (["--min-geodesic", "25"], "error: min_geodesic_m (25.0) must be below max_geodesic_m (20.0)"),
 ])
 def test_bad_options_exit_2_and_write_nothing(run_cli, demo_built_run, tmp_path, args, fragment):
     run = _run_dir(demo_built_run, tmp_path)

@@ -23,7 +23,7 @@ from typing import Literal
 
 import cv2
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy import ndimage
 from shapely.geometry import MultiPolygon, Polygon
 
@@ -48,6 +48,14 @@ class SamplingConfig(BaseModel):
     pair_mix: dict[PairKind, float] = Field(
         default={"object-object": 0.6, "object-room": 0.15, "room-object": 0.15, "room-room": 0.1},
         description="Relative share of each (start kind)-(goal kind) pair.")
+
+    @model_validator(mode="after")
+    def _range(self) -> SamplingConfig:
+        if self.min_geodesic_m >= self.max_geodesic_m:
+            raise ValueError(f"min_geodesic_m ({self.min_geodesic_m}) must be below max_geodesic_m ({self.max_geodesic_m})")
+        if not any(v > 0 for v in self.pair_mix.values()) or any(v < 0 for v in self.pair_mix.values()):
+            raise ValueError("pair_mix needs non-negative shares, at least one positive")
+        return self
 
 
 @dataclass(frozen=True)

@@ -51,7 +51,8 @@ def make_config(**fields: object) -> GenTrajectoriesConfig:
         return GenTrajectoriesConfig.model_validate({k: v for k, v in fields.items() if v is not None})
     except ValidationError as err:
         e = err.errors(include_url=False)[0]
-        option = "--" + "-".join(str(p) for p in e["loc"][:1]).replace("_", "-") if e["loc"] else None
+        name = str(e["loc"][0]) if e["loc"] else None
+        option = None if name is None else "--" + name.removesuffix("_m").replace("_", "-")
         raise ConfigError(e["msg"].removeprefix("Value error, "), field=option) from None
 
 
