@@ -135,7 +135,8 @@ def gen_trajectories_cmd(
     """Sample A* trajectories between objects and rooms and write them with low-level instructions.
 
     Reads RUN_DIR/scenes/<id>/topdown.npz, semantic_map.json and scene.json. Writes
-    RUN_DIR/episodes/<id>/part-NNNNN.parquet (one row per trajectory-instruction pair) and paths.png.
+    RUN_DIR/episodes/<id>/part-NNNNN.parquet (one row per trajectory-instruction pair) and
+    RUN_DIR/episodes/<id>/_preview/paths.png.
     """
     from sagebench.stages.gen_trajectories import gen_trajectories, make_config
 

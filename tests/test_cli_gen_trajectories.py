@@ -19,6 +19,10 @@ def _run_dir(demo_built_run: Path, dest: Path) -> Path:
     return dest
 
 
+def _files(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
 @pytest.fixture(scope="module")
 def generated(demo_built_run, tmp_path_factory):
     """The default command's output (module scope: run once, read by several tests)."""
@@ -43,7 +47,8 @@ def test_default_run_writes_200_trajectories_with_both_low_level_instructions(ge
     assert len({r["episode_id"] for r in rows}) == 400
     assert {r["instruction_level"] for r in rows} == {"low"} and {r["instruction_source"] for r in rows} == {"template"}
     assert {r["goal_radius"] for r in rows} == {1.0} and {r["seed"] for r in rows} == {0}
-    assert (generated / "episodes" / SCENE / "paths.png").stat().st_size > 1000
+    assert (generated / "episodes" / SCENE / "_preview" / "paths.png").stat().st_size > 1000
+    assert pq.read_table(generated / "episodes" / SCENE).num_rows == 400  # the directory reads as one dataset
 
 
 def test_every_episode_starts_and_ends_on_navigable_cells_in_range(generated):
@@ -72,10 +77,7 @@ def test_same_seed_gives_byte_identical_shards(run_cli, generated, tmp_path):
     run = _run_dir(generated, tmp_path)
     code, out, _ = run_cli("gen-trajectories", run, "--seed", "0")
     assert code == 0 and "200 trajectories, 400 episode rows" in out
-    a = sorted((generated / "episodes" / SCENE).iterdir())
-    b = sorted((run / "episodes" / SCENE).iterdir())
-    assert [p.name for p in a] == [p.name for p in b]
-    assert [p.read_bytes() for p in a] == [p.read_bytes() for p in b]
+    assert _files(generated / "episodes" / SCENE) == _files(run / "episodes" / SCENE)
 
 
 def test_options_shard_size_per_scene_seed_and_none(run_cli, demo_built_run, tmp_path):
@@ -121,11 +123,11 @@ def test_missing_build_scene_output_exits_2(run_cli, tmp_path):
 def test_corrupt_topdown_map_exits_2_and_keeps_earlier_episodes(run_cli, demo_built_run, tmp_path):
     run = _run_dir(demo_built_run, tmp_path)
     assert run_cli("gen-trajectories", run, "--per-scene", "3")[0] == 0
-    before = {p.name: p.read_bytes() for p in (run / "episodes" / SCENE).iterdir()}
+    before = _files(run / "episodes" / SCENE)
     npz = run / "scenes" / SCENE / "topdown.npz"
     with np.load(npz) as data:
         arrays = {k: data[k] for k in data.files if k != "navigable"}
     np.savez(npz, **arrays)
     code, _, err = run_cli("gen-trajectories", run)
     assert code == 2 and f"error: {npz}: navigable: array missing" in err
-    assert {p.name: p.read_bytes() for p in (run / "episodes" / SCENE).iterdir()} == before
+    assert _files(run / "episodes" / SCENE) == before

@@ -1,7 +1,8 @@
 """`gen-trajectories`: A* episodes with low-level instructions, from build-scene's maps to Parquet shards.
 
 Reads RUN/scenes/<scene_id>/{topdown.npz, semantic_map.json, scene.json}; writes
-RUN/episodes/<scene_id>/part-NNNNN.parquet and paths.png, replacing the directory whole.
+RUN/episodes/<scene_id>/part-NNNNN.parquet and _preview/paths.png, replacing the directory whole. The
+preview sits in a "_" folder so that the directory reads as one Parquet dataset (pyarrow skips "_" names).
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from sagebench.topdown.semantic_map import SemanticMap
 
 TOPDOWN_FILE = "topdown.npz"
 SEMANTIC_FILE = "semantic_map.json"
+PREVIEW = Path("_preview") / "paths.png"  # inside episodes/<scene_id>/
 TARGET_KINDS = ("object", "door")  # what a trajectory may start or end at, besides rooms
 
 
@@ -90,7 +92,7 @@ def gen_trajectories(run_dir: Path, config: GenTrajectoriesConfig, *, scene_id: 
 
 
 def generate_scene(scene_dir: Path, out_dir: Path, config: GenTrajectoriesConfig) -> SceneEpisodes:
-    """One scene: read its maps, sample trajectories, write shards and paths.png into `out_dir` (replaced)."""
+    """One scene: read its maps, sample trajectories, write shards and the paths preview into `out_dir` (replaced)."""
     spec, smap, grid, occupancy = read_scene_inputs(scene_dir)
     targets, names = scene_targets(spec, smap)
     result = sample_trajectories(grid, targets, spec.scene_id, config)
@@ -100,7 +102,7 @@ def generate_scene(scene_dir: Path, out_dir: Path, config: GenTrajectoriesConfig
         shards = write_shards(rows, tmp, config.shard_size)
         png = render_paths(grid.navigable, occupancy, [t.waypoints for t in result.trajectories[:config.preview_paths]],
                            grid.resolution, grid.origin)
-        write_bytes(tmp / "paths.png", png)
+        write_bytes(tmp / PREVIEW, png)
     return SceneEpisodes(spec.scene_id, out_dir, len(result.trajectories), len(rows),
                          [out_dir / p.name for p in shards])
 
