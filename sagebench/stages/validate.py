@@ -1,0 +1,338 @@
+"""`validate`: replay every trajectory of a run in MuJoCo, score it, and spot-check appearance against physics.
+
+Reads RUN/scenes/<id>/{scene.json, scene.xml, colliders/, gaussians.ply} and RUN/episodes/<id>/part-*.parquet.
+Writes RUN/validation/<id>/ whole: part-00000.parquet (one row per trajectory), report.json (counts, failures
+by reason, metric distributions, alignment per frame), frames/*.png and frames/contact_sheet.png.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import mujoco
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from sagebench import ui
+from sagebench.config import AgentConfig
+from sagebench.errors import ConfigError, DataError
+from sagebench.fileio import dumps_json, staged_dir, write_bytes, write_text
+from sagebench.replay.physics import AGENT_BODY, ReplayConfig, ReplayRecord, build_replay_model, replay_batch
+from sagebench.scene.loader import SCENE_FILE, parse_spec
+from sagebench.validation.checks import REASONS, CheckConfig, Verdict, judge
+
+MJCF_FILE = "scene.xml"
+GAUSSIANS_FILE = "gaussians.ply"
+SHARD = "part-00000.parquet"
+REPORT = "report.json"
+FRAMES = "frames"
+CONTACT_SHEET = "contact_sheet.png"
+FRAME_POINTS = ("start", "middle", "goal")
+METRICS = ("csr", "icp", "ps", "ndtw", "final_distance", "path_length", "max_penetration", "max_deviation", "steps")
+
+
+class ValidateConfig(BaseModel):
+    """Settings of validate (defaults here, nowhere else); the CLI maps its options onto these fields."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    agent: AgentConfig = AgentConfig()
+    replay: ReplayConfig = ReplayConfig()
+    checks: CheckConfig = CheckConfig()
+    frames_per_scene: int = Field(default=3, ge=0, description="Trajectories per scene with spot-check frames.")
+    depth_tolerance: float = Field(default=0.10, gt=0, description="Largest median |splat - collider depth| per frame, m.")
+    frame_width: int = Field(default=320, ge=8, le=4096, description="Spot-check frame width, px.")
+    frame_height: int = Field(default=240, ge=8, le=4096, description="Spot-check frame height, px.")
+    ray_stride: int = Field(default=8, ge=1, description="Collider rays are cast every this many pixels.")
+    min_alpha: float = Field(default=0.5, gt=0, le=1, description="Splat pixels this opaque are compared.")
+    workers: int = Field(default=2, ge=1, description="Threads stepping the MuJoCo replays.")
+    seed: int = Field(default=0, description="Picks the spot-checked trajectories.")
+
+
+_OPTIONS = {"frames_per_scene": "--frames-per-scene", "depth_tolerance": "--depth-tolerance", "workers": "--workers"}
+
+
+def make_config(**fields: object) -> ValidateConfig:
+    """A ValidateConfig from the options given (None = keep the default); a bad value is a ConfigError."""
+    try:
+        return ValidateConfig.model_validate({k: v for k, v in fields.items() if v is not None})
+    except ValidationError as err:
+        e = err.errors(include_url=False)[0]
+        loc = ".".join(str(p) for p in e["loc"])
+        raise ConfigError(e["msg"].removeprefix("Value error, "), field=_OPTIONS.get(loc, loc) or None) from None
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """One trajectory of the episodes table (its rows share path and goal)."""
+
+    trajectory_id: str
+    episode_ids: tuple[str, ...]
+    reference_path: np.ndarray  # [M, 4] x, y, z, yaw
+    goal: np.ndarray  # [3]
+    goal_radius: float
+    geodesic_distance: float
+
+
+@dataclass(frozen=True)
+class FrameCheck:
+    file: str
+    trajectory_id: str
+    point: str  # start / middle / goal
+    median_abs_diff: float  # m; NaN when no pixel could be compared
+    compared: int
+
+
+@dataclass(frozen=True)
+class SceneValidation:
+    scene_id: str
+    out_dir: Path
+    trajectories: int
+    episodes: int
+    failures: list[tuple[str, tuple[str, ...]]]  # (trajectory_id, reasons)
+    frames: list[FrameCheck]
+    alignment_ok: bool
+    seconds: float
+
+    @property
+    def passed(self) -> bool:
+        return not self.failures and self.alignment_ok
+
+    def summary(self) -> str:
+        worst = max((f.median_abs_diff for f in self.frames if np.isfinite(f.median_abs_diff)), default=float("nan"))
+        rate = self.trajectories / self.seconds if self.seconds > 0 else float("inf")
+        return (f"validate {self.scene_id}: {self.trajectories - len(self.failures)}/{self.trajectories} trajectories "
+                f"pass ({self.episodes} episodes, {rate:.0f} replays/s); alignment "
+                f"{'ok' if self.alignment_ok else 'FAILED'} on {len(self.frames)} frames (worst median "
+                f"{worst:.3f} m) -> {self.out_dir}")
+
+
+def scene_ids(run_dir: Path, scene_id: str | None) -> list[str]:
+    """The scenes to validate: `scene_id`, or every scene with episodes (sorted)."""
+    episodes = Path(run_dir) / "episodes"
+    if scene_id is not None:
+        if not (episodes / scene_id).is_dir():
+            raise DataError(f"no episodes for scene {scene_id!r} (run gen-trajectories first)", path=episodes)
+        return [scene_id]
+    found = sorted(p.name for p in episodes.glob("*") if p.is_dir() and any(p.glob("part-*.parquet")))
+    if not found:
+        raise DataError("no episodes/<scene_id>/part-*.parquet in this run directory (run gen-trajectories first)",
+                        path=run_dir)
+    return found
+
+
+def validate_run(run_dir: Path, config: ValidateConfig = ValidateConfig(), *, scene_id: str | None = None
+                 ) -> list[SceneValidation]:
+    """Validate every scene of the run (or `scene_id`); inputs are checked for all scenes before any write."""
+    run_dir = Path(run_dir)
+    ids = scene_ids(run_dir, scene_id)
+    for sid in ids:
+        _require_inputs(run_dir, sid)
+    return [validate_scene(run_dir, sid, config) for sid in ids]
+
+
+def _require_inputs(run_dir: Path, scene_id: str) -> None:
+    scene_dir = run_dir / "scenes" / scene_id
+    for name, stage in ((SCENE_FILE, "build-scene"), (GAUSSIANS_FILE, "build-scene"), (MJCF_FILE, "export-usd")):
+        if not (scene_dir / name).is_file():
+            raise DataError(f"missing; run `sagebench {stage}` on this run first", path=scene_dir / name)
+
+
+def read_trajectories(episodes_dir: Path) -> list[Trajectory]:
+    """The episodes table grouped by trajectory_id (sorted), with the episode ids of each."""
+    from sagebench.episodes.shards import read_episodes
+
+    try:
+        table = read_episodes(episodes_dir)
+    except (OSError, pa.ArrowException) as err:
+        raise DataError(f"cannot read episode shards: {err}", path=episodes_dir) from None
+    rows: dict[str, list[dict]] = {}
+    for row in table.select(["episode_id", "trajectory_id", "reference_path", "goal_position", "goal_radius",
+                             "geodesic_distance"]).to_pylist():
+        rows.setdefault(row["trajectory_id"], []).append(row)
+    out = []
+    for tid in sorted(rows):
+        first = rows[tid][0]
+        path = np.asarray(first["reference_path"], dtype=np.float64).reshape(-1, 4)
+        if len(path) == 0:
+            raise DataError(f"trajectory {tid}: empty path", path=episodes_dir, field="reference_path")
+        out.append(Trajectory(tid, tuple(sorted(r["episode_id"] for r in rows[tid])), path,
+                              np.asarray(first["goal_position"], dtype=np.float64), float(first["goal_radius"]),
+                              float(first["geodesic_distance"])))
+    return out
+
+
+def floor_body_names(scene_dir: Path) -> list[str]:
+    """MJCF bodies of the scene's floor objects (export-usd names bodies `<category>_<instance_id>`)."""
+    from pxr import Tf
+
+    spec_path = scene_dir / SCENE_FILE
+    spec = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)
+    return [Tf.MakeValidIdentifier(f"{o.category}_{o.instance_id}") for o in spec.objects if o.kind == "floor"]
+
+
+def validate_scene(run_dir: Path, scene_id: str, config: ValidateConfig) -> SceneValidation:
+    """Replay, judge and spot-check one scene; writes RUN/validation/<scene_id>/ whole."""
+    import time
+
+    scene_dir = Path(run_dir) / "scenes" / scene_id
+    spec_path = scene_dir / SCENE_FILE
+    floor_z = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path).floor_height
+    trajectories = read_trajectories(Path(run_dir) / "episodes" / scene_id)
+    mjspec = mujoco.MjSpec.from_file(str(scene_dir / MJCF_FILE))
+    present = {b.name for b in mjspec.bodies}
+    rm = build_replay_model(mjspec, agent=config.agent, floor_z=floor_z, config=config.replay,
+                            floor_bodies=[n for n in floor_body_names(scene_dir) if n in present])
+    start = time.perf_counter()
+    records = replay_batch(rm, [t.reference_path for t in trajectories], threads=config.workers)
+    verdicts = [judge(rec, t.reference_path, t.goal, goal_radius=t.goal_radius,
+                      geodesic_distance=t.geodesic_distance, timestep=rm.timestep, config=config.checks)
+                for rec, t in zip(records, trajectories)]
+    seconds = time.perf_counter() - start
+    picks = _pick(len(trajectories), config)
+    out_dir = Path(run_dir) / "validation" / scene_id
+    with staged_dir(out_dir) as tmp:
+        frames = _spot_checks(scene_dir, rm, [(trajectories[i], records[i]) for i in picks], tmp / FRAMES, config)
+        alignment_ok = all(not (f.median_abs_diff > config.depth_tolerance) for f in frames)
+        write_bytes(tmp / SHARD, _table_bytes(scene_id, trajectories, verdicts))
+        write_text(tmp / REPORT, dumps_json(_report(scene_id, trajectories, verdicts, frames, alignment_ok, config)))
+    failures = [(t.trajectory_id, v.reasons) for t, v in zip(trajectories, verdicts) if v.reasons]
+    return SceneValidation(scene_id=scene_id, out_dir=out_dir, trajectories=len(trajectories),
+                           episodes=sum(len(t.episode_ids) for t in trajectories), failures=failures,
+                           frames=frames, alignment_ok=alignment_ok, seconds=seconds)
+
+
+def _pick(n: int, config: ValidateConfig) -> list[int]:
+    k = min(n, config.frames_per_scene)
+    return sorted(np.random.default_rng(config.seed).choice(n, size=k, replace=False).tolist()) if k else []
+
+
+# ---------------------------------------------------------------- outputs
+
+
+def _table_bytes(scene_id: str, trajectories: list[Trajectory], verdicts: list[Verdict]) -> bytes:
+    rows = [{"scene_id": scene_id, "trajectory_id": t.trajectory_id, "episode_ids": list(t.episode_ids),
+             "passed": v.passed, "reasons": list(v.reasons), "reached_goal": v.reached_goal,
+             "collision_free": v.collision_free, "final_distance": v.final_distance, "csr": v.csr, "icp": v.icp,
+             "ps": v.ps, "ndtw": v.ndtw, "path_length": v.path_length, "reference_length": v.reference_length,
+             "max_penetration": v.max_penetration, "max_deviation": v.max_deviation,
+             "contact_steps": v.contact_steps, "steps": v.steps, "duration_s": v.duration, "outcome": v.outcome}
+            for t, v in zip(trajectories, verdicts)]
+    table = pa.Table.from_pylist(rows, schema=VALIDATION_SCHEMA)
+    sink = io.BytesIO()
+    pq.write_table(table, sink, compression="zstd", store_schema=True)
+    return sink.getvalue()
+
+
+VALIDATION_SCHEMA = pa.schema([
+    ("scene_id", pa.string()), ("trajectory_id", pa.string()), ("episode_ids", pa.list_(pa.string())),
+    ("passed", pa.bool_()), ("reasons", pa.list_(pa.string())), ("reached_goal", pa.bool_()),
+    ("collision_free", pa.bool_()), ("final_distance", pa.float64()), ("csr", pa.float64()), ("icp", pa.float64()),
+    ("ps", pa.float64()), ("ndtw", pa.float64()), ("path_length", pa.float64()), ("reference_length", pa.float64()),
+    ("max_penetration", pa.float64()), ("max_deviation", pa.float64()), ("contact_steps", pa.int64()),
+    ("steps", pa.int64()), ("duration_s", pa.float64()), ("outcome", pa.string()),
+])
+
+
+def _distribution(values: np.ndarray) -> dict[str, float]:
+    if not len(values):
+        return {}
+    q = np.percentile(values, [0, 5, 50, 95, 100])
+    return {"mean": _r(values.mean()), "min": _r(q[0]), "p05": _r(q[1]), "p50": _r(q[2]), "p95": _r(q[3]),
+            "max": _r(q[4])}
+
+
+def _r(x: float) -> float | None:
+    return round(float(x), 6) if np.isfinite(x) else None
+
+
+def _report(scene_id: str, trajectories: list[Trajectory], verdicts: list[Verdict], frames: list[FrameCheck],
+            alignment_ok: bool, config: ValidateConfig) -> dict:
+    failed = [(t, v) for t, v in zip(trajectories, verdicts) if v.reasons]
+    return {
+        "scene_id": scene_id,
+        "trajectories": len(trajectories),
+        "episodes": sum(len(t.episode_ids) for t in trajectories),
+        "passed": len(trajectories) - len(failed),
+        "failed": len(failed),
+        "failures_by_reason": {r: sum(r in v.reasons for _, v in failed) for r in REASONS},
+        "failures": [{"trajectory_id": t.trajectory_id, "episode_ids": list(t.episode_ids), "reasons": list(v.reasons)}
+                     for t, v in failed],
+        "metrics": {m: _distribution(np.array([getattr(v, m) for v in verdicts], dtype=np.float64)) for m in METRICS},
+        "alignment": {"ok": alignment_ok, "depth_tolerance": config.depth_tolerance,
+                      "frames": [{"file": f.file, "trajectory_id": f.trajectory_id, "point": f.point,
+                                  "median_abs_diff": _r(f.median_abs_diff), "compared_pixels": f.compared}
+                                 for f in frames]},
+        "config": config.model_dump(mode="json"),
+    }
+
+
+# ---------------------------------------------------------------- spot-check frames
+
+
+def _spot_checks(scene_dir: Path, rm, picks: list[tuple[Trajectory, ReplayRecord]], frames_dir: Path,
+                 config: ValidateConfig) -> list[FrameCheck]:
+    """Render start/middle/goal of each picked replay, compare its depth with the colliders, write PNGs."""
+    if not picks:
+        return []
+    from sagebench.replay.alignment import collider_depth, compare_depth, pixel_grid
+    from sagebench.replay.camera import agent_camera
+    from sagebench.replay.splat_render import render
+    from sagebench.splats.ply import read_ply
+
+    gaussians = read_ply(scene_dir / GAUSSIANS_FILE)
+    data = mujoco.MjData(rm.model)
+    mujoco.mj_kinematics(rm.model, data)
+    agent_body = rm.model.body(AGENT_BODY).id
+    checks, rows = [], []
+    for traj, rec in ui.track(picks, "spot-check frames"):
+        tiles = []
+        for point, k in zip(FRAME_POINTS, (0, len(rec.poses) // 2, len(rec.poses) - 1)):
+            x, y, _, yaw = rec.poses[k]
+            cam = agent_camera(x, y, yaw, floor_z=rm.floor_z, camera_height=config.agent.camera_height,
+                               hfov_deg=config.agent.hfov_deg, width=config.frame_width, height=config.frame_height)
+            frame = render(gaussians, cam)
+            grid = pixel_grid(cam, config.ray_stride)
+            a = compare_depth(frame.depth, frame.alpha, grid,
+                              collider_depth(rm.model, data, cam, grid, bodyexclude=agent_body),
+                              min_alpha=config.min_alpha)
+            rgb, ids = _rgb8(frame.rgb), _id_colours(frame.instance)
+            name = f"{traj.trajectory_id}_{point}"
+            write_bytes(frames_dir / f"{name}.png", _png(rgb))
+            write_bytes(frames_dir / f"{name}_ids.png", _png(ids))
+            checks.append(FrameCheck(f"{FRAMES}/{name}.png", traj.trajectory_id, point, a.median_abs_diff, a.compared))
+            tiles += [_label(rgb, f"{point}  d={a.median_abs_diff:.3f} m"), _label(ids, traj.trajectory_id)]
+        rows.append(np.hstack(tiles))
+    write_bytes(frames_dir / CONTACT_SHEET, _png(np.vstack(rows)))
+    return checks
+
+
+def _rgb8(rgb: np.ndarray) -> np.ndarray:
+    return (np.clip(rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+
+
+def _id_colours(instance: np.ndarray) -> np.ndarray:
+    """[H, W] instance ids -> [H, W, 3] uint8, a fixed colour per id (golden-ratio hues), black for 0."""
+    ids = np.asarray(instance, dtype=np.int64)
+    hue = ((ids * 0.618033988749895) % 1.0 * 179).astype(np.uint8)
+    hsv = np.stack([hue, np.full_like(hue, 200), np.where(ids > 0, 230, 0).astype(np.uint8)], axis=-1)
+    return cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)
+
+
+def _label(img: np.ndarray, text: str) -> np.ndarray:
+    out = img.copy()
+    cv2.rectangle(out, (0, 0), (out.shape[1], 16), (0, 0, 0), -1)
+    cv2.putText(out, text, (3, 12), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
+    return out
+
+
+def _png(rgb: np.ndarray) -> bytes:
+    ok, buf = cv2.imencode(".png", np.ascontiguousarray(rgb[:, :, ::-1]))
+    if not ok:
+        raise RuntimeError("PNG encoding failed")
+    return buf.tobytes()
