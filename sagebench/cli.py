@@ -214,6 +214,46 @@ def export_usd_cmd(
         typer.echo(result.line())
 
 
+@app.command("validate")
+def validate_cmd(
+    run_dir: Annotated[Path, typer.Argument(help="Run directory with scenes/<id>/ (build-scene, export-usd) and episodes/<id>/.")],
+    scene: Annotated[str | None, typer.Option("--scene", help="Validate only this scene id (default: every scene).")] = None,
+    frames_per_scene: Annotated[
+        int | None, typer.Option(help="Trajectories per scene rendered at start, middle and goal (default 3).")
+    ] = None,
+    depth_tolerance: Annotated[
+        float | None, typer.Option(help="Largest median |splat - collider depth| per frame, m (default 0.10).")
+    ] = None,
+    workers: Annotated[int | None, typer.Option(help="Threads stepping the MuJoCo replays (default 2).")] = None,
+) -> None:
+    """Replay every trajectory in MuJoCo, score it and spot-check appearance against physics.
+
+    Reads RUN_DIR/scenes/<id>/scene.json, scene.xml (+ colliders/), gaussians.ply and
+    RUN_DIR/episodes/<id>/part-*.parquet.
+
+    Writes RUN_DIR/validation/<id>/part-00000.parquet (one row per trajectory: pass/fail, reasons,
+    CSR, ICP, PS, path length, steps, ...), report.json (counts, failures by reason, metric
+    distributions, alignment per frame) and frames/*.png with frames/contact_sheet.png.
+
+    Exit status 1 when any trajectory fails or a frame's depths disagree, listing the failures.
+    """
+    from sagebench.stages.validate import make_config, validate_run
+
+    config = make_config(frames_per_scene=frames_per_scene, depth_tolerance=depth_tolerance, workers=workers)
+    failed = False
+    for result in validate_run(run_dir, config, scene_id=scene):
+        typer.echo(result.summary())
+        for trajectory_id, reasons in result.failures:
+            typer.echo(f"  FAIL {result.scene_id} {trajectory_id}: {', '.join(reasons)}")
+        for frame in result.frames:
+            if frame.median_abs_diff > config.depth_tolerance:
+                typer.echo(f"  FAIL {result.scene_id} {frame.file}: median depth difference "
+                           f"{frame.median_abs_diff:.3f} m > {config.depth_tolerance} m")
+        failed |= not result.passed
+    if failed:
+        raise typer.Exit(code=1)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console entry point: the one place where errors become exit status 2."""
     try:
