@@ -25,4 +25,12 @@ def run_demo(out: Path, *, seed: int = 0) -> Iterator[str]:
 
     for episodes in gen_trajectories(out, GenTrajectoriesConfig(seed=seed), scene_id=built.scene_id):
         yield episodes.summary()
+    from sagebench.stages.validate import ValidateConfig, validate_run
+
+    if (out / "scenes" / built.scene_id / "scene.xml").is_file():
+        for result in validate_run(out, ValidateConfig(seed=seed), scene_id=built.scene_id):
+            yield result.summary()
+            yield from (f"  FAIL {tid}: {', '.join(reasons)}" for tid, reasons in result.failures)
+    else:
+        yield "validate: skipped, the demo has no scene.xml yet (export-usd is not one of its steps)"
     yield f"results are in {out}"
