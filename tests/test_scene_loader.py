@@ -48,8 +48,9 @@ def _to_cm_y_up(src: Path, dst: Path) -> None:
         out.parent.mkdir(parents=True, exist_ok=True)
         data = mesh.export(file_type=out.suffix[1:])
         out.write_bytes(data if isinstance(data, bytes) else data.encode())
+    source = load_scene(src)
     for obj in spec["objects"]:
-        loaded = load_scene(src).object(obj["instance_id"]).transform.as_matrix()
+        loaded = source.object(obj["instance_id"]).transform.as_matrix()
         obj["transform"] = {"matrix": (f_inv @ loaded @ f).tolist()}
         if "door" in obj:
             obj["door"]["hinge"] = (f_inv @ np.array([*obj["door"]["hinge"], 1.0]))[:3].tolist()
