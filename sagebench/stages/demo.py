@@ -25,6 +25,10 @@ def run_demo(out: Path, *, seed: int = 0) -> Iterator[str]:
 
     for episodes in gen_trajectories(out, GenTrajectoriesConfig(seed=seed), scene_id=built.scene_id):
         yield episodes.summary()
+    from sagebench.stages.export_usd import export_usd
+
+    for exported in export_usd(out, scene_id=built.scene_id):
+        yield exported.line()
     from sagebench.stages.validate import ValidateConfig, validate_run
 
     if (out / "scenes" / built.scene_id / "scene.xml").is_file():
