@@ -254,6 +254,56 @@ def validate_cmd(
         raise typer.Exit(code=1)
 
 
+@app.command("run")
+def run_cmd(
+    config: Annotated[Path, typer.Argument(help="TOML run config (scenes, out, per-stage settings).")],
+    workers: Annotated[int | None, typer.Option(help="Scene-stage tasks at once (default: the config's, else 1).")] = None,
+    executor: Annotated[str | None, typer.Option(help="local or ray (default: the config's, else local).")] = None,
+    ray_address: Annotated[str | None, typer.Option("--ray-address", help="Ray cluster; none starts a local Ray.")] = None,
+) -> None:
+    """Run build-scene, gen-trajectories, export-usd and validate over many scenes.
+
+    Reads CONFIG and every scene directory it names. Writes the run directory `out`: scenes/, episodes/,
+    validation/, manifest.json, and hidden .stamps/ that let a re-run skip every stage whose inputs and
+    settings are unchanged. Exit status 1 when some scene failed (the others still complete).
+    """
+    from sagebench.pipeline.config import load_run_config
+    from sagebench.pipeline.run import run_pipeline
+
+    cfg = load_run_config(config, workers=workers, executor=executor, ray_address=ray_address)
+    summary = run_pipeline(cfg, config)
+    for line in summary.lines():
+        typer.echo(line)
+    if not summary.ok:
+        raise typer.Exit(1)
+
+
+@app.command("verify")
+def verify_cmd(
+    run_dir: Annotated[Path, typer.Argument(help="Run directory with a manifest.json.")],
+    regenerate: Annotated[bool, typer.Option("--regenerate", help="Re-run CONFIG into a temporary directory and compare.")] = False,
+    config: Annotated[Path | None, typer.Option("--config", help="The run's TOML config (needed with --regenerate).")] = None,
+    workers: Annotated[int, typer.Option(help="Workers for --regenerate.")] = 1,
+) -> None:
+    """Check a run byte for byte against its manifest.
+
+    Reads RUN_DIR/manifest.json and every file of the run (with --regenerate also CONFIG and its scenes).
+    Writes nothing (--regenerate works in a temporary directory it removes). Exit status 1 names every
+    file that differs.
+    """
+    from sagebench.errors import ConfigError
+    from sagebench.pipeline.verify import regenerate_and_compare, verify_run
+
+    if regenerate and config is None:
+        raise ConfigError("--regenerate needs --config, the TOML the run was made with", field="--config")
+    diff = regenerate_and_compare(run_dir, config, workers=workers) if regenerate else verify_run(run_dir)
+    for line in diff.lines():
+        typer.echo(line)
+    if not diff.ok:
+        raise typer.Exit(1)
+    typer.echo(f"ok: every file of {run_dir} matches its manifest" + (" and a regeneration" if regenerate else ""))
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console entry point: the one place where errors become exit status 2."""
     try:

@@ -1,0 +1,5 @@
+"""`python -m sagebench` is the `sagebench` command."""
+
+from sagebench.cli import main
+
+main()

@@ -1,0 +1,1 @@
+"""Multi-scene runs: run config, per-stage content-addressed skipping, executors, manifests."""

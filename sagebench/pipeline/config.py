@@ -1,0 +1,88 @@
+"""The TOML run config of `sagebench run`: which scenes, where to, and each stage's settings."""
+
+from __future__ import annotations
+
+import glob
+import tomllib
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from sagebench.errors import ConfigError
+from sagebench.stages.build_scene import TopdownConfig
+from sagebench.stages.export_usd import ExportConfig
+from sagebench.stages.gen_trajectories import GenTrajectoriesConfig
+from sagebench.stages.validate import ValidateConfig
+
+# Settings that change how fast a run goes but never what it writes; they stay out of the manifest.
+EXECUTION_KEYS = frozenset({"out", "workers", "executor", "ray_address", "cache_dir"})
+
+
+class RunConfig(BaseModel):
+    """A multi-scene run. Relative paths are relative to the config file's directory."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    scenes: list[str] = Field(min_length=1, description="Scene directories or glob patterns.")
+    out: Path = Field(description="Run directory.")
+    seed: int | None = Field(default=None, description="When set, the seed of every stage that has none of its own.")
+    workers: int = Field(default=1, ge=1, description="Scene-stage tasks run at once (local executor).")
+    executor: Literal["local", "ray"] = "local"
+    ray_address: str | None = Field(default=None, description="Ray cluster address; none starts a local Ray.")
+    cache_dir: Path | None = Field(default=None, description="CoACD cache (default: the user cache directory).")
+    build_scene: TopdownConfig = TopdownConfig()
+    gen_trajectories: GenTrajectoriesConfig = GenTrajectoriesConfig()
+    export_usd: ExportConfig = ExportConfig()
+    validate_: ValidateConfig = Field(default=ValidateConfig(), alias="validate")
+
+    def outputs_config(self) -> dict[str, Any]:
+        """What determines the outputs (the manifest's `config`): everything but execution settings."""
+        return self.model_dump(mode="json", by_alias=True, exclude=set(EXECUTION_KEYS))
+
+
+def load_run_config(path: Path, **overrides: Any) -> RunConfig:
+    """Read and validate a TOML run config; `overrides` (not None) replace top-level keys."""
+    try:
+        raw = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as err:
+        raise ConfigError(f"cannot read: {err.strerror}", path=path) from None
+    except tomllib.TOMLDecodeError as err:
+        raise ConfigError(f"malformed TOML: {err}", path=path) from None
+    raw |= {k: v for k, v in overrides.items() if v is not None}
+    base = Path(path).resolve().parent
+    seed = raw.get("seed")
+    if seed is not None:
+        for stage in ("build_scene", "gen_trajectories", "validate"):
+            table = raw.setdefault(stage, {})
+            if isinstance(table, dict):
+                table.setdefault("seed", seed)
+    try:
+        config = RunConfig.model_validate(raw)
+    except ValidationError as err:
+        e = err.errors(include_url=False)[0]
+        loc = ".".join(str(p) for p in e["loc"])
+        raise ConfigError(e["msg"].removeprefix("Value error, "), path=path, field=loc or None) from None
+    return config.model_copy(update={
+        "out": _under(base, config.out),
+        "cache_dir": None if config.cache_dir is None else _under(base, config.cache_dir),
+        "scenes": config.scenes,
+    })
+
+
+def resolve_scenes(config: RunConfig, config_path: Path) -> list[Path]:
+    """The scene directories the config names, sorted and de-duplicated; a pattern matching nothing is an error."""
+    base = Path(config_path).resolve().parent
+    found: set[Path] = set()
+    for i, pattern in enumerate(config.scenes):
+        full = str(_under(base, Path(pattern)))
+        matches = [Path(m) for m in glob.glob(full)] if glob.has_magic(full) else [Path(full)]
+        dirs = [m for m in matches if m.is_dir()]
+        if not dirs:
+            raise ConfigError(f"{pattern!r} matches no scene directory", path=config_path, field=f"scenes[{i}]")
+        found.update(d.resolve() for d in dirs)
+    return sorted(found)
+
+
+def _under(base: Path, p: Path) -> Path:
+    return p if p.is_absolute() else base / p

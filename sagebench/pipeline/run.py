@@ -1,0 +1,153 @@
+"""`sagebench run`: every stage over many scenes, skipping what is up to date, then the manifest."""
+
+from __future__ import annotations
+
+import shutil
+from collections import defaultdict
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from sagebench import ui
+from sagebench.errors import ConfigError
+from sagebench.pipeline.config import RunConfig, resolve_scenes
+from sagebench.pipeline.executors import make_executor
+from sagebench.pipeline.manifest import sha256_file, write_manifest
+from sagebench.pipeline.stages import STAGES, Outcome, Task
+from sagebench.scene.loader import SCENE_FILE, parse_spec
+
+
+@dataclass
+class RunSummary:
+    run_dir: Path
+    scenes: list[str]
+    outcomes: list[Outcome] = field(default_factory=list)
+    episodes: int = 0
+
+    @property
+    def failed(self) -> dict[str, Outcome]:
+        """scene id -> the first stage that failed it (an error, or validation failures)."""
+        out: dict[str, Outcome] = {}
+        for o in self.outcomes:
+            if (o.status == "failed" or not o.ok) and o.scene_id not in out:
+                out[o.scene_id] = o
+        return out
+
+    @property
+    def ok(self) -> bool:
+        return not self.failed
+
+    def lines(self) -> list[str]:
+        by_stage: dict[str, list[Outcome]] = defaultdict(list)
+        for o in self.outcomes:
+            by_stage[o.stage].append(o)
+        lines = [f"run {self.run_dir}: {len(self.scenes)} scenes, {self.episodes} episodes, "
+                 f"{len(self.scenes) - len(self.failed)} scenes complete"]
+        for name in STAGES:
+            got = by_stage.get(name, [])
+            count = lambda s: sum(o.status == s for o in got)  # noqa: E731
+            lines.append(f"  {name:<17} ran {count('ran'):>3}  skipped {count('skipped'):>3}  failed "
+                         f"{count('failed') + sum(o.status == 'ran' and not o.ok for o in got):>3}  "
+                         f"{sum(o.seconds for o in got):8.1f} s")
+        for sid, o in sorted(self.failed.items()):
+            lines.append(f"  FAILED {sid} at {o.stage}: {o.message}")
+        return lines
+
+
+def run_pipeline(config: RunConfig, config_path: Path) -> RunSummary:
+    """Run build-scene, gen-trajectories, export-usd and validate over every scene of the config."""
+    sources = _scene_ids(resolve_scenes(config, config_path), config_path)
+    run_dir = Path(config.out)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    clean_temporaries(run_dir)
+    settings = {
+        "build_scene": config.build_scene.model_dump(mode="json"),
+        "gen_trajectories": config.gen_trajectories.model_dump(mode="json"),
+        "export_usd": config.export_usd.model_dump(mode="json"),
+        "validate": config.validate_.model_dump(mode="json"),
+    }
+    summary = RunSummary(run_dir=run_dir, scenes=sorted(sources))
+    executor = make_executor(config.executor, config.workers, config.ray_address)
+    try:
+        tasks = _schedule(executor, sources, run_dir, settings, config.cache_dir)
+        for outcome in ui.track(tasks, "scenes x stages", total=len(sources) * len(STAGES)):
+            summary.outcomes.append(outcome)
+            ui.info(f"{outcome.status:>7} {outcome.stage} {outcome.scene_id}: {outcome.message}")
+    finally:
+        executor.close()
+    summary.episodes = _count_episodes(run_dir, summary.scenes)
+    write_manifest(run_dir, config=config.outputs_config(),
+                   inputs={sid: _tree_hash(src) for sid, src in sources.items()})
+    return summary
+
+
+def _schedule(executor, sources: dict[str, Path], run_dir: Path, settings: dict, cache_dir: Path | None
+              ) -> Iterator[Outcome]:
+    """Submit each stage of each scene once the stages it comes after succeeded; yield outcomes as they end."""
+    done: dict[tuple[str, str], Outcome] = {}
+    pending: dict[object, tuple[str, str]] = {}
+    order: list[object] = []
+
+    def submit_ready(sid: str) -> None:
+        for name, stage in STAGES.items():
+            key = (sid, name)
+            if key in done or key in pending.values():
+                continue
+            if all((sid, a) in done and done[(sid, a)].status != "failed" for a in stage.after):
+                task = Task(name, sid, sources[sid], run_dir, settings[name], cache_dir)
+                handle = executor.submit(task)
+                pending[id(handle)] = key
+                order.append(handle)
+
+    for sid in sorted(sources):
+        submit_ready(sid)
+    while order:
+        for handle, outcome in executor.wait_any(order):
+            order.remove(handle)
+            key = pending.pop(id(handle))
+            done[key] = outcome
+            yield outcome
+            if outcome.status == "failed":
+                continue
+            submit_ready(key[0])
+
+
+def _scene_ids(dirs: list[Path], config_path: Path) -> dict[str, Path]:
+    """scene id -> scene directory; two directories with one scene id is an error."""
+    out: dict[str, Path] = {}
+    for d in dirs:
+        spec_path = d / SCENE_FILE
+        try:
+            sid = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path).scene_id
+        except OSError:
+            sid = d.name  # build-scene will report the unreadable scene as this scene's failure
+        except Exception:  # a malformed scene.json fails that scene alone, at build-scene
+            sid = d.name
+        if sid in out:
+            raise ConfigError(f"scene id {sid!r} is used by both {out[sid]} and {d}", path=config_path,
+                              field="scenes")
+        out[sid] = d
+    return out
+
+
+def clean_temporaries(run_dir: Path) -> None:
+    """Remove what a killed run left half-written: the hidden `.NAME.*.tmp` and `.NAME.old` entries."""
+    for p in sorted(run_dir.rglob(".*"), key=lambda p: len(p.parts), reverse=True):
+        if p.name.endswith((".tmp", ".old")):
+            shutil.rmtree(p) if p.is_dir() else p.unlink(missing_ok=True)
+
+
+def _tree_hash(root: Path) -> str:
+    import hashlib
+
+    h = hashlib.sha256()
+    for p in sorted(f for f in root.rglob("*") if f.is_file()):
+        h.update(p.relative_to(root).as_posix().encode() + b"\0" + sha256_file(p).encode() + b"\0")
+    return h.hexdigest()
+
+
+def _count_episodes(run_dir: Path, scene_ids: list[str]) -> int:
+    import pyarrow.parquet as pq
+
+    return sum(pq.ParquetFile(p).metadata.num_rows
+               for sid in scene_ids for p in sorted((run_dir / "episodes" / sid).glob("part-*.parquet")))

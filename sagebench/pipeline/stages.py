@@ -1,0 +1,180 @@
+"""The per-scene stages of a run, what each reads and writes, and the stamp that lets a re-run skip it.
+
+A stage is skipped when its stamp (RUN/.stamps/<scene_id>/<stage>.json) records the same key — a hash of
+the sagebench version, the stage's settings and every input file — and every output file it recorded is
+still there with the same hash. Stamps are written after the outputs, so a run killed at any moment
+re-runs exactly the stages whose stamps are missing or stale.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from sagebench import __version__
+from sagebench.errors import SagebenchError
+from sagebench.fileio import dumps_json, write_text
+from sagebench.pipeline.manifest import sha256_file
+
+STAMPS = ".stamps"
+EXPORT_OUTPUTS = ("colliders", "scene.usda", "scene.xml")  # export-usd writes these into scenes/<id>/
+
+
+@dataclass(frozen=True)
+class Task:
+    """One stage of one scene, everything a worker process needs (picklable)."""
+
+    stage: str
+    scene_id: str
+    source: Path  # the artist scene directory
+    run_dir: Path
+    settings: dict[str, Any]  # the stage's config as JSON data
+    cache_dir: Path | None = None
+
+
+@dataclass(frozen=True)
+class Outcome:
+    stage: str
+    scene_id: str
+    status: str  # ran | skipped | failed
+    seconds: float
+    message: str = ""  # a summary line, or the error for a failure
+    ok: bool = True  # False when the stage ran but judged its scene bad (validate failures)
+
+
+def _files(root: Path, rels: list[str]) -> list[Path]:
+    out: list[Path] = []
+    for rel in rels:
+        p = root / rel
+        if p.is_dir():
+            out += sorted(f for f in p.rglob("*") if f.is_file() and not f.name.startswith("."))
+        elif p.is_file():
+            out.append(p)
+    return out
+
+
+def _build_inputs(t: Task) -> list[Path]:
+    return _files(t.source, ["."])
+
+
+def _build_outputs(t: Task) -> list[Path]:
+    scene = t.run_dir / "scenes" / t.scene_id
+    return [p for p in _files(scene, ["."]) if p.relative_to(scene).parts[0] not in EXPORT_OUTPUTS]
+
+
+def _scene(t: Task, *rels: str) -> list[Path]:
+    return _files(t.run_dir / "scenes" / t.scene_id, list(rels))
+
+
+def _episodes(t: Task) -> list[Path]:
+    return _files(t.run_dir / "episodes" / t.scene_id, ["."])
+
+
+def _run_build(t: Task) -> tuple[str, bool]:
+    from sagebench.stages.build_scene import TopdownConfig, build_scene
+
+    return build_scene(t.source, t.run_dir, TopdownConfig.model_validate(t.settings)).summary(), True
+
+
+def _run_gen(t: Task) -> tuple[str, bool]:
+    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, gen_trajectories
+
+    (result,) = gen_trajectories(t.run_dir, GenTrajectoriesConfig.model_validate(t.settings), scene_id=t.scene_id)
+    return result.summary(), True
+
+
+def _run_export(t: Task) -> tuple[str, bool]:
+    from sagebench.stages.export_usd import ExportConfig, export_usd
+
+    (result,) = export_usd(t.run_dir, scene_id=t.scene_id, config=ExportConfig.model_validate(t.settings),
+                           cache_dir=t.cache_dir)
+    return result.line(), True
+
+
+def _run_validate(t: Task) -> tuple[str, bool]:
+    from sagebench.stages.validate import ValidateConfig, validate_run
+
+    (result,) = validate_run(t.run_dir, ValidateConfig.model_validate(t.settings), scene_id=t.scene_id)
+    return result.summary(), result.passed
+
+
+@dataclass(frozen=True)
+class Stage:
+    name: str
+    after: tuple[str, ...]
+    inputs: Callable[[Task], list[Path]]
+    outputs: Callable[[Task], list[Path]]
+    run: Callable[[Task], tuple[str, bool]]
+
+
+STAGES: dict[str, Stage] = {s.name: s for s in (
+    Stage("build_scene", (), _build_inputs, _build_outputs, _run_build),
+    Stage("gen_trajectories", ("build_scene",),
+          lambda t: _scene(t, "scene.json", "topdown.npz", "semantic_map.json"), _episodes, _run_gen),
+    Stage("export_usd", ("build_scene",),
+          lambda t: _scene(t, "scene.json", "meshes", "gaussians.ply"), lambda t: _scene(t, *EXPORT_OUTPUTS),
+          _run_export),
+    Stage("validate", ("gen_trajectories", "export_usd"),
+          lambda t: _scene(t, "scene.json", "scene.xml", "colliders", "gaussians.ply") + _episodes(t),
+          lambda t: _files(t.run_dir / "validation" / t.scene_id, ["."]), _run_validate),
+)}
+
+
+def stage_key(task: Task, inputs: list[Path]) -> str:
+    """sha256 of (version, stage, settings, every input file's path and content hash)."""
+    h = hashlib.sha256(f"{__version__}\0{task.stage}\0".encode())
+    h.update(json.dumps(task.settings, sort_keys=True).encode())
+    for p in inputs:
+        root = task.source if p.is_relative_to(task.source) else task.run_dir
+        h.update(b"\0" + p.relative_to(root).as_posix().encode() + b"\0" + sha256_file(p).encode())
+    return h.hexdigest()
+
+
+def _hashes(paths: list[Path], run_dir: Path) -> dict[str, str]:
+    return {p.relative_to(run_dir).as_posix(): sha256_file(p) for p in paths}
+
+
+def stamp_path(task: Task) -> Path:
+    return task.run_dir / STAMPS / task.scene_id / f"{task.stage}.json"
+
+
+def up_to_date(task: Task, key: str) -> bool:
+    path = stamp_path(task)
+    if not path.is_file():
+        return False
+    try:
+        stamp = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError):
+        return False
+    if stamp.get("key") != key:
+        return False
+    outputs = _hashes(STAGES[task.stage].outputs(task), task.run_dir)
+    return outputs == stamp.get("outputs") and bool(outputs)
+
+
+def run_task(task: Task) -> Outcome:
+    """Run one stage of one scene unless its stamp says it is up to date; never raises."""
+    start = time.perf_counter()
+    stage = STAGES[task.stage]
+    try:
+        key = stage_key(task, stage.inputs(task))
+        if up_to_date(task, key):
+            stamp = json.loads(stamp_path(task).read_text())
+            return Outcome(task.stage, task.scene_id, "skipped", time.perf_counter() - start,
+                           stamp.get("message", ""), stamp.get("ok", True))
+        message, ok = stage.run(task)
+        outputs = _hashes(stage.outputs(task), task.run_dir)
+        write_text(stamp_path(task), dumps_json({"key": key, "outputs": outputs, "message": message, "ok": ok}))
+        return Outcome(task.stage, task.scene_id, "ran", time.perf_counter() - start, message, ok)
+    except SagebenchError as err:
+        return Outcome(task.stage, task.scene_id, "failed", time.perf_counter() - start, str(err), False)
+    except Exception as err:  # a crash in one scene (CoACD, a library) must not stop the others
+        where = traceback.extract_tb(err.__traceback__)[-1]
+        return Outcome(task.stage, task.scene_id, "failed", time.perf_counter() - start,
+                       f"{type(err).__name__}: {err} ({Path(where.filename).name}:{where.lineno})", False)

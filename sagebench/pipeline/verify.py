@@ -1,0 +1,43 @@
+"""`sagebench verify`: re-hash a run against its manifest, or regenerate it and compare byte for byte."""
+
+from __future__ import annotations
+
+import json
+import tempfile
+from pathlib import Path
+
+from sagebench.errors import DataError
+from sagebench.pipeline.manifest import MANIFEST, FileDiff, compare, hash_run
+
+
+def read_manifest(run_dir: Path) -> dict:
+    path = Path(run_dir) / MANIFEST
+    try:
+        manifest = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise DataError("no manifest.json: this is not the directory of a `sagebench run`", path=run_dir) from None
+    except (OSError, json.JSONDecodeError) as err:
+        raise DataError(f"unreadable manifest: {err}", path=path) from None
+    if not isinstance(manifest, dict) or not isinstance(manifest.get("files"), dict):
+        raise DataError("the manifest has no 'files' table", path=path)
+    return manifest
+
+
+def verify_run(run_dir: Path) -> FileDiff:
+    """Compare every file of the run with the manifest's hashes."""
+    return compare(read_manifest(run_dir)["files"], hash_run(Path(run_dir)))
+
+
+def regenerate_and_compare(run_dir: Path, config_path: Path, *, workers: int = 1) -> FileDiff:
+    """Run CONFIG again into a temporary directory and compare its files with RUN_DIR's manifest."""
+    from sagebench.pipeline.config import load_run_config
+    from sagebench.pipeline.run import run_pipeline
+
+    expected = read_manifest(run_dir)
+    with tempfile.TemporaryDirectory(prefix="sagebench-regen-") as tmp:
+        config = load_run_config(config_path, out=tmp, workers=workers, executor="local")
+        if config.outputs_config() != expected.get("config"):
+            raise DataError("this config differs from the one the run was made with (see the manifest's 'config')",
+                            path=config_path)
+        run_pipeline(config, config_path)
+        return compare(expected["files"], hash_run(Path(tmp)))

@@ -1,0 +1,158 @@
+"""`sagebench run` / `verify`: identical manifests whatever the executor, resume after kill -9, skipping, failures."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from sagebench.scene.synth import write_synth_scene
+
+CONFIG = """scenes = ["scenes/*"]
+out = "{out}"
+seed = 0
+cache_dir = "cache"
+[gen_trajectories]
+per_scene = 20
+[validate]
+frames_per_scene = 1
+"""
+
+
+@pytest.fixture(scope="module")
+def workspace(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("runs")
+    write_synth_scene(root / "scenes" / "a", seed=0)
+    write_synth_scene(root / "scenes" / "b", seed=1)
+    return root
+
+
+def _config(root: Path, out: str, extra: str = "") -> Path:
+    path = root / f"{out}.toml"
+    path.write_text(CONFIG.format(out=out) + extra)
+    return path
+
+
+@pytest.fixture(scope="module")
+def serial_run(workspace) -> Path:
+    from sagebench.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["-q", "run", str(_config(workspace, "serial"))])
+    assert exc.value.code in (0, None)
+    return workspace / "serial"
+
+
+def _manifest(run: Path) -> bytes:
+    return (run / "manifest.json").read_bytes()
+
+
+def test_manifest_lists_every_output(serial_run):
+    manifest = json.loads(_manifest(serial_run))
+    files = manifest["files"]
+    for sid in ("demo_apartment_0", "demo_apartment_1"):
+        for rel in ("scenes/{}/topdown.npz", "scenes/{}/gaussians.ply", "scenes/{}/scene.usda",
+                    "scenes/{}/scene.xml", "episodes/{}/part-00000.parquet", "validation/{}/report.json"):
+            assert rel.format(sid) in files
+    assert set(manifest["inputs"]) == {"demo_apartment_0", "demo_apartment_1"}
+    assert "workers" not in manifest["config"] and manifest["config"]["gen_trajectories"]["per_scene"] == 20
+    assert not any(p.startswith(".") for p in files)
+
+
+def test_two_workers_give_the_same_manifest(workspace, serial_run, run_cli):
+    code, out, err = run_cli("-q", "run", _config(workspace, "pool"), "--workers", "2")
+    assert code == 0, out + err
+    assert _manifest(workspace / "pool") == _manifest(serial_run)
+
+
+def test_ray_gives_the_same_manifest(workspace, serial_run, run_cli):
+    pytest.importorskip("ray")
+    code, out, err = run_cli("-q", "run", _config(workspace, "ray"), "--executor", "ray", "--workers", "2")
+    assert code == 0, out + err
+    assert _manifest(workspace / "ray") == _manifest(serial_run)
+
+
+def test_rerun_skips_every_stage(workspace, serial_run, run_cli):
+    code, out, _ = run_cli("-q", "run", _config(workspace, "serial"))
+    assert code == 0
+    assert out.count("ran   0  skipped   2  failed   0") == 4, out
+    assert _manifest(serial_run) == _manifest(serial_run)
+
+
+def test_killed_run_resumes_to_the_same_manifest(workspace, serial_run, run_cli):
+    config = _config(workspace, "killed")
+    proc = subprocess.Popen([sys.executable, "-m", "sagebench", "-q", "run", str(config)], cwd=workspace,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    stamps = workspace / "killed" / ".stamps"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None and len(list(stamps.rglob("*.json"))) < 3:
+        time.sleep(0.05)
+    assert proc.poll() is None, "the run ended before it could be killed midway"
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not (workspace / "killed" / "manifest.json").exists()
+    code, out, _ = run_cli("-q", "run", config)
+    assert code == 0
+    assert "skipped   " in out
+    assert _manifest(workspace / "killed") == _manifest(serial_run)
+    assert not [p for p in (workspace / "killed").rglob(".*") if p.name.endswith((".tmp", ".old"))]
+
+
+def test_verify_names_a_flipped_byte(workspace, serial_run, run_cli):
+    run = workspace / "flipped"
+    shutil.copytree(serial_run, run)
+    code, out, _ = run_cli("verify", run)
+    assert code == 0 and out.startswith("ok:")
+    shard = run / "episodes" / "demo_apartment_1" / "part-00000.parquet"
+    data = bytearray(shard.read_bytes())
+    data[200] ^= 0x01
+    shard.write_bytes(bytes(data))
+    code, out, _ = run_cli("verify", run)
+    assert code == 1
+    assert out.splitlines() == ["changed: episodes/demo_apartment_1/part-00000.parquet"]
+
+
+def test_verify_regenerate_matches(workspace, serial_run, run_cli):
+    code, out, err = run_cli("verify", serial_run, "--regenerate", "--config", workspace / "serial.toml")
+    assert code == 0, out + err
+    assert "and a regeneration" in out
+
+
+def test_a_broken_scene_fails_alone(workspace, run_cli):
+    root = workspace / "with_broken"
+    for name in ("a", "b"):
+        shutil.copytree(workspace / "scenes" / name, root / "scenes" / name)
+    broken = root / "scenes" / "c"
+    shutil.copytree(workspace / "scenes" / "a", broken)
+    spec = json.loads((broken / "scene.json").read_text())
+    spec["scene_id"] = "broken"
+    (broken / "scene.json").write_text(json.dumps(spec))
+    mesh = broken / spec["objects"][20]["mesh"]
+    mesh.write_bytes(mesh.read_bytes()[:40])
+    code, out, _ = run_cli("-q", "run", _config(root, "out"))
+    assert code == 1
+    assert "run " in out and "3 scenes" in out and "2 scenes complete" in out
+    assert f"FAILED broken at build_scene: {broken / 'scene.json'}: objects[20].mesh: cannot read mesh" in out
+    files = json.loads((root / "out" / "manifest.json").read_text())["files"]
+    assert "validation/demo_apartment_0/report.json" in files and not any("broken" in f for f in files)
+
+
+def test_bad_config_is_one_line(workspace, run_cli):
+    bad = workspace / "bad.toml"
+    bad.write_text('scenes = ["scenes/*"]\nout = "x"\nworkers = 0\n')
+    code, _, err = run_cli("run", bad)
+    assert code == 2 and f"{bad}: workers: Input should be greater than or equal to 1" in err
+    bad.write_text('scenes = ["nowhere/*"]\nout = "x"\n')
+    code, _, err = run_cli("run", bad)
+    assert code == 2 and "scenes[0]: 'nowhere/*' matches no scene directory" in err
+    bad.write_text('scenes = [\n')
+    code, _, err = run_cli("run", bad)
+    assert code == 2 and "malformed TOML" in err
+    assert not (workspace / "x").exists()
