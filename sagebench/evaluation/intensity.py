@@ -1,0 +1,59 @@
+"""Collision intensity c(t) per agent step: the fraction of a step's commanded motion that contact blocked.
+
+A step commands a move from pose t-1 to pose t. c(t) = 0 when the agent got there (within the replay's
+waypoint tolerance); otherwise c(t) = clip(1 - progress / |commanded|, 0, 1), progress being the achieved
+XY displacement along the commanded direction. Steps that command no translation (shorter than the waypoint
+tolerance: turns in place) have c(t) = 0, since contact never twists the replay agent's heading.
+
+The baseline agents measure c(t) while they drive. For predictions without `collision_intensity`,
+`replay_intensity` replays every step of every episode on its own (a translation from the predicted pose t-1
+towards pose t, already facing it) in one `replay_batch`, so a step through a wall scores about 1 and a step
+along free floor 0, whatever the steps before it did.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from sagebench.replay.physics import ReplayConfig, ReplayModel, replay_batch
+
+# Replay settings for single agent steps: a blocked step gives up after 0.5 s without progress (not 2 s),
+# and the time limit's slack is 1 s, since a step is short.
+STEP_REPLAY = ReplayConfig(stall_time=0.5, time_slack=1.0)
+
+
+def blocked_fraction(start: np.ndarray, target: np.ndarray, end: np.ndarray, reached: np.ndarray,
+                     tolerance: float) -> np.ndarray:
+    """c per step [B] from start, commanded target and achieved end positions [B, >=2] (metres) and whether
+    the replay reached the target [B] bool; steps shorter than `tolerance` (m) give 0."""
+    start, target, end = (np.asarray(a, dtype=np.float64)[:, :2] for a in (start, target, end))
+    wanted = target - start
+    length = np.linalg.norm(wanted, axis=1)
+    moving = (length >= tolerance) & ~np.asarray(reached, dtype=bool)
+    safe = np.where(moving, length, 1.0)
+    progress = ((end - start) * wanted).sum(axis=1) / safe
+    return np.where(moving, np.clip(1.0 - progress / safe, 0.0, 1.0), 0.0)
+
+
+def replay_intensity(rm: ReplayModel, poses: Sequence[np.ndarray], *, threads: int = 2) -> list[np.ndarray]:
+    """c(t) [T_i] for each pose sequence [T_i, >=2] by replaying each of its steps from the predicted pose."""
+    tol = rm.config.waypoint_tolerance
+    seqs = [np.asarray(p, dtype=np.float64)[:, :2] for p in poses]
+    starts = np.concatenate([s[:-1] for s in seqs]) if seqs else np.zeros((0, 2))
+    targets = np.concatenate([s[1:] for s in seqs]) if seqs else np.zeros((0, 2))
+    d = targets - starts
+    moving = np.flatnonzero(np.linalg.norm(d, axis=1) >= tol)
+    yaw = np.arctan2(d[moving, 1], d[moving, 0])
+    z = np.full(len(moving), rm.floor_z)
+    paths = [np.array([[sx, sy, zz, a], [tx, ty, zz, a]]) for (sx, sy), (tx, ty), zz, a
+             in zip(starts[moving], targets[moving], z, yaw)]
+    records = replay_batch(rm, paths, threads=threads)
+    c = np.zeros(len(starts))
+    if records:
+        end = np.array([r.poses[-1, :2] for r in records])
+        reached = np.array([r.outcome == "reached" for r in records])
+        c[moving] = blocked_fraction(starts[moving], targets[moving], end, reached, tol)
+    bounds = np.cumsum([0] + [len(s) - 1 for s in seqs])
+    return [np.concatenate([[0.0], c[bounds[i]: bounds[i + 1]]]) for i in range(len(seqs))]

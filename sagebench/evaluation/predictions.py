@@ -1,0 +1,121 @@
+"""Agent predictions as JSON Lines: the row model, the reader (file:line errors) and the canonical writer.
+
+One object per line (blank lines are skipped):
+`{"episode_id": str, "poses": [[x, y, z, yaw], ...], "stopped": bool, "collision_intensity": [c, ...]}`.
+`poses` are world metres and radians (Z up, yaw counter-clockwise from +X), row 0 the start, one row per agent
+step; `stopped` says the agent ended the episode itself (SR needs it); the optional `collision_intensity` gives
+c(t) in [0, 1] per pose (the fraction of that step's commanded motion contact blocked; 0 for row 0). Without
+it, evaluate derives c(t) by replaying each step against the scene's colliders.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Annotated
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from sagebench.errors import DataError
+from sagebench.fileio import write_text
+
+Pose = tuple[float, float, float, float]
+
+
+class Prediction(BaseModel):
+    """One line of predictions.jsonl: what an agent did in one episode."""
+
+    model_config = ConfigDict(
+        extra="forbid", frozen=True, strict=True, allow_inf_nan=False,
+        title="sagebench prediction (one line of predictions.jsonl, JSON Lines)",
+    )
+
+    episode_id: str = Field(min_length=1, description="episode_id of a row of RUN/episodes/<scene_id>/.")
+    poses: list[Pose] = Field(
+        min_length=1,
+        description="Agent poses [x, y, z, yaw] per step (world metres, radians CCW from +X), row 0 the start.")
+    stopped: bool = Field(description="True when the agent ended the episode itself (STOP); SR requires it.")
+    collision_intensity: list[Annotated[float, Field(ge=0, le=1)]] | None = Field(
+        default=None,
+        description="Optional c(t) in [0, 1] per pose: fraction of the step's commanded motion that contact "
+                    "blocked (0 for row 0). When absent, evaluate replays the poses against the colliders.")
+
+    @model_validator(mode="after")
+    def _one_intensity_per_pose(self) -> Prediction:
+        if self.collision_intensity is not None and len(self.collision_intensity) != len(self.poses):
+            raise ValueError(f"collision_intensity has {len(self.collision_intensity)} values for "
+                             f"{len(self.poses)} poses (one per pose)")
+        return self
+
+
+def _field(loc: Sequence[str | int]) -> str:
+    """('poses', 2, 3) -> 'poses[2][3]'."""
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out
+
+
+def parse_line(text: str, path: Path, line: int) -> Prediction:
+    """One JSON Lines row; a bad row is a DataError naming `path:line` and the field."""
+    try:
+        return Prediction.model_validate_json(text)
+    except ValidationError as err:
+        e = err.errors(include_url=False)[0]
+        msg = e["msg"].removeprefix("Value error, ")
+        if e["type"] == "missing" and len(e["loc"]) == 3 and e["loc"][0] == "poses":
+            msg = "a pose is [x, y, z, yaw]: 4 numbers"
+            e["loc"] = e["loc"][:2]
+        raise DataError(msg, path=f"{path}:{line}", field=_field(e["loc"]) or None) from None
+
+
+def read_predictions(path: Path) -> list[tuple[int, Prediction]]:
+    """(line number, prediction) for every non-blank line of a JSON Lines file, in file order."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise DataError("no such file", path=path) from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise DataError(f"cannot read: {err}", path=path) from None
+    rows = [(n, parse_line(t, path, n)) for n, t in enumerate(text.splitlines(), start=1) if t.strip()]
+    if not rows:
+        raise DataError("no predictions (the file is empty)", path=path)
+    return rows
+
+
+def match_episodes(rows: Sequence[tuple[int, Prediction]], episode_ids: Iterable[str], path: Path, *,
+                   allow_missing: bool = False) -> tuple[dict[str, Prediction], list[str]]:
+    """Pair predictions with the episodes being scored: ({episode_id: prediction}, missing ids sorted).
+
+    A duplicate or unknown episode id is a DataError at its line; episodes without a prediction are a DataError
+    unless `allow_missing` (then they are returned to be scored as failures).
+    """
+    wanted = set(episode_ids)
+    first_line: dict[str, int] = {}
+    unknown = [(n, p.episode_id) for n, p in rows if p.episode_id not in wanted]
+    if unknown:
+        n, eid = unknown[0]
+        raise DataError(f"unknown episode id {eid!r}: not an episode being evaluated ({len(unknown)} unknown in all)",
+                        path=f"{path}:{n}", field="episode_id")
+    for n, p in rows:
+        if p.episode_id in first_line:
+            raise DataError(f"duplicate episode id {p.episode_id!r} (first on line {first_line[p.episode_id]})",
+                            path=f"{path}:{n}", field="episode_id")
+        first_line[p.episode_id] = n
+    missing = sorted(wanted - first_line.keys())
+    if missing and not allow_missing:
+        shown = ", ".join(missing[:3]) + (", ..." if len(missing) > 3 else "")
+        raise DataError(f"{len(missing)} of {len(wanted)} episodes have no prediction ({shown}); "
+                        "pass --allow-missing to score them as failures", path=path)
+    return {p.episode_id: p for _, p in rows}, missing
+
+
+def dumps_prediction(prediction: Prediction) -> str:
+    """One canonical JSON line (keys in schema order, no spaces, optional fields left out when None)."""
+    return prediction.model_dump_json(exclude_none=True)
+
+
+def write_predictions(path: Path, predictions: Iterable[Prediction]) -> None:
+    """Write predictions.jsonl whole (atomic), one line per prediction in the order given."""
+    write_text(Path(path), "".join(dumps_prediction(p) + "\n" for p in predictions))

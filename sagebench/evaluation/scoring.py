@@ -1,0 +1,82 @@
+"""Score predictions against episodes and aggregate: overall, per instruction level and per type, plain means.
+
+An episode without a prediction (evaluate --allow-missing) counts as a failure at every metric's worst value:
+SR, OSR, SPL, nDTW, SDTW, CSR and PS 0, ICP 1, path length 0 and NE the straight-line start-goal distance
+(where an agent that never moved would be), so a missing prediction can only lower a score.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from sagebench.evaluation.predictions import Prediction
+from sagebench.metrics import EpisodeMetrics, MetricConfig, score_episode
+
+METRIC_NAMES = ("sr", "osr", "spl", "ne", "ndtw", "sdtw", "csr", "icp", "ps", "path_length")
+NO_LEVEL = "none"  # group of rows without instruction_level/type (gen-trajectories --instructions none)
+
+
+@dataclass(frozen=True)
+class Episode:
+    """What scoring needs of one episode row (metres, radians)."""
+
+    episode_id: str
+    scene_id: str
+    level: str  # instruction_level, or NO_LEVEL
+    type: str  # instruction_type, or NO_LEVEL
+    start: np.ndarray  # [3]
+    start_yaw: float
+    goal: np.ndarray  # [3]
+    goal_radius: float
+    geodesic_distance: float
+    reference_path: np.ndarray  # [M, 4] x, y, z, yaw
+
+
+@dataclass(frozen=True)
+class EpisodeScore:
+    episode: Episode
+    metrics: EpisodeMetrics
+    missing: bool  # no prediction: scored as a failure
+    replayed: bool  # c(t) came from replaying the poses (the prediction had no collision_intensity)
+
+
+def score_prediction(episode: Episode, prediction: Prediction, intensity: np.ndarray,
+                     config: MetricConfig = MetricConfig()) -> EpisodeMetrics:
+    """Metrics of one prediction; `intensity` [T] is the prediction's c(t) or the replayed one."""
+    return score_episode(np.asarray(prediction.poses, dtype=np.float64), episode.reference_path, episode.goal,
+                         goal_radius=episode.goal_radius, geodesic_distance=episode.geodesic_distance,
+                         stopped=prediction.stopped, collision_intensity=intensity, config=config)
+
+
+def missing_metrics(episode: Episode) -> EpisodeMetrics:
+    """The worst value of every metric (module docstring)."""
+    ne = float(np.linalg.norm(episode.goal[:2] - episode.start[:2]))
+    return EpisodeMetrics(ne=ne, sr=0.0, osr=0.0, spl=0.0, ndtw=0.0, sdtw=0.0, csr=0.0, icp=1.0, ps=0.0,
+                          path_length=0.0)
+
+
+def mean_metrics(scores: Sequence[EpisodeScore]) -> dict[str, float]:
+    """Plain means over the episodes of every metric, plus `episodes` (the count)."""
+    table = np.array([[getattr(s.metrics, m) for m in METRIC_NAMES] for s in scores], dtype=np.float64)
+    means = table.mean(axis=0) if len(scores) else np.full(len(METRIC_NAMES), np.nan)
+    return {"episodes": len(scores), **{m: float(v) for m, v in zip(METRIC_NAMES, means)}}
+
+
+@dataclass(frozen=True)
+class Summary:
+    """Means overall, per instruction level and per instruction type (keys sorted)."""
+
+    overall: dict[str, float]
+    by_level: dict[str, dict[str, float]]
+    by_type: dict[str, dict[str, float]]
+
+
+def summarise_scores(scores: Sequence[EpisodeScore]) -> Summary:
+    def groups(key: str) -> dict[str, dict[str, float]]:
+        names = sorted({getattr(s.episode, key) for s in scores})
+        return {n: mean_metrics([s for s in scores if getattr(s.episode, key) == n]) for n in names}
+
+    return Summary(overall=mean_metrics(scores), by_level=groups("level"), by_type=groups("type"))

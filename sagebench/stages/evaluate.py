@@ -1,0 +1,201 @@
+"""`evaluate`: score agent predictions (JSON Lines) against a run's episodes and aggregate the metrics.
+
+Reads RUN/episodes/<id>/part-*.parquet and the predictions file; for predictions without collision_intensity
+also RUN/scenes/<id>/scene.json and scene.xml (export-usd), whose colliders the poses are replayed against.
+Writes the results JSON (when asked): means overall, per instruction level and per type, the metrics of every
+episode, the ids of missing episodes and the settings.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pyarrow as pa
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from sagebench import ui
+from sagebench.config import AgentConfig
+from sagebench.errors import ConfigError, DataError
+from sagebench.evaluation.intensity import STEP_REPLAY, replay_intensity
+from sagebench.evaluation.predictions import Prediction, match_episodes, read_predictions
+from sagebench.evaluation.scoring import (
+    METRIC_NAMES, NO_LEVEL, Episode, EpisodeScore, Summary, missing_metrics, score_prediction, summarise_scores,
+)
+from sagebench.fileio import write_json
+from sagebench.metrics import MetricConfig
+from sagebench.replay.physics import ReplayConfig, ReplayModel, build_replay_model
+from sagebench.scene.loader import SCENE_FILE, parse_spec
+from sagebench.stages.validate import MJCF_FILE, floor_body_names, scene_ids
+
+
+class EvaluateConfig(BaseModel):
+    """Settings of evaluate (defaults here, nowhere else); the CLI maps its options onto these fields."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    metrics: MetricConfig = MetricConfig()
+    agent: AgentConfig = AgentConfig()
+    replay: ReplayConfig = STEP_REPLAY
+    start_tolerance: float = Field(
+        default=0.10, gt=0, description="The first pose must lie this close to the episode's start (XY), m.")
+    allow_missing: bool = Field(default=False, description="Score episodes without a prediction as failures.")
+    workers: int = Field(default=2, ge=1, description="Threads replaying poses for collision intensity.")
+
+
+_OPTIONS = {"workers": "--workers", "start_tolerance": "--start-tolerance"}
+
+
+def make_config(**fields: object) -> EvaluateConfig:
+    """An EvaluateConfig from the options given (None = keep the default); a bad value is a ConfigError."""
+    try:
+        return EvaluateConfig.model_validate({k: v for k, v in fields.items() if v is not None})
+    except ValidationError as err:
+        e = err.errors(include_url=False)[0]
+        loc = ".".join(str(p) for p in e["loc"])
+        raise ConfigError(e["msg"].removeprefix("Value error, "), field=_OPTIONS.get(loc, loc) or None) from None
+
+
+# ---------------------------------------------------------------- inputs
+
+
+def load_episodes(run_dir: Path, scene_id: str | None = None) -> list[Episode]:
+    """Every episode row of the run (or of `scene_id`), in scene then file order."""
+    from sagebench.episodes.shards import read_episodes
+
+    out = []
+    for sid in scene_ids(Path(run_dir), scene_id):
+        episodes_dir = Path(run_dir) / "episodes" / sid
+        try:
+            table = read_episodes(episodes_dir)
+        except (OSError, pa.ArrowException) as err:
+            raise DataError(f"cannot read episode shards: {err}", path=episodes_dir) from None
+        for row in table.select(["episode_id", "scene_id", "instruction_level", "instruction_type",
+                                 "start_position", "start_yaw", "goal_position", "goal_radius",
+                                 "geodesic_distance", "reference_path"]).to_pylist():
+            path = np.asarray(row["reference_path"], dtype=np.float64).reshape(-1, 4)
+            if len(path) == 0:
+                raise DataError(f"episode {row['episode_id']}: empty path", path=episodes_dir, field="reference_path")
+            out.append(Episode(
+                episode_id=row["episode_id"], scene_id=row["scene_id"],
+                level=row["instruction_level"] or NO_LEVEL, type=row["instruction_type"] or NO_LEVEL,
+                start=np.asarray(row["start_position"], dtype=np.float64), start_yaw=float(row["start_yaw"]),
+                goal=np.asarray(row["goal_position"], dtype=np.float64), goal_radius=float(row["goal_radius"]),
+                geodesic_distance=float(row["geodesic_distance"]), reference_path=path))
+    return out
+
+
+def open_replay_model(run_dir: Path, scene_id: str, *, agent: AgentConfig = AgentConfig(),
+                      replay: ReplayConfig = STEP_REPLAY) -> ReplayModel:
+    """The replay agent in RUN/scenes/<scene_id>/scene.xml, floors not colliding (as validate builds it)."""
+    scene_dir = Path(run_dir) / "scenes" / scene_id
+    for name, stage in ((SCENE_FILE, "build-scene"), (MJCF_FILE, "export-usd")):
+        if not (scene_dir / name).is_file():
+            raise DataError(f"missing; run `sagebench {stage}` on this run first", path=scene_dir / name)
+    spec_path = scene_dir / SCENE_FILE
+    floor_z = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path).floor_height
+    try:
+        mjspec = mujoco.MjSpec.from_file(str(scene_dir / MJCF_FILE))
+    except ValueError as err:
+        raise DataError(f"cannot load: {err}", path=scene_dir / MJCF_FILE) from None
+    present = {b.name for b in mjspec.bodies}
+    return build_replay_model(mjspec, agent=agent, floor_z=floor_z, config=replay,
+                              floor_bodies=[n for n in floor_body_names(scene_dir) if n in present])
+
+
+def _check_start(episodes: dict[str, Episode], rows: list[tuple[int, Prediction]], path: Path,
+                 tolerance: float) -> None:
+    for n, p in rows:
+        e = episodes[p.episode_id]
+        off = float(np.hypot(p.poses[0][0] - e.start[0], p.poses[0][1] - e.start[1]))
+        if off > tolerance:
+            raise DataError(f"the first pose is {off:.3f} m from the episode's start_position (more than "
+                            f"{tolerance} m)", path=f"{path}:{n}", field="poses[0]")
+
+
+# ---------------------------------------------------------------- evaluation
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    scores: list[EpisodeScore]
+    summary: Summary
+    missing: list[str]
+    predictions: Path
+    predictions_sha256: str
+    config: EvaluateConfig
+
+    def to_json(self) -> dict:
+        def rounded(d: dict[str, float]) -> dict[str, float]:
+            return {k: (v if k == "episodes" else _r(v)) for k, v in d.items()}
+
+        return {
+            "predictions": {"file": self.predictions.name, "sha256": self.predictions_sha256},
+            "episodes": len(self.scores),
+            "missing": self.missing,
+            "intensity_replayed": sum(s.replayed for s in self.scores),
+            "overall": rounded(self.summary.overall),
+            "by_level": {k: rounded(v) for k, v in self.summary.by_level.items()},
+            "by_type": {k: rounded(v) for k, v in self.summary.by_type.items()},
+            "per_episode": [{"episode_id": s.episode.episode_id, "scene_id": s.episode.scene_id,
+                             "instruction_level": s.episode.level, "instruction_type": s.episode.type,
+                             "missing": s.missing, **{m: _r(getattr(s.metrics, m)) for m in METRIC_NAMES}}
+                            for s in self.scores],
+            "config": self.config.model_dump(mode="json"),
+        }
+
+    def table(self) -> str:
+        """The means as a fixed-width text table: overall, then per level, then per type."""
+        cols = ("episodes", *METRIC_NAMES)
+        head = f"{'group':<32}" + "".join(f"{c.upper() if c != 'path_length' else 'LEN':>9}" for c in cols)
+        lines = [head]
+        groups = [("overall", self.summary.overall)]
+        groups += [(f"level {k}", v) for k, v in self.summary.by_level.items()]
+        groups += [(f"type {k}", v) for k, v in self.summary.by_type.items()]
+        for name, d in groups:
+            lines.append(f"{name:<32}" + f"{d['episodes']:>9d}" + "".join(f"{d[m]:>9.3f}" for m in METRIC_NAMES))
+        return "\n".join(lines)
+
+
+def _r(x: float) -> float | None:
+    return round(float(x), 6) if np.isfinite(x) else None
+
+
+def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = EvaluateConfig(), *,
+             scene_id: str | None = None, out: Path | None = None) -> Evaluation:
+    """Score `predictions` against the run's episodes (or `scene_id`'s); write `out` (JSON) when given.
+
+    Every check (format, ids, starts, inputs) passes before anything is replayed or written.
+    """
+    run_dir, predictions = Path(run_dir), Path(predictions)
+    episodes = load_episodes(run_dir, scene_id)
+    by_id = {e.episode_id: e for e in episodes}
+    rows = read_predictions(predictions)
+    matched, missing = match_episodes(rows, by_id, predictions, allow_missing=config.allow_missing)
+    _check_start(by_id, rows, predictions, config.start_tolerance)
+    need_replay = sorted({by_id[p.episode_id].scene_id for p in matched.values() if p.collision_intensity is None})
+    models = {sid: open_replay_model(run_dir, sid, agent=config.agent, replay=config.replay) for sid in need_replay}
+
+    intensity: dict[str, np.ndarray] = {}
+    for sid in ui.track(need_replay, "replaying poses"):
+        ids = [e.episode_id for e in episodes if e.scene_id == sid and e.episode_id in matched
+               and matched[e.episode_id].collision_intensity is None]
+        cs = replay_intensity(models[sid], [np.asarray(matched[i].poses) for i in ids], threads=config.workers)
+        intensity.update(zip(ids, cs))
+    scores = []
+    for e in episodes:
+        p = matched.get(e.episode_id)
+        if p is None:
+            scores.append(EpisodeScore(e, missing_metrics(e), missing=True, replayed=False))
+            continue
+        replayed = p.collision_intensity is None
+        c = intensity[e.episode_id] if replayed else np.asarray(p.collision_intensity, dtype=np.float64)
+        scores.append(EpisodeScore(e, score_prediction(e, p, c, config.metrics), missing=False, replayed=replayed))
+    result = Evaluation(scores=scores, summary=summarise_scores(scores), missing=missing, predictions=predictions,
+                        predictions_sha256=hashlib.sha256(predictions.read_bytes()).hexdigest(), config=config)
+    if out is not None:
+        write_json(Path(out), result.to_json())
+    return result
