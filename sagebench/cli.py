@@ -79,14 +79,21 @@ def demo(
     out: Annotated[Path, typer.Option("--out", help="Run directory for the demo.")] = Path("out/demo"),
     seed: Annotated[int, typer.Option(help="Seed of the demo scene and of every stage.")] = 0,
 ) -> None:
-    """Generate the built-in demo scene and run every pipeline stage on it.
+    """Generate the built-in demo scene and run the whole pipeline on it.
 
-    Reads nothing. Writes OUT/input/<scene>/ (the demo scene) and the run layout under OUT.
+    Reads nothing. Writes OUT/input/demo_apartment_<seed>/ (the scene), OUT/run.toml (its run config, so
+    `sagebench run OUT/run.toml` and `sagebench verify OUT --regenerate --config OUT/run.toml` work) and
+    the run layout under OUT: scenes/, episodes/, validation/, manifest.json.
     """
     from sagebench.stages.demo import run_demo
 
-    for line in run_demo(out, seed=seed):
+    summary = run_demo(out, seed=seed)
+    for line in summary.lines():
         typer.echo(line)
+    typer.echo(f"results are in {out}/ (top-down maps: {out}/scenes/*/topdown.png, paths: "
+               f"{out}/episodes/*/_preview/paths.png, frames: {out}/validation/*/frames/)")
+    if not summary.ok:
+        raise typer.Exit(1)
 
 
 @app.command("build-scene")
@@ -302,6 +309,70 @@ def verify_cmd(
     if not diff.ok:
         raise typer.Exit(1)
     typer.echo(f"ok: every file of {run_dir} matches its manifest" + (" and a regeneration" if regenerate else ""))
+
+
+@app.command("evaluate")
+def evaluate_cmd(
+    run_dir: Annotated[Path, typer.Option("--run", help="Run directory with episodes/<id>/ (and scenes/<id>/scene.xml).")],
+    predictions: Annotated[Path, typer.Option("--predictions", help="Agent predictions, JSON Lines (one object per episode).")],
+    out: Annotated[Path | None, typer.Option("--out", help="Write the results here as JSON (default: print only).")] = None,
+    scene: Annotated[str | None, typer.Option("--scene", help="Score only this scene's episodes (default: every scene).")] = None,
+    allow_missing: Annotated[
+        bool, typer.Option("--allow-missing", help="Score episodes without a prediction as failures instead of stopping.")
+    ] = False,
+    start_tolerance: Annotated[
+        float | None, typer.Option(help="Largest distance of the first pose from the episode's start, m (default 0.1).")
+    ] = None,
+    workers: Annotated[int | None, typer.Option(help="Threads replaying poses for collision intensity (default 2).")] = None,
+) -> None:
+    """Score agent predictions: SR, OSR, SPL, NE, nDTW, SDTW, CSR, ICP, PS.
+
+    Reads RUN/episodes/<id>/part-*.parquet and PREDICTIONS (JSON Lines: episode_id, poses
+    [[x, y, z, yaw], ...], stopped, optional collision_intensity); for predictions without
+    collision_intensity also RUN/scenes/<id>/scene.json and scene.xml, replaying each step against
+    the colliders.
+
+    Prints the means overall, per instruction level and per instruction type. Writes OUT (JSON: those
+    means, every episode's metrics, missing episode ids, the settings) when given.
+
+    Unknown or duplicate episode ids, and episodes without a prediction (unless --allow-missing), are
+    errors (exit status 2, nothing written).
+    """
+    from sagebench.stages.evaluate import evaluate, make_config
+
+    config = make_config(allow_missing=allow_missing, start_tolerance=start_tolerance, workers=workers)
+    result = evaluate(run_dir, predictions, config, scene_id=scene, out=out)
+    typer.echo(result.table())
+    if result.missing:
+        typer.echo(f"{len(result.missing)} episodes had no prediction and were scored as failures")
+    if out is not None:
+        typer.echo(f"wrote {out}")
+
+
+@app.command("baseline")
+def baseline_cmd(
+    agent: Annotated[str, typer.Option("--agent", help="oracle, straight or random.")],
+    run_dir: Annotated[Path, typer.Option("--run", help="Run directory with episodes/<id>/ and scenes/<id>/scene.xml.")],
+    out: Annotated[Path, typer.Option("--out", help="Predictions file to write (JSON Lines).")],
+    seed: Annotated[int | None, typer.Option(help="Seed of the random agent (default 0).")] = None,
+    scene: Annotated[str | None, typer.Option("--scene", help="Only this scene's episodes (default: every scene).")] = None,
+    max_actions: Annotated[int | None, typer.Option(help="Actions per episode before it ends unstopped (default 500).")] = None,
+    workers: Annotated[int | None, typer.Option(help="Threads stepping the MuJoCo agents (default 2).")] = None,
+) -> None:
+    """Drive a baseline agent through every episode in MuJoCo and write its predictions.
+
+    oracle follows the reference path; straight turns towards the goal and moves straight at it,
+    stopping within the goal radius or when stuck; random wanders (seeded). Each action moves at most
+    0.25 m or turns in place.
+
+    Reads RUN/episodes/<id>/part-*.parquet and RUN/scenes/<id>/scene.json and scene.xml (export-usd).
+    Writes OUT: one JSON line per episode with poses, stopped and collision_intensity, ready for
+    `sagebench evaluate`.
+    """
+    from sagebench.stages.baseline import make_config, run_baseline
+
+    config = make_config(agent_name=agent, seed=seed, max_actions=max_actions, workers=workers)
+    typer.echo(run_baseline(run_dir, out, config, scene_id=scene).summary())
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -41,3 +41,15 @@ def test_schemas_command_writes_every_schema(run_cli, tmp_path):
     assert code == 0
     schema = json.loads((tmp_path / "scene.schema.json").read_text())
     assert schema["title"] == "SceneSpec"
+
+
+def test_demo_runs_the_whole_pipeline_and_verifies(run_cli, tmp_path):
+    out = tmp_path / "demo"
+    code, stdout, err = run_cli("-q", "demo", "--out", out)
+    assert code == 0, stdout + err
+    assert "1 scenes, 400 episodes, 1 scenes complete" in stdout
+    for rel in ("run.toml", "manifest.json", "scenes/demo_apartment_0/topdown.png", "scenes/demo_apartment_0/scene.usda",
+                "episodes/demo_apartment_0/part-00000.parquet", "validation/demo_apartment_0/report.json"):
+        assert (out / rel).is_file(), rel
+    code, stdout, _ = run_cli("verify", out)
+    assert code == 0 and stdout.startswith("ok:")

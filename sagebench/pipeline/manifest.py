@@ -11,6 +11,7 @@ from sagebench import __version__
 from sagebench.fileio import write_json
 
 MANIFEST = "manifest.json"
+OUTPUT_ROOTS = ("scenes", "episodes", "validation")  # what the stages write; inputs are hashed under `inputs`
 
 
 def sha256_file(path: Path) -> str:
@@ -22,13 +23,14 @@ def sha256_file(path: Path) -> str:
 
 
 def run_files(run_dir: Path) -> list[Path]:
-    """Every output file of a run, sorted: hidden files and directories (stamps, temporaries) and the
-    manifest itself are not outputs."""
+    """Every output file of a run under scenes/, episodes/ and validation/, sorted; hidden files and
+    directories (stamps, temporaries) are not outputs."""
     out = []
-    for path in run_dir.rglob("*"):
-        rel = path.relative_to(run_dir)
-        if path.is_file() and not any(part.startswith(".") for part in rel.parts) and rel.as_posix() != MANIFEST:
-            out.append(path)
+    for root in OUTPUT_ROOTS:
+        for path in (run_dir / root).rglob("*"):
+            rel = path.relative_to(run_dir)
+            if path.is_file() and not any(part.startswith(".") for part in rel.parts):
+                out.append(path)
     return sorted(out, key=lambda p: p.relative_to(run_dir).as_posix())
 
 

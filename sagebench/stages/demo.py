@@ -1,40 +1,31 @@
-"""`sagebench demo`: the built-in scene through every stage that exists, into one run directory."""
+"""`sagebench demo`: the built-in scene through the whole pipeline (`sagebench run`), into one run directory."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
+from sagebench.fileio import write_text
+from sagebench.pipeline.config import load_run_config
+from sagebench.pipeline.run import RunSummary, run_pipeline
 from sagebench.scene.loader import load_scene
 from sagebench.scene.summary import summarise
 from sagebench.scene.synth import write_synth_scene
+from sagebench.ui import info
+
+RUN_CONFIG = """# The demo run: `sagebench run` reads this file (`make demo` writes it).
+scenes = ["input/demo_apartment_{seed}"]
+out = "."
+seed = {seed}
+"""
 
 
-def run_demo(out: Path, *, seed: int = 0) -> Iterator[str]:
-    """Run the pipeline on the demo scene, yielding one line per finished step for the user."""
+def run_demo(out: Path, *, seed: int = 0) -> RunSummary:
+    """Write the demo scene and its run config into `out`, then run every stage on it."""
+    out = Path(out)
     scene_dir = out / "input" / f"demo_apartment_{seed}"
     write_synth_scene(scene_dir, seed=seed)
-    yield f"demo scene: {scene_dir}"
-    scene = load_scene(scene_dir)
-    yield summarise(scene)
-    from sagebench.stages.build_scene import TopdownConfig, build_scene
-
-    built = build_scene(scene_dir, out, TopdownConfig(seed=seed))
-    yield built.summary()
-    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, gen_trajectories
-
-    for episodes in gen_trajectories(out, GenTrajectoriesConfig(seed=seed), scene_id=built.scene_id):
-        yield episodes.summary()
-    from sagebench.stages.export_usd import export_usd
-
-    for exported in export_usd(out, scene_id=built.scene_id):
-        yield exported.line()
-    from sagebench.stages.validate import ValidateConfig, validate_run
-
-    if (out / "scenes" / built.scene_id / "scene.xml").is_file():
-        for result in validate_run(out, ValidateConfig(seed=seed), scene_id=built.scene_id):
-            yield result.summary()
-            yield from (f"  FAIL {tid}: {', '.join(reasons)}" for tid, reasons in result.failures)
-    else:
-        yield "validate: skipped, the demo has no scene.xml yet (export-usd is not one of its steps)"
-    yield f"results are in {out}"
+    info(f"demo scene: {scene_dir}")
+    info(summarise(load_scene(scene_dir)))
+    config_path = out / "run.toml"
+    write_text(config_path, RUN_CONFIG.format(seed=seed))
+    return run_pipeline(load_run_config(config_path), config_path)
