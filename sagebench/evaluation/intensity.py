@@ -1,9 +1,10 @@
 """Collision intensity c(t) per agent step: the fraction of a step's commanded motion that contact blocked.
 
-A step commands a move from pose t-1 to pose t. c(t) = 0 when the agent got there (within the replay's
-waypoint tolerance); otherwise c(t) = clip(1 - progress / |commanded|, 0, 1), progress being the achieved
-XY displacement along the commanded direction. Steps that command no translation (shorter than the waypoint
-tolerance: turns in place) have c(t) = 0, since contact never twists the replay agent's heading.
+A step commands a move from pose t-1 to pose t. c(t) = 0 when the agent got there (ended within the replay's
+waypoint tolerance, 0.02 m, of pose t); otherwise c(t) = clip(1 - progress / |commanded|, 0, 1), progress
+being the achieved XY displacement along the commanded direction, so being pushed sideways past a corner
+costs little and being stopped dead costs 1. Steps that command no translation (shorter than that tolerance:
+turns in place) have c(t) = 0, since contact never twists the replay agent's heading.
 
 The baseline agents measure c(t) while they drive. For predictions without `collision_intensity`,
 `replay_intensity` replays every step of every episode on its own (a translation from the predicted pose t-1
@@ -24,17 +25,16 @@ from sagebench.replay.physics import ReplayConfig, ReplayModel, replay_batch
 STEP_REPLAY = ReplayConfig(stall_time=0.5, time_slack=1.0)
 
 
-def blocked_fraction(start: np.ndarray, target: np.ndarray, end: np.ndarray, reached: np.ndarray,
-                     tolerance: float) -> np.ndarray:
-    """c per step [B] from start, commanded target and achieved end positions [B, >=2] (metres) and whether
-    the replay reached the target [B] bool; steps shorter than `tolerance` (m) give 0."""
+def blocked_fraction(start: np.ndarray, target: np.ndarray, end: np.ndarray, *, tolerance: float) -> np.ndarray:
+    """c per step [B] from the start, commanded target and achieved end positions [B, >=2] (metres): 0 for a
+    step shorter than `tolerance` or one that ended within `tolerance` of its target."""
     start, target, end = (np.asarray(a, dtype=np.float64)[:, :2] for a in (start, target, end))
     wanted = target - start
     length = np.linalg.norm(wanted, axis=1)
-    moving = (length >= tolerance) & ~np.asarray(reached, dtype=bool)
-    safe = np.where(moving, length, 1.0)
+    blocked = (length >= tolerance) & (np.linalg.norm(target - end, axis=1) > tolerance)
+    safe = np.where(blocked, length, 1.0)
     progress = ((end - start) * wanted).sum(axis=1) / safe
-    return np.where(moving, np.clip(1.0 - progress / safe, 0.0, 1.0), 0.0)
+    return np.where(blocked, np.clip(1.0 - progress / safe, 0.0, 1.0), 0.0)
 
 
 def replay_intensity(rm: ReplayModel, poses: Sequence[np.ndarray], *, threads: int = 2) -> list[np.ndarray]:
@@ -53,7 +53,6 @@ def replay_intensity(rm: ReplayModel, poses: Sequence[np.ndarray], *, threads: i
     c = np.zeros(len(starts))
     if records:
         end = np.array([r.poses[-1, :2] for r in records])
-        reached = np.array([r.outcome == "reached" for r in records])
-        c[moving] = blocked_fraction(starts[moving], targets[moving], end, reached, tol)
+        c[moving] = blocked_fraction(starts[moving], targets[moving], end, tolerance=tol)
     bounds = np.cumsum([0] + [len(s) - 1 for s in seqs])
     return [np.concatenate([[0.0], c[bounds[i]: bounds[i + 1]]]) for i in range(len(seqs))]
