@@ -27,11 +27,18 @@ def _episode_schema() -> dict[str, Any]:
     return episode_schema_json()
 
 
+def _predictions_schema() -> dict[str, Any]:
+    from sagebench.evaluation.predictions import Prediction
+
+    return Prediction.model_json_schema()
+
+
 # file name in schemas/ -> function returning the schema; later stages add their formats here.
 SCHEMAS: dict[str, Callable[[], dict[str, Any]]] = {
     "scene.schema.json": _scene_schema,
     "semantic_map.schema.json": _semantic_map_schema,
     "episode.arrow.json": _episode_schema,
+    "predictions.schema.json": _predictions_schema,
 }
 
 
