@@ -69,3 +69,21 @@ def room_mjcf() -> str:
     <body name='floor_3'><geom name='floor_3_p000' type='mesh' mesh='slab'/></body>
   </worldbody>
 </mujoco>"""
+
+
+@pytest.fixture(scope="session")
+def demo_eval_run(demo_built_run, tmp_path_factory) -> Path:
+    """The demo apartment with 8 trajectories (16 episodes) and scene.xml, for evaluate and baseline tests.
+
+    Shared and read-only: copy it before writing into it.
+    """
+    import shutil
+
+    from sagebench.stages.export_usd import export_usd
+    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, gen_trajectories
+
+    run = tmp_path_factory.mktemp("eval_run")
+    shutil.copytree(demo_built_run / "scenes", run / "scenes")
+    gen_trajectories(run, GenTrajectoriesConfig(per_scene=8, seed=0))
+    export_usd(run, cache_dir=tmp_path_factory.mktemp("eval_coacd_cache"))
+    return run
