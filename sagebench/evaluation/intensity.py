@@ -1,7 +1,7 @@
 """Collision intensity c(t) per agent step: the fraction of a step's commanded motion that contact blocked.
 
 A step commands a move from pose t-1 to pose t. c(t) = 0 when the agent got there (ended within the replay's
-waypoint tolerance, 0.02 m, of pose t); otherwise c(t) = clip(1 - progress / |commanded|, 0, 1), progress
+waypoint tolerance, 5 mm in STEP_REPLAY, of pose t); otherwise c(t) = clip(1 - progress / |commanded|, 0, 1), progress
 being the achieved XY displacement along the commanded direction, so being pushed sideways past a corner
 costs little and being stopped dead costs 1. Steps that command no translation (shorter than that tolerance:
 turns in place) have c(t) = 0, since contact never twists the replay agent's heading.
@@ -20,9 +20,10 @@ import numpy as np
 
 from sagebench.replay.physics import ReplayConfig, ReplayModel, replay_batch
 
-# Replay settings for single agent steps: a blocked step gives up after 0.5 s without progress (not 2 s),
-# and the time limit's slack is 1 s, since a step is short.
-STEP_REPLAY = ReplayConfig(stall_time=0.5, time_slack=1.0)
+# Replay settings for single agent steps: a step ends within 5 mm of its target (not 2 cm: the deadbeat drive
+# lands on it exactly, so short steps do not fall short), a blocked step gives up after 0.5 s without progress
+# (not 2 s), and the time limit's slack is 1 s, since a step is short.
+STEP_REPLAY = ReplayConfig(stall_time=0.5, time_slack=1.0, waypoint_tolerance=0.005)
 
 
 def blocked_fraction(start: np.ndarray, target: np.ndarray, end: np.ndarray, *, tolerance: float) -> np.ndarray:

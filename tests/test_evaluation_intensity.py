@@ -1,0 +1,60 @@
+"""Collision intensity per step, by hand and by replay in the inline test room (wall at x = 2.95..3.05)."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from sagebench.evaluation.intensity import STEP_REPLAY, blocked_fraction, replay_intensity
+from sagebench.replay.physics import build_replay_model, replay_one
+
+
+@pytest.fixture(scope="module")
+def rm(room_mjcf):
+    return build_replay_model(mujoco.MjSpec.from_string(room_mjcf), floor_bodies=["floor_3"], config=STEP_REPLAY)
+
+
+def test_blocked_fraction_by_hand():
+    start = np.array([[0, 0], [0, 0], [0, 0], [0, 0], [0, 0], [0, 0]], float)
+    target = np.array([[1, 0], [1, 0], [1, 0], [1, 0], [0.01, 0], [1, 0]], float)
+    end = np.array([[0.25, 0], [0.99, 0], [0, 0], [0.5, 0.3], [0, 0], [-0.2, 0]], float)
+    c = blocked_fraction(start, target, end, tolerance=0.02)
+    # stopped a quarter of the way; arrived (within 0.02); stopped dead; pushed sideways half way;
+    # a 1 cm step is a turn, not a move; pushed backwards is fully blocked, no more
+    np.testing.assert_allclose(c, [0.75, 0.0, 1.0, 0.5, 0.0, 1.0])
+
+
+def test_a_step_into_the_wall_is_blocked_by_the_part_beyond_contact(rm):
+    # from x = 2.0 towards x = 3.5: the 0.2 m agent touches the wall face at x = 2.95 when its centre is at 2.75,
+    # so 0.75 of the 1.5 m commanded are achieved: c = 0.5 (the 32-gon is up to 1 mm wider than the cylinder)
+    poses = np.array([[1.0, -2.0, 0, 0], [2.0, -2.0, 0, 0], [3.5, -2.0, 0, 0], [3.5, -2.0, 0, math.pi / 2]])
+    (c,) = replay_intensity(rm, [poses])
+    assert c[0] == 0.0 and c[1] == 0.0 and c[3] == 0.0  # the start, free floor, a turn in place
+    assert c[2] == pytest.approx(0.5, abs=0.005)
+
+
+def test_each_step_is_replayed_from_its_predicted_pose(rm):
+    # a step through the wall (stopped at 2.75 of 2.3 -> 3.6), then on from the far side as predicted: free
+    beyond = np.array([[2.0, -2.0, 0, 0], [2.3, -2.0, 0, 0], [3.6, -2.0, 0, 0], [4.0, -2.0, 0, 0]])
+    grazing = np.array([[0.5, 0.5, 0, 0], [1.5, 0.5, 0, 0]])  # into the table (x 1.1..1.9, y 0.1..0.9)
+    c_beyond, c_table = replay_intensity(rm, [beyond, grazing])
+    assert c_beyond[1] == 0.0 and c_beyond[3] == 0.0
+    assert c_beyond[2] == pytest.approx(1 - (2.75 - 2.3) / 1.3, abs=0.005)
+    assert c_table[1] == pytest.approx(1 - (1.1 - 0.2 - 0.5) / 1.0, abs=0.005)
+
+
+def test_batched_steps_agree_with_one_plain_replay_per_step(rm):
+    rng = np.random.default_rng(0)
+    xy = np.cumsum(rng.uniform(-0.4, 0.4, size=(12, 2)), axis=0) + [2.0, -1.0]
+    poses = np.column_stack([xy, np.zeros(12), np.zeros(12)])
+    (c,) = replay_intensity(rm, [poses])
+    plain = [0.0]
+    for a, b in zip(xy[:-1], xy[1:]):
+        yaw = math.atan2(b[1] - a[1], b[0] - a[0])
+        end = replay_one(rm, np.array([[*a, 0, yaw], [*b, 0, yaw]])).poses[-1, :2]
+        plain.append(float(blocked_fraction(a[None], b[None], end[None], tolerance=rm.config.waypoint_tolerance)[0]))
+    np.testing.assert_allclose(c, plain, atol=1e-12)
+    assert (c > 0).any()  # the walk crosses the wall at x = 2.95
