@@ -133,22 +133,33 @@ def gen_trajectories_cmd(
     seed: Annotated[int | None, typer.Option(help="Seed of sampling and wording (default 0).")] = None,
     shard_size: Annotated[int | None, typer.Option(help="Episode rows per Parquet shard (default 1000).")] = None,
     instructions: Annotated[
-        str | None, typer.Option(help="template: Base_Action + Single_Goal rows; none: bare trajectories (default template).")
+        str | None, typer.Option(help="template: two low-level rows and one high-level row per trajectory; llm: the "
+                                      "high-level row from a chat model; none: bare trajectories (default template).")
     ] = None,
     min_geodesic: Annotated[float | None, typer.Option(help="Shortest accepted path, m (default 2).")] = None,
     max_geodesic: Annotated[float | None, typer.Option(help="Longest accepted path, m (default 20).")] = None,
     goal_radius: Annotated[float | None, typer.Option(help="Success radius written with each episode, m (default 1).")] = None,
+    llm_base_url: Annotated[str | None, typer.Option(
+        help="OpenAI-compatible API root for --instructions llm, e.g. http://localhost:8000/v1.")] = None,
+    llm_model: Annotated[str | None, typer.Option(help="Chat model name for --instructions llm.")] = None,
+    llm_cache_dir: Annotated[Path | None, typer.Option(
+        help="Answer cache, keyed by sha256 of (model, prompt) (default: the user cache directory).")] = None,
+    llm_concurrency: Annotated[int | None, typer.Option(help="LLM requests in flight at once (default 4).")] = None,
 ) -> None:
-    """Sample A* trajectories between objects and rooms and write them with low-level instructions.
+    """Sample A* trajectories between objects and rooms and write them with low- and high-level instructions.
 
     Reads RUN_DIR/scenes/<id>/topdown.npz, semantic_map.json and scene.json. Writes
     RUN_DIR/episodes/<id>/part-NNNNN.parquet (one row per trajectory-instruction pair) and
-    RUN_DIR/episodes/<id>/_preview/paths.png.
+    RUN_DIR/episodes/<id>/_preview/paths.png. With --instructions llm it also reads and writes the
+    answer cache; the API key comes from the environment variable SAGEBENCH_LLM_API_KEY.
     """
     from sagebench.stages.gen_trajectories import gen_trajectories, make_config
 
+    llm = {k: v for k, v in {"base_url": llm_base_url, "model": llm_model, "cache_dir": llm_cache_dir,
+                             "concurrency": llm_concurrency}.items() if v is not None}
     config = make_config(per_scene=per_scene, seed=seed, shard_size=shard_size, instructions=instructions,
-                         min_geodesic_m=min_geodesic, max_geodesic_m=max_geodesic, goal_radius_m=goal_radius)
+                         min_geodesic_m=min_geodesic, max_geodesic_m=max_geodesic, goal_radius_m=goal_radius,
+                         llm=llm or None)
     for result in gen_trajectories(run_dir, config, scene_id=scene):
         typer.echo(result.summary())
 

@@ -35,20 +35,23 @@ def generated(demo_built_run, tmp_path_factory):
     return run
 
 
-def test_default_run_writes_200_trajectories_with_both_low_level_instructions(generated):
+def test_default_run_writes_200_trajectories_with_low_and_high_level_instructions(generated):
     table = read_episodes(generated / "episodes" / SCENE)
     assert table.schema == EPISODE_SCHEMA
     rows = table.to_pylist()
-    by_traj: dict[str, list[str]] = {}
+    by_traj: dict[str, list[tuple[str, str]]] = {}
     for r in rows:
-        by_traj.setdefault(r["trajectory_id"], []).append(r["instruction_type"])
-    assert len(by_traj) == 200 and len(rows) == 400
-    assert all(sorted(types) == ["Base_Action", "Single_Goal"] for types in by_traj.values())
-    assert len({r["episode_id"] for r in rows}) == 400
-    assert {r["instruction_level"] for r in rows} == {"low"} and {r["instruction_source"] for r in rows} == {"template"}
+        by_traj.setdefault(r["trajectory_id"], []).append((r["instruction_level"], r["instruction_type"]))
+    assert len(by_traj) == 200 and len(rows) == 600
+    high = {"Add_Object", "Scenario_Driven", "Relative_Relationship", "Attribute_Based", "Area_Based"}
+    for pairs in by_traj.values():
+        assert pairs[:2] == [("low", "Base_Action"), ("low", "Single_Goal")]
+        assert pairs[2][0] == "high" and pairs[2][1] in high
+    assert len({r["episode_id"] for r in rows}) == 600
+    assert {r["instruction_source"] for r in rows} == {"template"}
     assert {r["goal_radius"] for r in rows} == {1.0} and {r["seed"] for r in rows} == {0}
     assert (generated / "episodes" / SCENE / "_preview" / "paths.png").stat().st_size > 1000
-    assert pq.read_table(generated / "episodes" / SCENE).num_rows == 400  # the directory reads as one dataset
+    assert pq.read_table(generated / "episodes" / SCENE).num_rows == 600  # the directory reads as one dataset
 
 
 def test_every_episode_starts_and_ends_on_navigable_cells_in_range(generated):
@@ -76,7 +79,7 @@ def test_instruction_texts_hold_no_internal_ids(generated):
 def test_same_seed_gives_byte_identical_shards(run_cli, generated, tmp_path):
     run = _run_dir(generated, tmp_path)
     code, out, _ = run_cli("gen-trajectories", run, "--seed", "0")
-    assert code == 0 and "200 trajectories, 400 episode rows" in out
+    assert code == 0 and "200 trajectories, 600 episode rows" in out
     assert _files(generated / "episodes" / SCENE) == _files(run / "episodes" / SCENE)
 
 
@@ -103,7 +106,8 @@ def test_asking_for_more_than_the_scene_allows_warns_with_the_reason(run_cli, de
 
 @pytest.mark.parametrize("args,fragment", [
     (["--per-scene", "0"], "error: --per-scene: Input should be greater than or equal to 1"),
-    (["--instructions", "llm"], "error: --instructions: Input should be 'template' or 'none'"),
+    (["--instructions", "gpt"], "error: --instructions: Input should be 'template', 'llm' or 'none'"),
+    (["--instructions", "llm"], "error: --instructions llm needs --llm-base-url and --llm-model"),
     (["--scene", "nope"], "error: --scene: no scene 'nope' in"),
     (["--goal-radius", "0"], "error: --goal-radius: Input should be greater than 0"),
     (["--min-geodesic", "25"], "error: min_geodesic_m (25.0) must be below max_geodesic_m (20.0)"),

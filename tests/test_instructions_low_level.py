@@ -67,4 +67,4 @@ def test_wording_is_a_function_of_the_seed():
 
 def test_none_mode_writes_nothing_and_modes_are_registered():
     assert instructions_for(_text(_wps((0, 0), (3, 0))), "none", np.random.default_rng(0)) == []
-    assert set(GENERATORS) == {"template", "none"}
+    assert set(GENERATORS) == {"template", "llm", "none"}

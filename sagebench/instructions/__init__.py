@@ -1,19 +1,21 @@
 """Instructions for trajectories: generators registered per `--instructions` mode.
 
 `GENERATORS[mode]` lists, in order, the generators a mode runs on each trajectory; each takes a
-`TrajectoryText` and a seeded generator and returns `Instruction`s. A high-level generator (issue 5)
-registers itself in the "template" list beside the low-level ones, and an "llm" mode is one more key.
+`TrajectoryText` and a seeded generator and returns `Instruction`s. Both instruction modes write the
+two low-level types and one high-level instruction; "llm" asks a chat model for the high-level one and
+falls back to the template when the answer is not grounded.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from sagebench.instructions import low_level
+from sagebench.instructions import high_level, llm, low_level
 from sagebench.instructions.base import Generator, Instruction, TrajectoryText
 
 GENERATORS: dict[str, list[Generator]] = {
-    "template": [low_level.base_action, low_level.single_goal],
+    "template": [low_level.base_action, low_level.single_goal, high_level.high_level],
+    "llm": [low_level.base_action, low_level.single_goal, llm.llm_high_level],
     "none": [],
 }
 

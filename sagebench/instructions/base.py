@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Literal
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal
 
 import numpy as np
 
+from sagebench.instructions.naming import ObjectInfo, RoomInfo
+from sagebench.instructions.relations import Layout
+
 Level = Literal["high", "low"]
+HIGH_LEVEL_TYPES = ("Add_Object", "Scenario_Driven", "Relative_Relationship", "Attribute_Based", "Area_Based")
 
 
 @dataclass(frozen=True)
@@ -20,14 +24,44 @@ class Instruction:
 
 
 @dataclass(frozen=True)
+class SceneContext:
+    """What high-level generators know about one scene: its objects, rooms, unique names and footprints.
+
+    Ids are for lookups only; generated text uses `names` and `room_names`.
+    """
+
+    objects: tuple[ObjectInfo, ...]  # targets' kinds (objects, doors): what naming and templates use
+    fixtures: tuple[ObjectInfo, ...]  # other things an answer may mention (windows)
+    rooms: tuple[RoomInfo, ...]
+    room_polygons: Mapping[str, np.ndarray]  # room id -> floor polygon [K, 2], world metres
+    names: Mapping[int, str]  # instance id -> unique name in the scene
+    room_names: Mapping[str, str]  # room id -> unique name
+    local_names: Mapping[str, Mapping[int, str]]  # room id -> instance id -> name unique within that room
+    layout: Layout  # footprints of the floor-standing objects
+    type_mix: Mapping[str, float]  # high-level type -> relative share
+    llm: Any = field(default=None, compare=False)  # instructions.llm.LLMInstructor in llm mode
+
+    def object(self, instance_id: int) -> ObjectInfo:
+        return next(o for o in self.objects if o.instance_id == instance_id)
+
+
+@dataclass(frozen=True)
 class TrajectoryText:
-    """What a generator may mention: the path's shape and the endpoints' unique names (never ids)."""
+    """What a generator may mention: the path's shape and the endpoints' unique names (never ids).
+
+    The endpoint ids and rooms, and the scene, let high-level generators describe the goal other ways.
+    """
 
     waypoints: np.ndarray  # [M, 4] float64 (x, y, z, yaw), metres and radians
     start_name: str  # e.g. "the dining table", "the kitchen"
     goal_name: str
     start_kind: Literal["object", "room"]
     goal_kind: Literal["object", "room"]
+    start_id: int | None = None  # instance id of an object endpoint
+    goal_id: int | None = None
+    start_room: str | None = None  # room id the endpoint is in (its own id for a room)
+    goal_room: str | None = None
+    scene: SceneContext | None = None
 
 
 Generator = Callable[[TrajectoryText, np.random.Generator], list[Instruction]]

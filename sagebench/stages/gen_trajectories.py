@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import hashlib
 import zipfile
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import Field, ValidationError
+from pydantic import Field, ValidationError, model_validator
 
 from sagebench import ui
 from sagebench.astar.sampling import GridMap, SamplingConfig, SamplingResult, TargetSpec, Trajectory, sample_trajectories
@@ -23,8 +24,10 @@ from sagebench.episodes.shards import write_shards
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import staged_dir, write_bytes
 from sagebench.instructions import instructions_for
-from sagebench.instructions.base import TrajectoryText
+from sagebench.instructions.base import HIGH_LEVEL_TYPES, SceneContext, TrajectoryText
+from sagebench.instructions.llm import LLMConfig
 from sagebench.instructions.naming import ObjectInfo, RoomInfo, object_names, room_names
+from sagebench.instructions.relations import layout
 from sagebench.scene.loader import SCENE_FILE, parse_spec
 from sagebench.scene.model import SceneSpec
 from sagebench.topdown.semantic_map import SemanticMap
@@ -33,18 +36,33 @@ TOPDOWN_FILE = "topdown.npz"
 SEMANTIC_FILE = "semantic_map.json"
 PREVIEW = Path("_preview") / "paths.png"  # inside episodes/<scene_id>/
 TARGET_KINDS = ("object", "door")  # what a trajectory may start or end at, besides rooms
+FIXTURE_KINDS = ("window",)  # what else an instruction may mention
 
 
 class GenTrajectoriesConfig(SamplingConfig):
     """Settings of gen-trajectories: sampling plus what is written (defaults here, nowhere else)."""
 
     shard_size: int = Field(default=1000, ge=1, description="Rows per Parquet shard.")
-    instructions: Literal["template", "none"] = Field(
-        default="template", description="template: Base_Action + Single_Goal rows; none: one bare row per trajectory.")
+    instructions: Literal["template", "llm", "none"] = Field(
+        default="template",
+        description="template: Base_Action, Single_Goal and one high-level row per trajectory; llm: the high-level "
+                    "row from a chat model (grounded, else the template); none: one bare row per trajectory.")
+    high_level_mix: dict[Literal[HIGH_LEVEL_TYPES], float] = Field(  # type: ignore[valid-type]
+        default={t: 1.0 for t in HIGH_LEVEL_TYPES},
+        description="Relative share of each high-level type (a type that cannot describe a goal is skipped).")
+    llm: LLMConfig = Field(default=LLMConfig(), description="Chat model for --instructions llm.")
     goal_radius_m: float = Field(
         default=1.0, gt=0,
         description="Success radius, m: the stand point is ~0.2-0.3 m from the target, so 1 m means next to it.")
     preview_paths: int = Field(default=40, ge=0, description="Paths drawn in paths.png.")
+
+    @model_validator(mode="after")
+    def _instruction_settings(self) -> GenTrajectoriesConfig:
+        if any(v < 0 for v in self.high_level_mix.values()) or not any(v > 0 for v in self.high_level_mix.values()):
+            raise ValueError("high_level_mix needs non-negative shares, at least one positive")
+        if self.instructions == "llm" and not (self.llm.base_url and self.llm.model):
+            raise ValueError("--instructions llm needs --llm-base-url and --llm-model")
+        return self
 
 
 def make_config(**fields: object) -> GenTrajectoriesConfig:
@@ -54,6 +72,8 @@ def make_config(**fields: object) -> GenTrajectoriesConfig:
     except ValidationError as err:
         e = err.errors(include_url=False)[0]
         name = str(e["loc"][0]) if e["loc"] else None
+        if name == "llm" and len(e["loc"]) > 1:  # nested LLMConfig field -> --llm-<field>
+            name = f"llm_{e['loc'][1]}"
         option = None if name is None else "--" + name.removesuffix("_m").replace("_", "-")
         raise ConfigError(e["msg"].removeprefix("Value error, "), field=option) from None
 
@@ -67,10 +87,12 @@ class SceneEpisodes:
     trajectories: int
     rows: int
     shards: list[Path]
+    llm_summary: str | None = None  # what the chat model contributed, in llm mode
 
     def summary(self) -> str:
-        return (f"gen-trajectories {self.scene_id}: {self.trajectories} trajectories, {self.rows} episode rows "
+        line = (f"gen-trajectories {self.scene_id}: {self.trajectories} trajectories, {self.rows} episode rows "
                 f"in {len(self.shards)} shard(s) -> {self.out_dir}")
+        return line if self.llm_summary is None else f"{line}\n  llm: {self.llm_summary}"
 
 
 def gen_trajectories(run_dir: Path, config: GenTrajectoriesConfig, *, scene_id: str | None = None) -> list[SceneEpisodes]:
@@ -94,17 +116,25 @@ def gen_trajectories(run_dir: Path, config: GenTrajectoriesConfig, *, scene_id: 
 def generate_scene(scene_dir: Path, out_dir: Path, config: GenTrajectoriesConfig) -> SceneEpisodes:
     """One scene: read its maps, sample trajectories, write shards and the paths preview into `out_dir` (replaced)."""
     spec, smap, grid, occupancy = read_scene_inputs(scene_dir)
-    targets, names = scene_targets(spec, smap)
+    ctx = scene_context(spec, smap, config.high_level_mix)
+    targets, names = scene_targets(spec, smap, ctx)
     result = sample_trajectories(grid, targets, spec.scene_id, config)
     _warn_if_short(spec.scene_id, result, config, n_targets=len(targets))
-    rows = episode_rows(spec.scene_id, result.trajectories, names, config)
+    instructor = None
+    if config.instructions == "llm":
+        from sagebench.instructions.llm import with_instructor
+
+        ctx, instructor = with_instructor(ctx, config.llm)
+    rows = episode_rows(spec.scene_id, result.trajectories, names, config, ctx)
+    if instructor is not None and instructor.stats["fallback"]:
+        ui.warn(f"{spec.scene_id}: {instructor.summary()}")
     with staged_dir(out_dir) as tmp:
         shards = write_shards(rows, tmp, config.shard_size)
         png = render_paths(grid.navigable, occupancy, [t.waypoints for t in result.trajectories[:config.preview_paths]],
                            grid.resolution, grid.origin)
         write_bytes(tmp / PREVIEW, png)
     return SceneEpisodes(spec.scene_id, out_dir, len(result.trajectories), len(rows),
-                         [out_dir / p.name for p in shards])
+                         [out_dir / p.name for p in shards], None if instructor is None else instructor.summary())
 
 
 def read_scene_inputs(scene_dir: Path) -> tuple[SceneSpec, SemanticMap, GridMap, np.ndarray]:
@@ -140,43 +170,80 @@ def read_scene_inputs(scene_dir: Path) -> tuple[SceneSpec, SemanticMap, GridMap,
     return spec, smap, grid, np.asarray(occ, dtype=np.uint8)
 
 
-def scene_targets(spec: SceneSpec, smap: SemanticMap) -> tuple[list[TargetSpec], dict[str, str]]:
-    """Targets that can be named uniquely, and target key -> referring expression.
+def scene_context(spec: SceneSpec, smap: SemanticMap, type_mix: dict[str, float] | None = None) -> SceneContext:
+    """Objects, rooms, unique names (relations allowed) and footprints of one scene, for naming and instructions.
 
-    Objects and doors standing in the agent's height band (not ceiling lamps) and rooms; an object's
-    attributes are its scene.json attributes plus its door state.
+    Objects and doors are what trajectories start and end at; an object's attributes are its scene.json
+    attributes plus its door state. Footprints of things above the agent's band (ceiling lamps) are left
+    out, so they serve as no landmark.
     """
     attrs = {o.instance_id: dict(o.attributes) for o in spec.objects}
     top = smap.floor_height + smap.band_m[1]
-    instances = [i for i in smap.instances if i.kind in TARGET_KINDS]
-    infos = [ObjectInfo(i.instance_id, i.category, i.room,
-                        {**attrs.get(i.instance_id, {}), **({"state": i.door_state} if i.door_state else {})})
-             for i in instances]
-    rooms = [RoomInfo(r.id, r.type) for r in spec.rooms]
-    obj_names = object_names(infos, rooms)
-    rm_names = room_names(rooms, infos)
+
+    def info(i) -> ObjectInfo:
+        return ObjectInfo(i.instance_id, i.category, i.room,
+                          {**attrs.get(i.instance_id, {}), **({"state": i.door_state} if i.door_state else {})})
+
+    objects = tuple(info(i) for i in smap.instances if i.kind in TARGET_KINDS)
+    fixtures = tuple(info(i) for i in smap.instances if i.kind in FIXTURE_KINDS)
+    lay = layout({i.instance_id: [np.asarray(p[0], dtype=np.float64) for p in i.polygon.coordinates]
+                  for i in smap.instances
+                  if i.kind in TARGET_KINDS and i.min_z <= top and i.polygon.coordinates})
+    rooms = tuple(RoomInfo(r.id, r.type) for r in spec.rooms)
+    local = {r.id: object_names([o for o in objects if o.room_id == r.id], rooms, lay) for r in rooms}
+    return SceneContext(objects, fixtures, rooms, {r.id: np.asarray(r.polygon, dtype=np.float64) for r in spec.rooms},
+                        object_names(objects, rooms, lay), room_names(rooms, objects), local, lay,
+                        dict(type_mix) if type_mix is not None else {t: 1.0 for t in HIGH_LEVEL_TYPES})
+
+
+def scene_targets(spec: SceneSpec, smap: SemanticMap,
+                  ctx: SceneContext | None = None) -> tuple[list[TargetSpec], dict[str, str]]:
+    """Targets that can be named uniquely, and target key -> referring expression.
+
+    Objects and doors standing in the agent's height band (not ceiling lamps) and rooms.
+    """
+    ctx = scene_context(spec, smap) if ctx is None else ctx
+    top = smap.floor_height + smap.band_m[1]
     targets: list[TargetSpec] = []
     names: dict[str, str] = {}
-    for inst in instances:
-        if inst.instance_id not in obj_names or inst.min_z > top or not inst.polygon.coordinates:
+    for inst in smap.instances:
+        if (inst.kind not in TARGET_KINDS or inst.instance_id not in ctx.names or inst.min_z > top
+                or not inst.polygon.coordinates):
             continue
         key = f"object:{inst.instance_id}"
         outlines = tuple(np.asarray(poly[0], dtype=np.float64) for poly in inst.polygon.coordinates)
         targets.append(TargetSpec(key, "object", inst.instance_id, inst.room, outlines))
-        names[key] = obj_names[inst.instance_id]
+        names[key] = ctx.names[inst.instance_id]
     for room in spec.rooms:
-        if room.id in rm_names:
+        if room.id in ctx.room_names:
             key = f"room:{room.id}"
             targets.append(TargetSpec(key, "room", None, room.id, (np.asarray(room.polygon, dtype=np.float64),)))
-            names[key] = rm_names[room.id]
+            names[key] = ctx.room_names[room.id]
     return targets, names
 
 
 def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str, str],
-                 config: GenTrajectoriesConfig) -> list[dict[str, Any]]:
-    """One row per (trajectory, instruction); one bare row per trajectory when instructions are 'none'."""
+                 config: GenTrajectoriesConfig, ctx: SceneContext | None = None) -> list[dict[str, Any]]:
+    """One row per (trajectory, instruction); one bare row per trajectory when instructions are 'none'.
+
+    Each trajectory's wording depends only on (seed, trajectory id), so in llm mode trajectories are
+    instructed on `config.llm.concurrency` threads and the rows still come out in order.
+    """
+
+    def instruct(traj: Trajectory):
+        text = TrajectoryText(traj.waypoints, names[traj.start.key], names[traj.goal.key], traj.start.kind,
+                              traj.goal.kind, traj.start.instance_id, traj.goal.instance_id, traj.start.room_id,
+                              traj.goal.room_id, ctx)
+        rng = np.random.default_rng([config.seed, int(traj.trajectory_id, 16)])
+        return instructions_for(text, config.instructions, rng)
+
+    if config.instructions == "llm":
+        with ThreadPoolExecutor(config.llm.concurrency) as pool:
+            instructed = list(ui.track(pool.map(instruct, trajectories), "instructions (llm)", len(trajectories)))
+    else:
+        instructed = [instruct(t) for t in trajectories]
     rows = []
-    for traj in trajectories:
+    for traj, instructions in zip(trajectories, instructed, strict=True):
         wps = traj.waypoints
         base = {
             "trajectory_id": traj.trajectory_id,
@@ -193,9 +260,6 @@ def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str,
             "geodesic_distance": traj.path_length_m,
             "seed": config.seed,
         }
-        text = TrajectoryText(wps, names[traj.start.key], names[traj.goal.key], traj.start.kind, traj.goal.kind)
-        rng = np.random.default_rng([config.seed, int(traj.trajectory_id, 16)])
-        instructions = instructions_for(text, config.instructions, rng)
         if not instructions:
             rows.append({**base, "episode_id": _episode_id(traj.trajectory_id, "none", "", 0),
                          "instruction_level": None, "instruction_type": None, "instruction_text": None,

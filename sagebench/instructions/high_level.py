@@ -1,0 +1,260 @@
+"""High-level template instructions of SAGE-Bench's five types, grounded in the semantic map.
+
+Each type describes the goal its own way, and every description picks out exactly one thing:
+- Add_Object: bring a carried item to the goal (items per category/room type from scenarios.toml);
+- Scenario_Driven: a human need the goal serves (scenarios.toml), narrowed by room or name when needed;
+- Relative_Relationship: the goal by a relation to a landmark (next to, between, left/right as seen
+  from the start, closest to), or a room by an object in it;
+- Attribute_Based: the goal by its colour, material and state;
+- Area_Based: the goal's room, then the goal among that room's objects.
+A type that cannot describe a trajectory's goal is skipped; among the rest one is drawn with weights
+`SceneContext.type_mix` (default equal), and a phrasing is drawn per type, all from the trajectory's rng.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import cache
+from importlib import resources
+
+import numpy as np
+
+from sagebench.instructions.base import HIGH_LEVEL_TYPES, Instruction, SceneContext, TrajectoryText
+from sagebench.instructions.naming import ObjectInfo, words
+from sagebench.instructions.relations import NEXT_TO_M, between, nearest, next_to, rooms_along, side_as_seen
+
+_MATERIAL_ADJ = {"wood": "wooden", "wool": "woollen"}
+_ADJ_KEYS = (("colour",), ("material",), ("state",), ("colour", "material"), ("state", "colour"),
+             ("colour", "material", "state"))
+_RELATIONAL = (" in ", " with ", " next to ", " closest to ")  # names built on another thing
+_GO = ("Go to {x}.", "Walk over to {x} and stop there.", "Find {x}.", "Head for {x}.", "Make your way to {x}.")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    categories: tuple[str, ...]
+    rooms: tuple[str, ...]
+    say: tuple[str, ...]
+    purpose: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Delivery:
+    prep: str  # "on", "in", "next to"
+    items: tuple[str, ...]  # with article: "a plate"
+
+
+@cache
+def scenario_data() -> tuple[tuple[Scenario, ...], dict[str, Delivery]]:
+    """Needs and deliveries from the package file sagebench/data/scenarios.toml."""
+    raw = tomllib.loads(resources.files("sagebench").joinpath("data/scenarios.toml").read_text(encoding="utf-8"))
+    needs = tuple(Scenario(k, tuple(v["categories"]), tuple(v["rooms"]), tuple(v["say"]), tuple(v["purpose"]))
+                  for k, v in raw["need"].items())
+    deliveries = {k: Delivery(v["prep"], tuple(v["items"])) for k, v in raw["add_object"].items()}
+    return needs, deliveries
+
+
+def high_level(text: TrajectoryText, rng: np.random.Generator) -> list[Instruction]:
+    """One high-level template instruction for the trajectory (none without a scene)."""
+    made = describe(text, rng)
+    return [] if made is None else [Instruction("high", made[0], made[1], "template")]
+
+
+def describe(text: TrajectoryText, rng: np.random.Generator) -> tuple[str, str] | None:
+    """(type, sentence): the first type in a seeded, mix-weighted order that can describe the goal."""
+    ctx = text.scene
+    if ctx is None:
+        return None
+    for kind in _type_order(ctx, rng):
+        sentence = _TYPES[kind](ctx, text, rng)
+        if sentence is not None:
+            return kind, _capitalise(sentence)
+    return None
+
+
+def _type_order(ctx: SceneContext, rng: np.random.Generator) -> list[str]:
+    """Types in a weighted random order without replacement (keys u^(1/w)); zero-weight types left out."""
+    weights = np.array([ctx.type_mix.get(t, 0.0) for t in HIGH_LEVEL_TYPES], dtype=np.float64)
+    u = rng.random(len(HIGH_LEVEL_TYPES))
+    keys = np.where(weights > 0, u ** (1.0 / np.maximum(weights, 1e-12)), -1.0)
+    return [HIGH_LEVEL_TYPES[i] for i in np.argsort(-keys, kind="stable") if weights[i] > 0]
+
+
+def _pick(rng: np.random.Generator, options):
+    return options[int(rng.integers(len(options)))]
+
+
+# ---------------------------------------------------------------- the five types
+
+
+def add_object(ctx: SceneContext, text: TrajectoryText, rng: np.random.Generator) -> str | None:
+    _, deliveries = scenario_data()
+    if text.goal_id is not None:
+        delivery, target = deliveries.get(ctx.object(text.goal_id).category), ctx.names.get(text.goal_id)
+    else:
+        room = _room(ctx, text.goal_room)
+        delivery, target = deliveries.get(room.type) if room else None, ctx.room_names.get(text.goal_room or "")
+    if delivery is None or target is None:
+        return None
+    item = _pick(rng, delivery.items)
+    return _pick(rng, (
+        f"Put {item} {delivery.prep} {target}.",
+        f"Take {item} to {target} and leave it there.",
+        f"Bring {item} over to {target}.",
+        f"Carry {item} to {target} for me.",
+    ))
+
+
+def scenario_driven(ctx: SceneContext, text: TrajectoryText, rng: np.random.Generator) -> str | None:
+    needs, _ = scenario_data()
+    if text.goal_id is not None:
+        goal = ctx.object(text.goal_id)
+        fits = [n for n in needs if goal.category in n.categories]
+    else:
+        room = _room(ctx, text.goal_room)
+        fits = [n for n in needs if room is not None and room.type in n.rooms]
+    if not fits:
+        return None
+    need = _pick(rng, fits)
+    say, purpose = _pick(rng, need.say), _pick(rng, need.purpose)
+    if text.goal_id is not None:
+        serving = [o for o in ctx.objects if o.category in need.categories]
+        in_room = [o for o in serving if o.room_id == goal.room_id]
+        if len(serving) == 1:
+            return _pick(rng, (f"{say} Go where I can {purpose}.", f"{say} Take me to where I can {purpose}."))
+        if len(in_room) == 1 and goal.room_id in ctx.room_names:
+            return f"{say} Find the spot in {ctx.room_names[goal.room_id]} where I can {purpose}."
+        name = ctx.names.get(goal.instance_id)
+        return None if name is None else f"{say} Go to {name} so I can {purpose}."
+    serving_rooms = [r for r in ctx.rooms if r.type in need.rooms]
+    if len(serving_rooms) == 1:
+        return _pick(rng, (f"{say} Go to the room where I can {purpose}.",
+                           f"{say} Take me to the room where I can {purpose}."))
+    name = ctx.room_names.get(text.goal_room or "")
+    return None if name is None else f"{say} Go to {name} so I can {purpose}."
+
+
+def relative_relationship(ctx: SceneContext, text: TrajectoryText, rng: np.random.Generator) -> str | None:
+    if text.goal_id is None:
+        holders = [n for i, n in ctx.names.items()
+                   if ctx.object(i).room_id == text.goal_room and ctx.object(i).category != "door"
+                   and not any(w in n for w in _RELATIONAL)]
+        if not holders:
+            return None
+        x = _pick(rng, sorted(holders))
+        return _pick(rng, (f"Go to the room with {x}.", f"Enter the room that has {x} in it.",
+                           f"Find the room where {x} stands and go in."))
+    options = relation_phrases(ctx, text)
+    if not options:
+        return None
+    return _pick(rng, _GO).format(x=_pick(rng, options))
+
+
+def relation_phrases(ctx: SceneContext, text: TrajectoryText) -> list[str]:
+    """Every relational description that picks out the goal object among its category."""
+    lay = ctx.layout
+    goal = ctx.object(text.goal_id)
+    peers = [o for o in ctx.objects if o.category == goal.category]
+    if goal.instance_id not in lay or not all(p.instance_id in lay for p in peers):
+        return []
+    noun, i = words(goal.category), lay.index(goal.instance_id)
+    peer_idx = [lay.index(p.instance_id) for p in peers]
+    marks = {lay.index(k): n for k, n in ctx.names.items()
+             if k in lay and not any(w in n for w in _RELATIONAL)
+             and ctx.object(k).category != goal.category and ctx.object(k).room_id == goal.room_id}
+    out: list[str] = []
+    near = [j for j in next_to(lay, i) if j in marks]
+    for j in near:
+        if sum(lay.gaps[p, j] <= NEXT_TO_M for p in peer_idx) == 1:
+            out.append(f"the {noun} next to {marks[j]}")
+    for a_pos, a in enumerate(near):
+        for b in near[a_pos + 1:]:
+            if between(lay, i, a, b) and sum(between(lay, p, a, b) for p in peer_idx) == 1:
+                out.append(f"the {noun} between {marks[a]} and {marks[b]}")
+    start = text.waypoints[0, :2]
+    for j in near:
+        side = side_as_seen(start, lay.centroids[j], lay.centroids[i])
+        rivals = [p for p in peer_idx if lay.gaps[p, j] <= NEXT_TO_M
+                  and side_as_seen(start, lay.centroids[j], lay.centroids[p]) == side]
+        if side is not None and rivals == [i]:
+            out.append(f"the {noun} on the {side} of {marks[j]} as seen from where you start")
+    for j in sorted(marks, key=lambda j: lay.gaps[i, j]):
+        if lay.gaps[i, j] <= NEXT_TO_M * 3 and len(peers) > 1 and nearest(lay, peer_idx, j) == i:
+            out.append(f"the {noun} closest to {marks[j]}")
+            break
+    return out
+
+
+def attribute_based(ctx: SceneContext, text: TrajectoryText, rng: np.random.Generator) -> str | None:
+    if text.goal_id is None:
+        return None
+    goal = ctx.object(text.goal_id)
+    peers = [o for o in ctx.objects if o.category == goal.category]
+    suffix = ""
+    if _distinguishing(goal, peers) is None:
+        local = [o for o in peers if o.room_id == goal.room_id]
+        if _distinguishing(goal, local) is None or goal.room_id not in ctx.room_names:
+            return None
+        suffix = f" in {ctx.room_names[goal.room_id]}"
+    a = goal.attributes
+    colour, material, state = (words(a[k]) if a.get(k) else None for k in ("colour", "material", "state"))
+    if not (colour or material or state):
+        return None
+    noun = words(goal.category)
+    adj = " ".join(w for w in (state, colour, _MATERIAL_ADJ.get(material or "", material)) if w)
+    descs = [f"the {adj} {noun}{suffix}"]
+    if material and (colour or state) and not suffix:
+        descs.append(f"the {' '.join(w for w in (state, colour) if w)} {noun}{suffix} made of {material}")
+    if colour and not state and not material:
+        descs.append(f"the {noun}{suffix} that is {colour}")
+    return _pick(rng, _GO).format(x=_pick(rng, descs))
+
+
+def area_based(ctx: SceneContext, text: TrajectoryText, rng: np.random.Generator) -> str | None:
+    room = ctx.room_names.get(text.goal_room or "")
+    if room is None:
+        return None
+    if text.goal_id is None:
+        passed = [r for r in rooms_along(text.waypoints[:, :2], ctx.room_polygons)[1:-1]
+                  if r != text.goal_room and r in ctx.room_names]
+        options = [f"Go to {room}.", f"Head into {room} and stop there.", f"Make your way into {room}."]
+        if passed:
+            options.append(f"Go through {ctx.room_names[passed[0]]} into {room}.")
+        return _pick(rng, options)
+    local = ctx.local_names.get(text.goal_room or "", {}).get(text.goal_id)
+    if local is None:
+        return None
+    return _pick(rng, (f"Go to {room} and stop at {local}.", f"In {room}, find {local}.",
+                       f"Head into {room} and wait by {local}.", f"Enter {room} and go to {local}."))
+
+
+_TYPES: dict[str, Callable[[SceneContext, TrajectoryText, np.random.Generator], str | None]] = {
+    "Add_Object": add_object,
+    "Scenario_Driven": scenario_driven,
+    "Relative_Relationship": relative_relationship,
+    "Attribute_Based": attribute_based,
+    "Area_Based": area_based,
+}
+
+
+def _distinguishing(obj: ObjectInfo, pool: list[ObjectInfo]) -> tuple[str, ...] | None:
+    """Attribute keys whose values single `obj` out of `pool` (() when it is alone), else None."""
+    if len(pool) == 1:
+        return ()
+    for keys in _ADJ_KEYS:
+        if all(obj.attributes.get(k) for k in keys):
+            want = tuple(obj.attributes[k] for k in keys)
+            if sum(tuple(o.attributes.get(k) for k in keys) == want for o in pool) == 1:
+                return keys
+    return None
+
+
+def _room(ctx: SceneContext, room_id: str | None):
+    return next((r for r in ctx.rooms if r.id == room_id), None)
+
+
+def _capitalise(s: str) -> str:
+    return s[:1].upper() + s[1:]
