@@ -90,24 +90,36 @@ def _solid_spans(tris: np.ndarray, part: np.ndarray, grid: Grid, z_lo: float, z_
     return out
 
 
-def inflate(occupancy: np.ndarray, radius: float, resolution: float) -> np.ndarray:
-    """[H, W] bool navigable: free cells whose centre is at least `radius` m from every blocked cell centre.
+def _square_distance(dr: np.ndarray, dc: np.ndarray) -> np.ndarray:
+    """Distance, in cells, from a cell's centre to the nearest point of the cell (dr, dc) away."""
+    return np.hypot(np.maximum(np.abs(dr) - 0.5, 0.0), np.maximum(np.abs(dc) - 0.5, 0.0))
 
-    occupancy: [H, W] bool or uint8, nonzero = blocked. Exact Euclidean distance transform; the grid's
-    border is not treated as blocked, so callers keep a blocked margin (outside the floor plan).
+
+def inflate(occupancy: np.ndarray, radius: float, resolution: float) -> np.ndarray:
+    """[H, W] bool navigable: free cells whose centre is at least `radius` m from every blocked cell.
+
+    A cell is blocked when geometry touches any part of it, so the distance is measured to the blocked
+    cell's square, not its centre: a robot centred on a navigable cell never reaches into a blocked
+    cell. occupancy: [H, W] bool or uint8, nonzero = blocked. The grid's border is not treated as
+    blocked, so callers keep a blocked margin (outside the floor plan).
     """
-    free = occupancy == 0
-    if free.all() or not free.any():
-        return free
-    dist = ndimage.distance_transform_edt(free) * resolution
-    return free & (dist >= radius - 1e-9)
+    blocked = occupancy != 0
+    if not blocked.any():
+        return ~blocked
+    reach = int(np.ceil(radius / resolution + 0.5))
+    dr, dc = np.mgrid[-reach : reach + 1, -reach : reach + 1]
+    disk = _square_distance(dr, dc) * resolution < radius - 1e-9
+    return ~ndimage.binary_dilation(blocked, structure=disk)
 
 
 def inflate_reference(occupancy: np.ndarray, radius: float, resolution: float) -> np.ndarray:
-    """Plain version of `inflate`: each free cell against every blocked cell centre."""
+    """Plain version of `inflate`: each free cell against every blocked cell's square."""
     blocked = np.argwhere(occupancy != 0)
     out = np.zeros(occupancy.shape, dtype=bool)
     for r, c in np.argwhere(occupancy == 0):
-        d = np.hypot(blocked[:, 0] - r, blocked[:, 1] - c) * resolution if len(blocked) else np.array([np.inf])
+        if not len(blocked):
+            out[r, c] = True
+            continue
+        d = _square_distance(blocked[:, 0] - r, blocked[:, 1] - c) * resolution
         out[r, c] = bool(d.min() >= radius - 1e-9)
     return out
