@@ -18,13 +18,15 @@ def rm(room_mjcf):
 
 
 def test_blocked_fraction_by_hand():
-    start = np.array([[0, 0], [0, 0], [0, 0], [0, 0], [0, 0], [0, 0]], float)
-    target = np.array([[1, 0], [1, 0], [1, 0], [1, 0], [0.01, 0], [1, 0]], float)
-    end = np.array([[0.25, 0], [0.99, 0], [0, 0], [0.5, 0.3], [0, 0], [-0.2, 0]], float)
-    c = blocked_fraction(start, target, end, tolerance=0.02)
-    # stopped a quarter of the way; arrived (within 0.02); stopped dead; pushed sideways half way;
-    # a 1 cm step is a turn, not a move; pushed backwards is fully blocked, no more
-    np.testing.assert_allclose(c, [0.75, 0.0, 1.0, 0.5, 0.0, 1.0])
+    start = np.zeros((7, 2))
+    target = np.array([[1, 0], [1, 0], [1, 0], [1, 0], [0.01, 0], [1, 0], [0.04, 0]], float)
+    end = np.array([[0.25, 0], [0.96, 0.02], [0, 0], [0.5, 0.3], [0, 0], [-0.2, 0], [0, 0]], float)
+    c = blocked_fraction(start, target, end, min_step=0.02)
+    # stopped a quarter of the way; ended within 5 cm (a brush); stopped dead; pushed sideways half way;
+    # a 1 cm step is a turn, not a move; pushed backwards is fully blocked, no more; a 4 cm step stopped dead
+    # ends within 5 cm of its target
+    np.testing.assert_allclose(c, [0.75, 0.0, 1.0, 0.5, 0.0, 1.0, 0.0])
+    assert blocked_fraction(start[:1], target[:1], [[0.97, 0]], min_step=0.02, arrival=0.02)[0] == pytest.approx(0.03)
 
 
 def test_a_step_into_the_wall_is_blocked_by_the_part_beyond_contact(rm):
@@ -46,6 +48,14 @@ def test_each_step_is_replayed_from_its_predicted_pose(rm):
     assert c_table[1] == pytest.approx(1 - (1.1 - 0.2 - 0.5) / 1.0, abs=0.005)
 
 
+def test_dense_poses_through_a_wall_are_caught_where_they_start_inside_it(rm):
+    xs = np.arange(2.0, 4.0, 0.04)  # 4 cm steps, shorter than the 5 cm allowance
+    poses = np.column_stack([xs, np.full(len(xs), -2.0), np.zeros(len(xs)), np.zeros(len(xs))])
+    (c,) = replay_intensity(rm, [poses])
+    blocked = xs[c > 0.5]
+    assert len(blocked) >= 3 and (blocked > 2.7).all() and (blocked < 3.3).all()
+
+
 def test_batched_steps_agree_with_one_plain_replay_per_step(rm):
     rng = np.random.default_rng(0)
     xy = np.cumsum(rng.uniform(-0.4, 0.4, size=(12, 2)), axis=0) + [2.0, -1.0]
@@ -55,6 +65,6 @@ def test_batched_steps_agree_with_one_plain_replay_per_step(rm):
     for a, b in zip(xy[:-1], xy[1:]):
         yaw = math.atan2(b[1] - a[1], b[0] - a[0])
         end = replay_one(rm, np.array([[*a, 0, yaw], [*b, 0, yaw]])).poses[-1, :2]
-        plain.append(float(blocked_fraction(a[None], b[None], end[None], tolerance=rm.config.waypoint_tolerance)[0]))
+        plain.append(float(blocked_fraction(a[None], b[None], end[None], min_step=rm.config.waypoint_tolerance)[0]))
     np.testing.assert_allclose(c, plain, atol=1e-12)
     assert (c > 0).any()  # the walk crosses the wall at x = 2.95

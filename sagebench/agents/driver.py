@@ -58,7 +58,7 @@ def drive(rm: ReplayModel, episodes: Sequence[Episode], policy: Policy, *, max_a
         paths = [np.array([[x, y, z, a], [tx, ty, z, ta]]) for (x, y, a), (tx, ty, ta) in zip(pose[active], target)]
         records = replay_batch(rm, paths, threads=threads)
         end = np.array([[r.poses[-1, 0], r.poses[-1, 1], r.poses[-1, 3]] for r in records])
-        c = blocked_fraction(pose[active], target, end, tolerance=tol)
+        c = blocked_fraction(pose[active], target, end, min_step=tol)
         pose[active], last[active] = end, c
         for row, p, ci in zip(active, end, c):
             trail[row].append(p)

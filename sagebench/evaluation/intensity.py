@@ -1,15 +1,19 @@
 """Collision intensity c(t) per agent step: the fraction of a step's commanded motion that contact blocked.
 
-A step commands a move from pose t-1 to pose t. c(t) = 0 when the agent got there (ended within the replay's
-waypoint tolerance, 5 mm in STEP_REPLAY, of pose t); otherwise c(t) = clip(1 - progress / |commanded|, 0, 1), progress
-being the achieved XY displacement along the commanded direction, so being pushed sideways past a corner
-costs little and being stopped dead costs 1. Steps that command no translation (shorter than that tolerance:
-turns in place) have c(t) = 0, since contact never twists the replay agent's heading.
+A step commands a move from pose t-1 to pose t. c(t) = 0 when the agent ended within ARRIVAL_TOLERANCE
+(0.05 m, one map cell) of pose t; otherwise c(t) = clip(1 - progress / |commanded|, 0, 1), progress being the
+achieved XY displacement along the commanded direction, so being pushed sideways past a corner costs little
+and being stopped dead costs 1. The allowance is the benchmark's spatial precision: reference paths are
+planned on 0.05 m cells and validate accepts the brushes that leaves (a goal point a few centimetres inside
+a collider's reach), so an agent that follows an accepted path scores ICP 0. Steps that command no
+translation (shorter than the replay's waypoint tolerance: turns in place) have c(t) = 0, since contact never
+twists the replay agent's heading.
 
 The baseline agents measure c(t) while they drive. For predictions without `collision_intensity`,
 `replay_intensity` replays every step of every episode on its own (a translation from the predicted pose t-1
-towards pose t, already facing it) in one `replay_batch`, so a step through a wall scores about 1 and a step
-along free floor 0, whatever the steps before it did.
+towards pose t, already facing it) in one `replay_batch`, so a step into a wall scores about 1 and a step
+along free floor 0, whatever the steps before it did. Poses closer together than the allowance register a
+wall they pass through by the steps that start inside it (the replay pushes the agent out: c = 1).
 """
 
 from __future__ import annotations
@@ -24,15 +28,17 @@ from sagebench.replay.physics import ReplayConfig, ReplayModel, replay_batch
 # lands on it exactly, so short steps do not fall short), a blocked step gives up after 0.5 s without progress
 # (not 2 s), and the time limit's slack is 1 s, since a step is short.
 STEP_REPLAY = ReplayConfig(stall_time=0.5, time_slack=1.0, waypoint_tolerance=0.005)
+ARRIVAL_TOLERANCE = 0.05  # m, one map cell: a step that ended this close to its target was not blocked (a brush)
 
 
-def blocked_fraction(start: np.ndarray, target: np.ndarray, end: np.ndarray, *, tolerance: float) -> np.ndarray:
+def blocked_fraction(start: np.ndarray, target: np.ndarray, end: np.ndarray, *, min_step: float,
+                     arrival: float = ARRIVAL_TOLERANCE) -> np.ndarray:
     """c per step [B] from the start, commanded target and achieved end positions [B, >=2] (metres): 0 for a
-    step shorter than `tolerance` or one that ended within `tolerance` of its target."""
+    step shorter than `min_step` (a turn) or one that ended within `arrival` of its target."""
     start, target, end = (np.asarray(a, dtype=np.float64)[:, :2] for a in (start, target, end))
     wanted = target - start
     length = np.linalg.norm(wanted, axis=1)
-    blocked = (length >= tolerance) & (np.linalg.norm(target - end, axis=1) > tolerance)
+    blocked = (length >= min_step) & (np.linalg.norm(target - end, axis=1) > arrival)
     safe = np.where(blocked, length, 1.0)
     progress = ((end - start) * wanted).sum(axis=1) / safe
     return np.where(blocked, np.clip(1.0 - progress / safe, 0.0, 1.0), 0.0)
@@ -54,6 +60,6 @@ def replay_intensity(rm: ReplayModel, poses: Sequence[np.ndarray], *, threads: i
     c = np.zeros(len(starts))
     if records:
         end = np.array([r.poses[-1, :2] for r in records])
-        c[moving] = blocked_fraction(starts[moving], targets[moving], end, tolerance=tol)
+        c[moving] = blocked_fraction(starts[moving], targets[moving], end, min_step=tol)
     bounds = np.cumsum([0] + [len(s) - 1 for s in seqs])
     return [np.concatenate([[0.0], c[bounds[i]: bounds[i + 1]]]) for i in range(len(seqs))]
