@@ -27,6 +27,12 @@ def _episode_schema() -> dict[str, Any]:
     return episode_schema_json()
 
 
+def _run_config_schema() -> dict[str, Any]:
+    from sagebench.pipeline.config import RunConfig
+
+    return RunConfig.model_json_schema(by_alias=True)
+
+
 def _predictions_schema() -> dict[str, Any]:
     from sagebench.evaluation.predictions import Prediction
 
@@ -38,6 +44,7 @@ SCHEMAS: dict[str, Callable[[], dict[str, Any]]] = {
     "scene.schema.json": _scene_schema,
     "semantic_map.schema.json": _semantic_map_schema,
     "episode.arrow.json": _episode_schema,
+    "run_config.schema.json": _run_config_schema,
     "predictions.schema.json": _predictions_schema,
 }
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 from sagebench.cli import app
 
@@ -47,7 +48,7 @@ def test_demo_runs_the_whole_pipeline_and_verifies(run_cli, tmp_path):
     out = tmp_path / "demo"
     code, stdout, err = run_cli("-q", "demo", "--out", out)
     assert code == 0, stdout + err
-    assert "1 scenes, 400 episodes, 1 scenes complete" in stdout
+    assert re.search(r"1 scenes, \d{3,} episodes, 1 scenes complete in", stdout), stdout
     for rel in ("run.toml", "manifest.json", "scenes/demo_apartment_0/topdown.png", "scenes/demo_apartment_0/scene.usda",
                 "episodes/demo_apartment_0/part-00000.parquet", "validation/demo_apartment_0/report.json"):
         assert (out / rel).is_file(), rel

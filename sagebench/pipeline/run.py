@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import shutil
+import time
 from collections import defaultdict
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -23,6 +24,7 @@ class RunSummary:
     scenes: list[str]
     outcomes: list[Outcome] = field(default_factory=list)
     episodes: int = 0
+    wall_seconds: float = 0.0
 
     @property
     def failed(self) -> dict[str, Outcome]:
@@ -42,7 +44,7 @@ class RunSummary:
         for o in self.outcomes:
             by_stage[o.stage].append(o)
         lines = [f"run {self.run_dir}: {len(self.scenes)} scenes, {self.episodes} episodes, "
-                 f"{len(self.scenes) - len(self.failed)} scenes complete"]
+                 f"{len(self.scenes) - len(self.failed)} scenes complete in {self.wall_seconds:.1f} s"]
         for name in STAGES:
             got = by_stage.get(name, [])
             count = lambda s: sum(o.status == s for o in got)  # noqa: E731
@@ -56,6 +58,7 @@ class RunSummary:
 
 def run_pipeline(config: RunConfig, config_path: Path) -> RunSummary:
     """Run build-scene, gen-trajectories, export-usd and validate over every scene of the config."""
+    start = time.perf_counter()
     sources = _scene_ids(resolve_scenes(config, config_path), config_path)
     run_dir = Path(config.out)
     run_dir.mkdir(parents=True, exist_ok=True)
@@ -76,6 +79,7 @@ def run_pipeline(config: RunConfig, config_path: Path) -> RunSummary:
     finally:
         executor.close()
     summary.episodes = _count_episodes(run_dir, summary.scenes)
+    summary.wall_seconds = time.perf_counter() - start
     write_manifest(run_dir, config=config.outputs_config(),
                    inputs={sid: _tree_hash(src) for sid, src in sources.items()})
     return summary
