@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
 
-from sagebench.instructions.naming import ObjectInfo, RoomInfo
-from sagebench.instructions.relations import Layout
+from sagebench.instructions.naming import ObjectInfo, RoomInfo, object_names, room_names
+from sagebench.instructions.relations import Layout, layout
 
 Level = Literal["high", "low"]
 HIGH_LEVEL_TYPES = ("Add_Object", "Scenario_Driven", "Relative_Relationship", "Attribute_Based", "Area_Based")
@@ -43,6 +43,21 @@ class SceneContext:
 
     def object(self, instance_id: int) -> ObjectInfo:
         return next(o for o in self.objects if o.instance_id == instance_id)
+
+
+def make_context(objects: Sequence[ObjectInfo], rooms: Sequence[RoomInfo], room_polygons: Mapping[str, np.ndarray],
+                 footprints: Mapping[int, Sequence[np.ndarray]], *, fixtures: Sequence[ObjectInfo] = (),
+                 type_mix: Mapping[str, float] | None = None) -> SceneContext:
+    """The context of a scene: names unique in the scene and within each room, relations from `footprints`.
+
+    footprints: instance id -> exterior rings [K, 2] world metres, for the objects that may serve as
+    landmarks (leave out what hangs above the agent); type_mix: default all five types equally.
+    """
+    lay = layout(footprints)
+    local = {r.id: object_names([o for o in objects if o.room_id == r.id], rooms, lay) for r in rooms}
+    mix = {t: 1.0 for t in HIGH_LEVEL_TYPES} if type_mix is None else dict(type_mix)
+    return SceneContext(tuple(objects), tuple(fixtures), tuple(rooms), dict(room_polygons),
+                        object_names(objects, rooms, lay), room_names(rooms, objects), local, lay, mix)
 
 
 @dataclass(frozen=True)

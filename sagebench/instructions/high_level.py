@@ -126,7 +126,7 @@ def scenario_driven(ctx: SceneContext, text: TrajectoryText, rng: np.random.Gene
         if len(serving) == 1:
             return _pick(rng, (f"{say} Go where I can {purpose}.", f"{say} Take me to where I can {purpose}."))
         if len(in_room) == 1 and goal.room_id in ctx.room_names:
-            return f"{say} Find the spot in {ctx.room_names[goal.room_id]} where I can {purpose}."
+            return f"{say} In {ctx.room_names[goal.room_id]}, find where I can {purpose}."
         name = ctx.names.get(goal.instance_id)
         return None if name is None else f"{say} Go to {name} so I can {purpose}."
     serving_rooms = [r for r in ctx.rooms if r.type in need.rooms]
@@ -182,7 +182,7 @@ def relation_phrases(ctx: SceneContext, text: TrajectoryText) -> list[str]:
         if side is not None and rivals == [i]:
             out.append(f"the {noun} on the {side} of {marks[j]} as seen from where you start")
     for j in sorted(marks, key=lambda j: lay.gaps[i, j]):
-        if lay.gaps[i, j] <= NEXT_TO_M * 3 and len(peers) > 1 and nearest(lay, peer_idx, j) == i:
+        if lay.gaps[i, j] <= NEXT_TO_M * 3 and nearest(lay, peer_idx, j) == i:
             out.append(f"the {noun} closest to {marks[j]}")
             break
     return out

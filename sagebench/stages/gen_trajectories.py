@@ -24,10 +24,9 @@ from sagebench.episodes.shards import write_shards
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import staged_dir, write_bytes
 from sagebench.instructions import instructions_for
-from sagebench.instructions.base import HIGH_LEVEL_TYPES, SceneContext, TrajectoryText
+from sagebench.instructions.base import HIGH_LEVEL_TYPES, SceneContext, TrajectoryText, make_context
 from sagebench.instructions.llm import LLMConfig
-from sagebench.instructions.naming import ObjectInfo, RoomInfo, object_names, room_names
-from sagebench.instructions.relations import layout
+from sagebench.instructions.naming import ObjectInfo, RoomInfo
 from sagebench.scene.loader import SCENE_FILE, parse_spec
 from sagebench.scene.model import SceneSpec
 from sagebench.topdown.semantic_map import SemanticMap
@@ -184,16 +183,13 @@ def scene_context(spec: SceneSpec, smap: SemanticMap, type_mix: dict[str, float]
         return ObjectInfo(i.instance_id, i.category, i.room,
                           {**attrs.get(i.instance_id, {}), **({"state": i.door_state} if i.door_state else {})})
 
-    objects = tuple(info(i) for i in smap.instances if i.kind in TARGET_KINDS)
-    fixtures = tuple(info(i) for i in smap.instances if i.kind in FIXTURE_KINDS)
-    lay = layout({i.instance_id: [np.asarray(p[0], dtype=np.float64) for p in i.polygon.coordinates]
-                  for i in smap.instances
-                  if i.kind in TARGET_KINDS and i.min_z <= top and i.polygon.coordinates})
-    rooms = tuple(RoomInfo(r.id, r.type) for r in spec.rooms)
-    local = {r.id: object_names([o for o in objects if o.room_id == r.id], rooms, lay) for r in rooms}
-    return SceneContext(objects, fixtures, rooms, {r.id: np.asarray(r.polygon, dtype=np.float64) for r in spec.rooms},
-                        object_names(objects, rooms, lay), room_names(rooms, objects), local, lay,
-                        dict(type_mix) if type_mix is not None else {t: 1.0 for t in HIGH_LEVEL_TYPES})
+    objects = [info(i) for i in smap.instances if i.kind in TARGET_KINDS]
+    fixtures = [info(i) for i in smap.instances if i.kind in FIXTURE_KINDS]
+    footprints = {i.instance_id: [np.asarray(p[0], dtype=np.float64) for p in i.polygon.coordinates]
+                  for i in smap.instances if i.kind in TARGET_KINDS and i.min_z <= top and i.polygon.coordinates}
+    return make_context(objects, [RoomInfo(r.id, r.type) for r in spec.rooms],
+                        {r.id: np.asarray(r.polygon, dtype=np.float64) for r in spec.rooms}, footprints,
+                        fixtures=fixtures, type_mix=type_mix)
 
 
 def scene_targets(spec: SceneSpec, smap: SemanticMap,
