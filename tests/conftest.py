@@ -73,7 +73,7 @@ def room_mjcf() -> str:
 
 @pytest.fixture(scope="session")
 def demo_eval_run(demo_built_run, tmp_path_factory) -> Path:
-    """The demo apartment with 8 trajectories (16 episodes) and scene.xml, for evaluate and baseline tests.
+    """The demo apartment with 8 trajectories (their episode rows) and scene.xml, for evaluate and baseline tests.
 
     Shared and read-only: copy it before writing into it.
     """

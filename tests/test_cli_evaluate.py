@@ -1,0 +1,139 @@
+"""`sagebench evaluate` on a small demo run: the oracle scores perfectly, a path through walls collides,
+missing/unknown/duplicate episodes and malformed lines are errors that name their line and write nothing."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import pytest
+
+SCENE = "demo_apartment_0"
+HEADER = ("group                            EPISODES       SR      OSR      SPL       NE     NDTW     SDTW      CSR"
+          "      ICP       PS      LEN")
+
+
+@pytest.fixture(scope="module")
+def oracle(demo_eval_run, tmp_path_factory) -> Path:
+    from sagebench.stages.baseline import BaselineConfig, run_baseline
+
+    out = tmp_path_factory.mktemp("oracle") / "oracle.jsonl"
+    run_baseline(demo_eval_run, out, BaselineConfig(agent_name="oracle"))
+    return out
+
+
+def _lines(path: Path) -> list[dict]:
+    return [json.loads(t) for t in path.read_text().splitlines()]
+
+
+def _write(path: Path, rows: list[dict]) -> Path:
+    path.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    return path
+
+
+def test_the_oracle_scores_perfectly(demo_eval_run, oracle, tmp_path, run_cli):
+    out = tmp_path / "results.json"
+    code, stdout, err = run_cli("evaluate", "--run", demo_eval_run, "--predictions", oracle, "--out", out)
+    assert code == 0, err
+    lines = stdout.splitlines()
+    n = len(_lines(oracle))
+    assert lines[0] == HEADER
+    assert lines[1].startswith(f"overall                          {n:>8d}    1.000    1.000")
+    groups = [ln.split()[0] for ln in lines[2:-1]]
+    assert groups == sorted(groups, key=("level", "type").index) and lines[-1] == f"wrote {out}"  # levels, then types
+    res = json.loads(out.read_text())
+    o = res["overall"]
+    assert (o["episodes"], o["sr"], o["osr"], o["csr"], o["icp"]) == (n, 1.0, 1.0, 1.0, 0.0)
+    assert o["spl"] > 0.99 and o["ndtw"] > 0.98
+    assert res["missing"] == [] and res["intensity_replayed"] == 0 and len(res["per_episode"]) == n
+    assert res["predictions"]["file"] == "oracle.jsonl" and res["config"]["metrics"]["corridor_radius"] == 1.0
+    assert set(res["by_type"]) >= {"Base_Action", "Single_Goal"} and set(res["by_level"]) >= {"low"}
+    assert sum(g["episodes"] for g in res["by_type"].values()) == n
+    assert sum(g["episodes"] for g in res["by_level"].values()) == n
+    assert len(lines) == 1 + 1 + len(res["by_level"]) + len(res["by_type"]) + 1
+    first = out.read_bytes()
+    assert run_cli("evaluate", "--run", demo_eval_run, "--predictions", oracle, "--out", out)[0] == 0
+    assert out.read_bytes() == first
+
+
+def test_poses_alone_are_replayed_for_collision_intensity(demo_eval_run, oracle, tmp_path, run_cli):
+    rows = [{k: v for k, v in r.items() if k != "collision_intensity"} for r in _lines(oracle)]
+    # the first episode's agent heads 30 m straight on: out through the apartment's walls (it is 12 m across)
+    first = rows[0]
+    x, y, z, yaw = first["poses"][0]
+    first["poses"] = [[x, y, z, yaw], [x + 30 * math.cos(yaw), y + 30 * math.sin(yaw), z, yaw]]
+    pred = _write(tmp_path / "poses.jsonl", rows)
+    out = tmp_path / "r.json"
+    assert run_cli("evaluate", "--run", demo_eval_run, "--predictions", pred, "--out", out)[0] == 0
+    res = json.loads(out.read_text())
+    assert res["intensity_replayed"] == len(rows)
+    icp = {e["episode_id"]: e["icp"] for e in res["per_episode"]}
+    assert icp.pop(first["episode_id"]) > 0.3  # c of the step >= 1 - 12/30, and ICP its mean with c(0) = 0
+    assert set(icp.values()) == {0.0}  # the oracle's own poses replay without collisions
+
+
+def test_missing_episodes_are_an_error_unless_allowed(demo_eval_run, oracle, tmp_path, run_cli):
+    rows = _lines(oracle)
+    n = len(rows)
+    dropped = sorted(r["episode_id"] for r in rows[:2])
+    pred = _write(tmp_path / "part.jsonl", rows[2:])
+    out = tmp_path / "r.json"
+    code, _, err = run_cli("evaluate", "--run", demo_eval_run, "--predictions", pred, "--out", out)
+    assert code == 2 and not out.exists()
+    assert err.strip() == (f"error: {pred}: 2 of {n} episodes have no prediction ({dropped[0]}, {dropped[1]}); "
+                           "pass --allow-missing to score them as failures")
+    code, stdout, _ = run_cli("evaluate", "--run", demo_eval_run, "--predictions", pred, "--out", out, "--allow-missing")
+    assert code == 0 and "2 episodes had no prediction and were scored as failures" in stdout
+    res = json.loads(out.read_text())
+    assert res["missing"] == dropped
+    assert res["overall"]["sr"] == pytest.approx((n - 2) / n, abs=1e-6)
+    assert res["overall"]["icp"] == pytest.approx(2 / n, abs=1e-6)  # missing: ICP 1, every other metric 0
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda rows: rows + [rows[0]], "{pred}:{n1}: episode_id: duplicate episode id '{id0}' (first on line 1)"),
+    (lambda rows: [rows[0] | {"episode_id": "nope"}] + rows[1:],
+     "{pred}:1: episode_id: unknown episode id 'nope': not an episode being evaluated (1 unknown in all)"),
+    (lambda rows: [rows[0] | {"poses": [[p[0] + 0.5, p[1], p[2], p[3]] for p in rows[0]["poses"]]}] + rows[1:],
+     "{pred}:1: poses[0]: the first pose is 0.500 m from the episode's start_position (more than 0.1 m)"),
+    (lambda rows: [rows[0] | {"collision_intensity": [0.0]}] + rows[1:],
+     "{pred}:1: collision_intensity has 1 values for {t0} poses (one per pose)"),
+    (lambda rows: [rows[0] | {"stopped": "yes"}] + rows[1:], "{pred}:1: stopped: Input should be a valid boolean"),
+])
+def test_bad_predictions_are_exit_2_and_write_nothing(demo_eval_run, oracle, tmp_path, run_cli, edit, message):
+    rows = _lines(oracle)
+    pred = _write(tmp_path / "bad.jsonl", edit(rows))
+    out = tmp_path / "r.json"
+    code, stdout, err = run_cli("evaluate", "--run", demo_eval_run, "--predictions", pred, "--out", out)
+    assert code == 2 and stdout == "" and not out.exists()
+    assert err.strip() == "error: " + message.format(pred=pred, n1=len(rows) + 1, id0=rows[0]["episode_id"],
+                                                     t0=len(rows[0]["poses"]))
+
+
+def test_intensity_replay_needs_scene_xml_but_given_intensities_do_not(demo_eval_run, oracle, tmp_path, run_cli):
+    run = tmp_path / "run"
+    shutil.copytree(demo_eval_run, run)
+    (run / "scenes" / SCENE / "scene.xml").unlink()
+    assert run_cli("evaluate", "--run", run, "--predictions", oracle)[0] == 0
+    rows = [{k: v for k, v in r.items() if k != "collision_intensity"} for r in _lines(oracle)]
+    pred = _write(tmp_path / "poses.jsonl", rows)
+    code, _, err = run_cli("evaluate", "--run", run, "--predictions", pred)
+    assert code == 2
+    assert err.strip() == f"error: {run / 'scenes' / SCENE / 'scene.xml'}: missing; run `sagebench export-usd` on this run first"
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--scene", "nope"], "no episodes for scene 'nope' (run gen-trajectories first)"),
+    (["--workers", "0"], "error: --workers: Input should be greater than or equal to 1"),
+    (["--start-tolerance", "0"], "error: --start-tolerance: Input should be greater than 0"),
+])
+def test_bad_options_are_exit_2(demo_eval_run, oracle, run_cli, args, message):
+    code, _, err = run_cli("evaluate", "--run", demo_eval_run, "--predictions", oracle, *args)
+    assert code == 2 and message in err
+
+
+def test_absent_predictions_file_is_exit_2(demo_eval_run, tmp_path, run_cli):
+    code, _, err = run_cli("evaluate", "--run", demo_eval_run, "--predictions", tmp_path / "none.jsonl")
+    assert code == 2 and err.strip() == f"error: {tmp_path / 'none.jsonl'}: no such file"
