@@ -249,3 +249,6 @@ def test_cli_llm_mode_needs_a_url_and_a_model(run_cli, demo_built_run, tmp_path)
     code, _, err = run_cli("gen-trajectories", demo_built_run, "--instructions", "llm", "--llm-base-url", "http://127.0.0.1:9/v1",
                            "--llm-model", "x", "--llm-concurrency", "0")
     assert code == 2 and "error: --llm-concurrency: Input should be greater than or equal to 1" in err
+    code, _, err = run_cli("gen-trajectories", demo_built_run, "--instructions", "llm", "--llm-base-url", "localhost:8000",
+                           "--llm-model", "x")
+    assert code == 2 and "error: --llm-base-url: must be an http(s) URL such as http://localhost:8000/v1" in err

@@ -28,7 +28,7 @@ from functools import cache
 from importlib import resources
 from pathlib import Path
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from sagebench.fileio import dumps_json, write_text
 from sagebench.instructions import high_level as templates
@@ -57,6 +57,14 @@ class LLMConfig(BaseModel):
     answer_attempts: int = Field(default=2, ge=1, description="Answers asked for before the template is kept.")
     temperature: float = Field(default=0.0, ge=0, description="Sampling temperature sent with each request.")
 
+    @field_validator("base_url")
+    @classmethod
+    def _http_url(cls, url: str | None) -> str | None:
+        parsed = urllib.parse.urlparse(url or "http://x")
+        if parsed.scheme not in ("http", "https") or not parsed.hostname:
+            raise ValueError(f"must be an http(s) URL such as http://localhost:8000/v1, got {url!r}")
+        return url
+
 
 class LLMError(Exception):
     """A request failed for good (after retries, or with a status not worth retrying)."""
@@ -75,8 +83,6 @@ class ChatClient:
         if not config.base_url or not config.model:
             raise ValueError("LLMConfig needs base_url and model")
         parsed = urllib.parse.urlparse(config.base_url)
-        if parsed.scheme not in ("http", "https") or not parsed.hostname:
-            raise ValueError(f"base_url must be an http(s) URL, got {config.base_url!r}")
         self.config = config
         self.url = config.base_url.rstrip("/") + "/chat/completions"
         self.cache_dir = Path(config.cache_dir) if config.cache_dir is not None else default_cache_dir()
