@@ -82,14 +82,18 @@ def demo(
     """Generate the built-in demo scene and run the whole pipeline on it.
 
     Reads nothing. Writes OUT/input/demo_apartment_<seed>/ (the scene), OUT/run.toml (its run config, so
-    `sagebench run OUT/run.toml` and `sagebench verify OUT --regenerate --config OUT/run.toml` work) and
-    the run layout under OUT: scenes/, episodes/, validation/, manifest.json.
+    `sagebench run OUT/run.toml` and `sagebench verify OUT --regenerate --config OUT/run.toml` work),
+    the run layout under OUT (scenes/, episodes/, validation/, manifest.json) and the oracle baseline's
+    predictions and scores (OUT/baselines/oracle.jsonl, oracle_results.json).
     """
     from sagebench.stages.demo import run_demo
 
-    summary = run_demo(out, seed=seed)
+    result = run_demo(out, seed=seed)
+    summary = result.run
     for line in summary.lines():
         typer.echo(line)
+    if result.scores:
+        typer.echo("oracle baseline scores (sagebench evaluate):\n" + result.scores)
     typer.echo(f"results are in {out}/ (top-down maps: {out}/scenes/*/topdown.png, paths: "
                f"{out}/episodes/*/_preview/paths.png, frames: {out}/validation/*/frames/)")
     if not summary.ok:

@@ -50,7 +50,10 @@ def test_demo_runs_the_whole_pipeline_and_verifies(run_cli, tmp_path):
     assert code == 0, stdout + err
     assert re.search(r"1 scenes, \d{3,} episodes, 1 scenes complete in", stdout), stdout
     for rel in ("run.toml", "manifest.json", "scenes/demo_apartment_0/topdown.png", "scenes/demo_apartment_0/scene.usda",
-                "episodes/demo_apartment_0/part-00000.parquet", "validation/demo_apartment_0/report.json"):
+                "episodes/demo_apartment_0/part-00000.parquet", "validation/demo_apartment_0/report.json",
+                "baselines/oracle.jsonl"):
         assert (out / rel).is_file(), rel
+    overall = json.loads((out / "baselines" / "oracle_results.json").read_text())["overall"]
+    assert overall["sr"] == 1.0 and overall["icp"] == 0.0 and overall["csr"] == 1.0
     code, stdout, _ = run_cli("verify", out)
     assert code == 0 and stdout.startswith("ok:")

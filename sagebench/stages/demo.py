@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 from sagebench.fileio import write_text
@@ -19,8 +20,15 @@ seed = {seed}
 """
 
 
-def run_demo(out: Path, *, seed: int = 0) -> RunSummary:
-    """Write the demo scene and its run config into `out`, then run every stage on it."""
+@dataclass(frozen=True)
+class DemoResult:
+    run: RunSummary
+    scores: str  # the oracle baseline's evaluation table, empty when the run failed
+
+
+def run_demo(out: Path, *, seed: int = 0) -> DemoResult:
+    """Write the demo scene and its run config into `out`, run every stage on it, then drive the oracle
+    baseline through every episode and score it (out/baselines/)."""
     out = Path(out)
     scene_dir = out / "input" / f"demo_apartment_{seed}"
     write_synth_scene(scene_dir, seed=seed)
@@ -28,4 +36,13 @@ def run_demo(out: Path, *, seed: int = 0) -> RunSummary:
     info(summarise(load_scene(scene_dir)))
     config_path = out / "run.toml"
     write_text(config_path, RUN_CONFIG.format(seed=seed))
-    return run_pipeline(load_run_config(config_path), config_path)
+    summary = run_pipeline(load_run_config(config_path), config_path)
+    if not summary.ok:
+        return DemoResult(summary, "")
+    from sagebench.stages.baseline import BaselineConfig, run_baseline
+    from sagebench.stages.evaluate import evaluate
+
+    predictions = out / "baselines" / "oracle.jsonl"
+    info(run_baseline(out, predictions, BaselineConfig(agent_name="oracle", seed=seed)).summary())
+    scored = evaluate(out, predictions, out=out / "baselines" / "oracle_results.json")
+    return DemoResult(summary, scored.table())
