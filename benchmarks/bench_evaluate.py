@@ -47,7 +47,10 @@ def run() -> list[dict]:
     from sagebench.evaluation.intensity import replay_intensity
     from sagebench.evaluation.predictions import Prediction, read_predictions, write_predictions
     from sagebench.stages.baseline import BaselineConfig, run_baseline
-    from sagebench.stages.evaluate import evaluate, open_replay_model
+    from sagebench.stages.evaluate import evaluate
+    from sagebench.config import AgentConfig
+    from sagebench.evaluation.intensity import STEP_REPLAY
+    from sagebench.stages.validate import open_replay_model
 
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -78,7 +81,7 @@ def run() -> list[dict]:
         rows.append({"name": "evaluate random (intensities replayed)", "reference": "-", "seconds": s, "speed-up": "",
                      "rate": f"{n / s:.0f} episodes/s", "notes": f"{sum(len(p.poses) - 1 for p in loaded)} steps"})
 
-        rm = open_replay_model(run_dir, "demo_apartment_0")
+        rm = open_replay_model(run_dir, "demo_apartment_0", agent=AgentConfig(), replay=STEP_REPLAY)
         sample = [np.asarray(p.poses) for p in loaded[:40]]
         steps = sum(len(p) - 1 for p in sample)
         start = time.perf_counter()

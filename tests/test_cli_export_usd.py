@@ -86,7 +86,7 @@ def tiny(tmp_path_factory):
 
     tmp = tmp_path_factory.mktemp("tiny")
     run, cache = make_run(tmp), tmp / "cache"
-    outs, hashes = [], []
+    hashes = []
     for _ in range(2):
         with pytest.raises(SystemExit) as exc:
             main(["export-usd", str(run), "--cache-dir", str(cache), *FAST])

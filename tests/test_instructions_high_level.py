@@ -5,7 +5,7 @@ from collections import Counter
 
 import numpy as np
 import pytest
-from shapely.geometry import Polygon, shape
+from shapely.geometry import shape
 
 from sagebench.instructions import instructions_for
 from sagebench.instructions.base import HIGH_LEVEL_TYPES, TrajectoryText, make_context

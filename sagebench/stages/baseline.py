@@ -20,7 +20,8 @@ from sagebench.errors import ConfigError
 from sagebench.evaluation.intensity import STEP_REPLAY
 from sagebench.evaluation.predictions import Prediction, write_predictions
 from sagebench.replay.physics import ReplayConfig
-from sagebench.stages.evaluate import load_episodes, open_replay_model
+from sagebench.stages.evaluate import load_episodes
+from sagebench.stages.validate import open_replay_model
 
 
 class BaselineConfig(BaseModel):

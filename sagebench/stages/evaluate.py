@@ -12,7 +12,6 @@ import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
-import mujoco
 import numpy as np
 import pyarrow as pa
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
@@ -27,9 +26,8 @@ from sagebench.evaluation.scoring import (
 )
 from sagebench.fileio import write_json
 from sagebench.metrics import MetricConfig
-from sagebench.replay.physics import ReplayConfig, ReplayModel, build_replay_model
-from sagebench.scene.loader import SCENE_FILE, parse_spec
-from sagebench.stages.validate import MJCF_FILE, floor_body_names, scene_ids
+from sagebench.replay.physics import ReplayConfig
+from sagebench.stages.validate import open_replay_model, scene_ids
 
 
 class EvaluateConfig(BaseModel):
@@ -86,24 +84,6 @@ def load_episodes(run_dir: Path, scene_id: str | None = None) -> list[Episode]:
                 goal=np.asarray(row["goal_position"], dtype=np.float64), goal_radius=float(row["goal_radius"]),
                 geodesic_distance=float(row["geodesic_distance"]), reference_path=path))
     return out
-
-
-def open_replay_model(run_dir: Path, scene_id: str, *, agent: AgentConfig = AgentConfig(),
-                      replay: ReplayConfig = STEP_REPLAY) -> ReplayModel:
-    """The replay agent in RUN/scenes/<scene_id>/scene.xml, floors not colliding (as validate builds it)."""
-    scene_dir = Path(run_dir) / "scenes" / scene_id
-    for name, stage in ((SCENE_FILE, "build-scene"), (MJCF_FILE, "export-usd")):
-        if not (scene_dir / name).is_file():
-            raise DataError(f"missing; run `sagebench {stage}` on this run first", path=scene_dir / name)
-    spec_path = scene_dir / SCENE_FILE
-    floor_z = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path).floor_height
-    try:
-        mjspec = mujoco.MjSpec.from_file(str(scene_dir / MJCF_FILE))
-    except ValueError as err:
-        raise DataError(f"cannot load: {err}", path=scene_dir / MJCF_FILE) from None
-    present = {b.name for b in mjspec.bodies}
-    return build_replay_model(mjspec, agent=agent, floor_z=floor_z, config=replay,
-                              floor_bodies=[n for n in floor_body_names(scene_dir) if n in present])
 
 
 def _check_start(episodes: dict[str, Episode], rows: list[tuple[int, Prediction]], path: Path,

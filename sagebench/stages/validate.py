@@ -22,7 +22,7 @@ from sagebench import ui
 from sagebench.config import AgentConfig
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import dumps_json, staged_dir, write_bytes, write_text
-from sagebench.replay.physics import AGENT_BODY, ReplayConfig, ReplayRecord, build_replay_model, replay_batch
+from sagebench.replay.physics import AGENT_BODY, ReplayConfig, ReplayModel, ReplayRecord, build_replay_model, replay_batch
 from sagebench.scene.loader import SCENE_FILE, parse_spec
 from sagebench.validation.checks import REASONS, CheckConfig, Verdict, judge
 
@@ -176,18 +176,30 @@ def floor_body_names(scene_dir: Path) -> list[str]:
     return [Tf.MakeValidIdentifier(f"{o.category}_{o.instance_id}") for o in spec.objects if o.kind == "floor"]
 
 
+def open_replay_model(run_dir: Path, scene_id: str, *, agent: AgentConfig, replay: ReplayConfig) -> ReplayModel:
+    """The replay agent in RUN/scenes/<scene_id>/scene.xml, floors not colliding (validate, evaluate, baseline)."""
+    scene_dir = Path(run_dir) / "scenes" / scene_id
+    for name, stage in ((SCENE_FILE, "build-scene"), (MJCF_FILE, "export-usd")):
+        if not (scene_dir / name).is_file():
+            raise DataError(f"missing; run `sagebench {stage}` on this run first", path=scene_dir / name)
+    spec_path = scene_dir / SCENE_FILE
+    floor_z = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path).floor_height
+    try:
+        mjspec = mujoco.MjSpec.from_file(str(scene_dir / MJCF_FILE))
+    except ValueError as err:
+        raise DataError(f"cannot load: {err}", path=scene_dir / MJCF_FILE) from None
+    present = {b.name for b in mjspec.bodies}
+    return build_replay_model(mjspec, agent=agent, floor_z=floor_z, config=replay,
+                              floor_bodies=[n for n in floor_body_names(scene_dir) if n in present])
+
+
 def validate_scene(run_dir: Path, scene_id: str, config: ValidateConfig) -> SceneValidation:
     """Replay, judge and spot-check one scene; writes RUN/validation/<scene_id>/ whole."""
     import time
 
     scene_dir = Path(run_dir) / "scenes" / scene_id
-    spec_path = scene_dir / SCENE_FILE
-    floor_z = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path).floor_height
     trajectories = read_trajectories(Path(run_dir) / "episodes" / scene_id)
-    mjspec = mujoco.MjSpec.from_file(str(scene_dir / MJCF_FILE))
-    present = {b.name for b in mjspec.bodies}
-    rm = build_replay_model(mjspec, agent=config.agent, floor_z=floor_z, config=config.replay,
-                            floor_bodies=[n for n in floor_body_names(scene_dir) if n in present])
+    rm = open_replay_model(run_dir, scene_id, agent=config.agent, replay=config.replay)
     start = time.perf_counter()
     records = replay_batch(rm, [t.reference_path for t in trajectories], threads=config.workers)
     verdicts = [judge(rec, t.reference_path, t.goal, goal_radius=t.goal_radius,
