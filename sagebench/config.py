@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from collections.abc import Callable, Mapping
+from typing import TypeVar
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from sagebench.errors import ConfigError
 
 
 class AgentConfig(BaseModel):
@@ -14,3 +19,24 @@ class AgentConfig(BaseModel):
     height: float = Field(default=1.2, gt=0, description="Cylinder height, m.")
     camera_height: float = Field(default=1.2, gt=0, description="Camera above the floor, m.")
     hfov_deg: float = Field(default=90.0, gt=0, lt=180, description="Horizontal field of view, degrees.")
+
+
+M = TypeVar("M", bound=BaseModel)
+
+
+def from_options(model: type[M], given: Mapping[str, object], option_of: Callable[[str], str | None] = str) -> M:
+    """Validate a stage's settings from command options (None = keep the default).
+
+    A bad value is one ConfigError naming the option: `option_of` maps the failing field's dotted path
+    ("coacd.threshold") to the option the user typed.
+    """
+    try:
+        return model.model_validate(_drop_none(given))
+    except ValidationError as err:
+        e = err.errors(include_url=False)[0]
+        loc = ".".join(str(p) for p in e["loc"])
+        raise ConfigError(e["msg"].removeprefix("Value error, "), field=(option_of(loc) if loc else None) or None) from None
+
+
+def _drop_none(given: Mapping[str, object]) -> dict[str, object]:
+    return {k: _drop_none(v) if isinstance(v, Mapping) else v for k, v in given.items() if v is not None}

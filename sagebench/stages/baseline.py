@@ -10,13 +10,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench import ui
 from sagebench.agents.driver import drive
 from sagebench.agents.policies import PolicyConfig, make_policy
-from sagebench.config import AgentConfig
-from sagebench.errors import ConfigError
+from sagebench.config import AgentConfig, from_options
 from sagebench.evaluation.intensity import STEP_REPLAY
 from sagebench.evaluation.predictions import Prediction, write_predictions
 from sagebench.replay.physics import ReplayConfig
@@ -43,12 +42,7 @@ _OPTIONS = {"agent_name": "--agent", "max_actions": "--max-actions", "workers": 
 
 def make_config(**fields: object) -> BaselineConfig:
     """A BaselineConfig from the options given (None = keep the default); a bad value is a ConfigError."""
-    try:
-        return BaselineConfig.model_validate({k: v for k, v in fields.items() if v is not None})
-    except ValidationError as err:
-        e = err.errors(include_url=False)[0]
-        loc = ".".join(str(p) for p in e["loc"])
-        raise ConfigError(e["msg"].removeprefix("Value error, "), field=_OPTIONS.get(loc, loc) or None) from None
+    return from_options(BaselineConfig, fields, lambda loc: _OPTIONS.get(loc, loc))
 
 
 @dataclass(frozen=True)

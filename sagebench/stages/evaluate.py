@@ -14,11 +14,11 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench import ui
-from sagebench.config import AgentConfig
-from sagebench.errors import ConfigError, DataError
+from sagebench.config import AgentConfig, from_options
+from sagebench.errors import DataError
 from sagebench.evaluation.intensity import STEP_REPLAY, replay_intensity
 from sagebench.evaluation.predictions import Prediction, match_episodes, read_predictions
 from sagebench.evaluation.scoring import (
@@ -48,13 +48,8 @@ _OPTIONS = {"workers": "--workers", "start_tolerance": "--start-tolerance"}
 
 
 def make_config(**fields: object) -> EvaluateConfig:
-    """An EvaluateConfig from the options given (None = keep the default); a bad value is a ConfigError."""
-    try:
-        return EvaluateConfig.model_validate({k: v for k, v in fields.items() if v is not None})
-    except ValidationError as err:
-        e = err.errors(include_url=False)[0]
-        loc = ".".join(str(p) for p in e["loc"])
-        raise ConfigError(e["msg"].removeprefix("Value error, "), field=_OPTIONS.get(loc, loc) or None) from None
+    """A EvaluateConfig from the options given (None = keep the default); a bad value is a ConfigError."""
+    return from_options(EvaluateConfig, fields, lambda loc: _OPTIONS.get(loc, loc))
 
 
 # ---------------------------------------------------------------- inputs

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench import ui
 from sagebench.collider_export.coacd_cache import CoacdParams, PartCache, coacd_version
@@ -20,7 +20,8 @@ from sagebench.collider_export.convex import hull_part
 from sagebench.collider_export.decompose import MeshColliders, decompose_meshes
 from sagebench.collider_export.mjcf_writer import MjcfBody, mjcf_text
 from sagebench.collider_export.usd_writer import StageObject, prim_name, stage_text
-from sagebench.errors import ConfigError, DataError
+from sagebench.config import from_options
+from sagebench.errors import DataError
 from sagebench.fileio import dumps_json, staged_dir, write_bytes, write_text
 from sagebench.scene.loader import SCENE_FILE, LoadedScene, door_pose, load_scene, read_mesh, resolve_mesh_path
 from sagebench.splats.model import Gaussians
@@ -55,15 +56,7 @@ def make_config(
     """An ExportConfig from the options given (None = keep the default); a bad value is a ConfigError."""
     coacd = {k: v for k, v in (("threshold", coacd_threshold), ("max_convex_hull", coacd_max_hulls),
                                ("preprocess_mode", coacd_preprocess)) if v is not None}
-    given: dict[str, object] = {"coacd": coacd}
-    if workers is not None:
-        given["workers"] = workers
-    try:
-        return ExportConfig.model_validate(given)
-    except ValidationError as err:
-        e = err.errors(include_url=False)[0]
-        loc = ".".join(str(p) for p in e["loc"])
-        raise ConfigError(e["msg"].removeprefix("Value error, "), field=_OPTION_NAMES.get(loc, loc) or None) from None
+    return from_options(ExportConfig, {"coacd": coacd, "workers": workers}, lambda loc: _OPTION_NAMES.get(loc, loc))
 
 
 def default_cache_dir() -> Path:

@@ -21,6 +21,7 @@ from sagebench import ui
 from sagebench.astar.sampling import GridMap, SamplingConfig, SamplingResult, TargetSpec, Trajectory, sample_trajectories
 from sagebench.episodes.preview import render_paths
 from sagebench.episodes.shards import write_shards
+from sagebench.config import from_options
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import staged_dir, write_bytes
 from sagebench.instructions import instructions_for
@@ -66,15 +67,13 @@ class GenTrajectoriesConfig(SamplingConfig):
 
 def make_config(**fields: object) -> GenTrajectoriesConfig:
     """A config from the options given (None = keep the default); a bad value is a ConfigError naming the option."""
-    try:
-        return GenTrajectoriesConfig.model_validate({k: v for k, v in fields.items() if v is not None})
-    except ValidationError as err:
-        e = err.errors(include_url=False)[0]
-        name = str(e["loc"][0]) if e["loc"] else None
-        if name == "llm" and len(e["loc"]) > 1:  # nested LLMConfig field -> --llm-<field>
-            name = f"llm_{e['loc'][1]}"
-        option = None if name is None else "--" + name.removesuffix("_m").replace("_", "-")
-        raise ConfigError(e["msg"].removeprefix("Value error, "), field=option) from None
+    return from_options(GenTrajectoriesConfig, fields, _option_of)
+
+
+def _option_of(loc: str) -> str:
+    """gen-trajectories options are the field names (nested llm.<field> is --llm-<field>), metres' _m dropped."""
+    name = loc.replace(".", "_") if loc.startswith("llm.") else loc.split(".")[0]
+    return "--" + name.removesuffix("_m").replace("_", "-")
 
 
 @dataclass(frozen=True)

@@ -16,11 +16,11 @@ import mujoco
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench import ui
-from sagebench.config import AgentConfig
-from sagebench.errors import ConfigError, DataError
+from sagebench.config import AgentConfig, from_options
+from sagebench.errors import DataError
 from sagebench.fileio import dumps_json, staged_dir, write_bytes, write_text
 from sagebench.replay.physics import AGENT_BODY, ReplayConfig, ReplayModel, ReplayRecord, build_replay_model, replay_batch
 from sagebench.scene.loader import SCENE_FILE, parse_spec
@@ -59,12 +59,7 @@ _OPTIONS = {"frames_per_scene": "--frames-per-scene", "depth_tolerance": "--dept
 
 def make_config(**fields: object) -> ValidateConfig:
     """A ValidateConfig from the options given (None = keep the default); a bad value is a ConfigError."""
-    try:
-        return ValidateConfig.model_validate({k: v for k, v in fields.items() if v is not None})
-    except ValidationError as err:
-        e = err.errors(include_url=False)[0]
-        loc = ".".join(str(p) for p in e["loc"])
-        raise ConfigError(e["msg"].removeprefix("Value error, "), field=_OPTIONS.get(loc, loc) or None) from None
+    return from_options(ValidateConfig, fields, lambda loc: _OPTIONS.get(loc, loc))
 
 
 @dataclass(frozen=True)
