@@ -11,9 +11,9 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 
-from sagebench.config import AgentConfig
+from sagebench.config import AgentConfig, from_options
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import write_bytes
 from sagebench.replay.camera import agent_camera
@@ -32,19 +32,14 @@ class RenderConfig(BaseModel):
     height: int = Field(default=480, ge=1, le=8192, description="Image height, px.")
 
 
+_OPTIONS = {"agent.camera_height": "--camera-height", "agent.hfov_deg": "--hfov", "pitch_deg": "--pitch",
+            "width": "--width", "height": "--height"}
+
+
 def make_render_config(*, camera_height: float | None = None, hfov: float | None = None, **fields: object) -> RenderConfig:
     """A RenderConfig from the options given (None = default); a bad value is a ConfigError naming the option."""
-    given = {k: v for k, v in fields.items() if v is not None}
-    agent = {k: v for k, v in (("camera_height", camera_height), ("hfov_deg", hfov)) if v is not None}
-    if agent:
-        given["agent"] = agent
-    try:
-        return RenderConfig.model_validate(given)
-    except ValidationError as err:
-        e = err.errors(include_url=False)[0]
-        name = {"agent.camera_height": "camera_height", "agent.hfov_deg": "hfov", "pitch_deg": "pitch"}.get(
-            ".".join(str(p) for p in e["loc"]), ".".join(str(p) for p in e["loc"]))
-        raise ConfigError(e["msg"], field=f"--{name.replace('_', '-')}") from None
+    given = {**fields, "agent": {"camera_height": camera_height, "hfov_deg": hfov}}
+    return from_options(RenderConfig, given, lambda loc: _OPTIONS.get(loc, loc))
 
 
 def parse_pose(text: str) -> tuple[float, float, float]:
