@@ -110,22 +110,28 @@ def build_scene_cmd(
     sample_density: Annotated[float | None, typer.Option(help="Footprint surface samples per m^2.")] = None,
     wall_gap: Annotated[float | None, typer.Option(help="Join room floors across walls up to this thick, m.")] = None,
     agent_radius: Annotated[float | None, typer.Option(help="Agent radius for the navigable map, m.")] = None,
-    seed: Annotated[int | None, typer.Option(help="Seed of the footprint sampling.")] = None,
+    seed: Annotated[int | None, typer.Option(help="Seed of the footprint and Gaussian sampling.")] = None,
+    object_density: Annotated[float | None, typer.Option(help="Sampled Gaussians per m^2 on objects.")] = None,
+    structure_density: Annotated[float | None, typer.Option(help="Sampled Gaussians per m^2 on walls, floors, ceilings.")] = None,
+    prune: Annotated[float | None, typer.Option(help="Drop this fraction of Gaussians by blending contribution.")] = None,
 ) -> None:
-    """Build the semantic top-down map and the height-band occupancy of one scene.
+    """Build the semantic top-down map, the height-band occupancy and the Gaussians of one scene.
 
     Reads SCENE_DIR/scene.json and its meshes.
 
     Writes OUT/scenes/<scene_id>/: scene.json and meshes/ (normalised), topdown.npz,
-    semantic_map.json and topdown.png.
+    semantic_map.json, topdown.png and gaussians.ply (the scene's trained gaussians.ply with
+    instance ids, else Gaussians sampled on every mesh).
 
     Defaults: resolution 0.05, band-min 0.05, band-max 1.2, sample-density 400,
-    wall-gap 0.3, agent-radius 0.2, seed 0.
+    wall-gap 0.3, agent-radius 0.2, seed 0, object-density 900, structure-density 300, prune 0.
+    With --prune it prints the held-out PSNR of the pruned against the unpruned Gaussians.
     """
     from sagebench.stages.build_scene import build_scene, make_config
 
     config = make_config(resolution=resolution, band_min=band_min, band_max=band_max, sample_density=sample_density,
-                         wall_gap=wall_gap, agent_radius=agent_radius, seed=seed)
+                         wall_gap=wall_gap, agent_radius=agent_radius, seed=seed, prune=prune,
+                         object_density=object_density, structure_density=structure_density)
     typer.echo(build_scene(scene_dir, out, config).summary())
 
 

@@ -51,5 +51,6 @@ def test_help_says_what_it_reads_writes_and_the_real_defaults(run_cli):
     c = TopdownConfig()
     defaults = (f"resolution {c.resolution:g}, band-min {c.band_min:g}, band-max {c.band_max:g}, "
                 f"sample-density {c.sample_density:g}, wall-gap {c.wall_gap:g}, agent-radius {c.agent.radius:g}, "
-                f"seed {c.seed}")
+                f"seed {c.seed}, object-density {c.splats.object_density:g}, "
+                f"structure-density {c.splats.structure_density:g}, prune {c.splats.prune:g}")
     assert f"Defaults: {defaults}." in text

@@ -13,13 +13,14 @@ from pathlib import Path
 
 import numpy as np
 import shapely
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 from shapely.geometry.base import BaseGeometry
 
-from sagebench.config import AgentConfig
-from sagebench.errors import ConfigError, SceneError
+from sagebench.config import AgentConfig, from_options
+from sagebench.errors import SceneError
 from sagebench.fileio import dumps_json, staged_dir, write_bytes
 from sagebench.scene.loader import LoadedScene, load_scene, write_normalised_scene
+from sagebench.splats.prune import PruneReport
 from sagebench.splats.scene import SplatConfig
 from sagebench.topdown.footprints import footprint, mesh_parts
 from sagebench.topdown.occupancy import band_occupancy, clip_to_band, inflate
@@ -44,8 +45,9 @@ class TopdownConfig(BaseModel):
     wall_gap: float = Field(
         default=0.3, ge=0, description="Room floor polygons closer than this join across the wall between them, m."
     )
-    seed: int = Field(default=0, description="Seed of the footprint surface sampling.")
+    seed: int = Field(default=0, description="Seed of the footprint surface and Gaussian sampling.")
     agent: AgentConfig = AgentConfig()
+    splats: SplatConfig = SplatConfig()
 
     @model_validator(mode="after")
     def _band_order(self) -> TopdownConfig:
@@ -54,19 +56,17 @@ class TopdownConfig(BaseModel):
         return self
 
 
-def make_config(*, agent_radius: float | None = None, **fields: object) -> TopdownConfig:
+_OPTIONS = {"agent.radius": "agent_radius", "splats.prune": "prune", "splats.object_density": "object_density",
+            "splats.structure_density": "structure_density"}
+
+
+def make_config(*, agent_radius: float | None = None, prune: float | None = None,
+                object_density: float | None = None, structure_density: float | None = None,
+                **fields: object) -> TopdownConfig:
     """A TopdownConfig from the options given (None = keep the default); a bad value is a ConfigError."""
-    given = {k: v for k, v in fields.items() if v is not None}
-    if agent_radius is not None:
-        given["agent"] = {"radius": agent_radius}
-    try:
-        return TopdownConfig.model_validate(given)
-    except ValidationError as err:
-        e = err.errors(include_url=False)[0]
-        field = ".".join(str(p) for p in e["loc"]) or None
-        if field == "agent.radius":
-            field = "agent_radius"
-        raise ConfigError(e["msg"].removeprefix("Value error, "), field=field) from None
+    given = {**fields, "agent": {"radius": agent_radius},
+             "splats": {"prune": prune, "object_density": object_density, "structure_density": structure_density}}
+    return from_options(TopdownConfig, given, lambda loc: _OPTIONS.get(loc, loc))
 
 
 @dataclass(frozen=True)
@@ -79,13 +79,18 @@ class BuildSceneResult:
     rooms: int
     rooms_in_largest_group: int  # rooms mutually reachable in the best-connected group
     all_rooms_connected: bool
+    gaussians: int
+    pruned: PruneReport | None
 
     def summary(self) -> str:
         h, w = self.shape
+        prune = "" if self.pruned is None else (
+            f" (pruned {self.pruned.fraction:.0%} of {self.pruned.count_before}: held-out PSNR "
+            f"{self.pruned.psnr_db:.1f} dB)")
         return (
             f"build-scene {self.scene_id}: map {w}x{h} cells at {self.resolution:g} m, "
             f"navigable {self.navigable_area_m2:.1f} m^2, {self.rooms_in_largest_group}/{self.rooms} rooms "
-            f"reachable from each other -> {self.out_dir}"
+            f"reachable from each other, {self.gaussians} Gaussians{prune} -> {self.out_dir}"
         )
 
 
@@ -104,8 +109,7 @@ class Topdown:
     footprints: dict[int, BaseGeometry]  # instance id -> footprint, world m
 
 
-def build_scene(scene_dir: Path, run_dir: Path, config: TopdownConfig | None = None,
-                splats: SplatConfig | None = None) -> BuildSceneResult:
+def build_scene(scene_dir: Path, run_dir: Path, config: TopdownConfig | None = None) -> BuildSceneResult:
     """Load `scene_dir`, compute its top-down maps and Gaussians and write RUN/scenes/<scene_id>/ atomically."""
     from sagebench.splats.ply import write_ply
     from sagebench.splats.scene import scene_gaussians
@@ -115,7 +119,7 @@ def build_scene(scene_dir: Path, run_dir: Path, config: TopdownConfig | None = N
     scene = load_scene(scene_dir)
     td = compute_topdown(scene, config)
     png = render_topdown(td)
-    gaussians, _ = scene_gaussians(scene, splats or SplatConfig(), seed=config.seed, agent=config.agent)
+    gaussians, pruned = scene_gaussians(scene, config.splats, seed=config.seed, agent=config.agent)
     out = Path(run_dir) / "scenes" / scene.spec.scene_id
     with staged_dir(out) as tmp:
         write_normalised_scene(scene, tmp)
@@ -142,6 +146,8 @@ def build_scene(scene_dir: Path, run_dir: Path, config: TopdownConfig | None = N
         rooms=len(scene.spec.rooms),
         rooms_in_largest_group=best,
         all_rooms_connected=td.semantic.all_rooms_connected,
+        gaussians=gaussians.count,
+        pruned=pruned,
     )
 
 
