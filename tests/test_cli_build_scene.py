@@ -54,3 +54,10 @@ def test_help_says_what_it_reads_writes_and_the_real_defaults(run_cli):
                 f"seed {c.seed}, object-density {c.splats.object_density:g}, "
                 f"structure-density {c.splats.structure_density:g}, prune {c.splats.prune:g}")
     assert f"Defaults: {defaults}." in text
+
+
+def test_prune_option_is_checked_before_anything_is_written(run_cli, demo_scene_dir, tmp_path):
+    code, _, err = run_cli("build-scene", demo_scene_dir, "--out", tmp_path / "run", "--prune", "1.5")
+    assert code == 2
+    assert err == "error: prune: Input should be less than 1\n"
+    assert not (tmp_path / "run").exists()
