@@ -11,21 +11,9 @@ import tempfile
 import time
 from pathlib import Path
 
+from benchmarks.demo_run import built_demo_run
+
 import numpy as np
-
-
-def _demo_run(root: Path) -> Path:
-    from sagebench.scene.synth import write_synth_scene
-    from sagebench.stages.build_scene import TopdownConfig, build_scene
-    from sagebench.stages.export_usd import export_usd
-    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, gen_trajectories
-
-    scene = root / "input" / "demo_apartment_0"
-    write_synth_scene(scene, seed=0)
-    build_scene(scene, root, TopdownConfig(seed=0))
-    gen_trajectories(root, GenTrajectoriesConfig(seed=0))
-    export_usd(root, cache_dir=root / "cache")
-    return root
 
 
 def _plain_intensity(rm, poses: np.ndarray) -> np.ndarray:
@@ -54,7 +42,7 @@ def run() -> list[dict]:
 
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        run_dir = _demo_run(Path(tmp))
+        run_dir = built_demo_run(Path(tmp))
         preds = {}
         for agent in ("oracle", "straight", "random"):
             preds[agent] = Path(tmp) / f"{agent}.jsonl"

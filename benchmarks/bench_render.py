@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import resource
 import tempfile
 import time

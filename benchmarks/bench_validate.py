@@ -6,40 +6,20 @@ import tempfile
 import time
 from pathlib import Path
 
-
-def _demo_run(root: Path) -> Path:
-    from sagebench.scene.synth import write_synth_scene
-    from sagebench.stages.build_scene import TopdownConfig, build_scene
-    from sagebench.stages.export_usd import export_usd
-    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, gen_trajectories
-
-    scene = root / "input" / "demo_apartment_0"
-    write_synth_scene(scene, seed=0)
-    build_scene(scene, root, TopdownConfig(seed=0))
-    gen_trajectories(root, GenTrajectoriesConfig(seed=0))
-    export_usd(root, cache_dir=root / "cache")
-    return root
+from benchmarks.demo_run import built_demo_run
 
 
 def run() -> list[dict]:
-    import mujoco
 
-    from sagebench.replay.physics import build_replay_model, replay_batch, replay_one
-    from sagebench.stages.validate import (
-        ValidateConfig,
-        floor_body_names,
-        read_trajectories,
-        validate_scene,
-    )
+    from sagebench.replay.physics import replay_batch, replay_one
+    from sagebench.stages.validate import ValidateConfig, open_replay_model, read_trajectories, validate_scene
     from sagebench.validation.checks import judge
 
     with tempfile.TemporaryDirectory() as tmp:
-        run_dir = _demo_run(Path(tmp))
-        scene_dir = run_dir / "scenes" / "demo_apartment_0"
+        run_dir = built_demo_run(Path(tmp))
         trajs = read_trajectories(run_dir / "episodes" / "demo_apartment_0")
-        spec = mujoco.MjSpec.from_file(str(scene_dir / "scene.xml"))
-        rm = build_replay_model(spec, floor_bodies=[n for n in floor_body_names(scene_dir)
-                                                    if n in {b.name for b in spec.bodies}])
+        config = ValidateConfig()
+        rm = open_replay_model(run_dir, "demo_apartment_0", agent=config.agent, replay=config.replay)
         paths = [t.reference_path for t in trajs]
         n = len(paths)
 
@@ -62,7 +42,7 @@ def run() -> list[dict]:
                          "reference": "plain loop", "seconds": s, "speed-up": ref_s / s, "trajectories/s": n / s,
                          "notes": f"{sum(v.passed for v in fast)}/{n} pass, {sum(v.steps for v in fast)} steps"})
         start = time.perf_counter()
-        result = validate_scene(run_dir, "demo_apartment_0", ValidateConfig())
+        result = validate_scene(run_dir, "demo_apartment_0", config)
         s = time.perf_counter() - start
         rows.append({"name": "validate stage (3 x 3 spot-check frames, files)", "reference": "-", "seconds": s,
                      "speed-up": "", "trajectories/s": n / s, "notes": result.summary().split(" -> ")[0]})
