@@ -31,7 +31,7 @@ class CheckConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     penetration_tolerance: float = Field(
-        default=0.03, ge=0, description="Deepest contact allowed, m (half a 0.05 m map cell, plus 5 mm).")
+        default=0.01, ge=0, description="Deepest contact allowed, m (MuJoCo soft-contact slack; reference paths keep clear).")
     deviation_tolerance: float = Field(
         default=0.10, ge=0, description="How far contact may push the agent off the commanded polyline, m.")
     min_csr: float = Field(default=1.0, ge=0, le=1, description="Lowest CSR that passes.")
