@@ -7,7 +7,7 @@ from typing import TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from sagebench.errors import ConfigError
+from sagebench.errors import ConfigError, first_error
 
 
 class AgentConfig(BaseModel):
@@ -33,9 +33,8 @@ def from_options(model: type[M], given: Mapping[str, object], option_of: Callabl
     try:
         return model.model_validate(_drop_none(given))
     except ValidationError as err:
-        e = err.errors(include_url=False)[0]
-        loc = ".".join(str(p) for p in e["loc"])
-        raise ConfigError(e["msg"].removeprefix("Value error, "), field=(option_of(loc) if loc else None) or None) from None
+        loc, msg, _ = first_error(err)
+        raise ConfigError(msg, field=(option_of(loc) if loc else None) or None) from None
 
 
 def _drop_none(given: Mapping[str, object]) -> dict[str, object]:

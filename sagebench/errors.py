@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationError
 
 
 class SagebenchError(Exception):
@@ -32,3 +36,17 @@ class ConfigError(SagebenchError):
 
 class DataError(SagebenchError):
     """A file sagebench wrote earlier (map, shard, PLY) is missing or malformed."""
+
+
+def first_error(err: ValidationError) -> tuple[str | None, str, dict[str, Any]]:
+    """The first problem pydantic found: (field path such as 'objects[3].kind' or None, message, raw entry)."""
+    e = err.errors(include_url=False)[0]
+    return field_path(e["loc"]) or None, e["msg"].removeprefix("Value error, "), e
+
+
+def field_path(loc: Sequence[str | int]) -> str:
+    """('objects', 3, 'kind') -> 'objects[3].kind'."""
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out

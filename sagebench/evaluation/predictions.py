@@ -16,7 +16,7 @@ from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from sagebench.errors import DataError
+from sagebench.errors import DataError, field_path, first_error
 from sagebench.fileio import write_text
 
 Pose = tuple[float, float, float, float]
@@ -48,25 +48,15 @@ class Prediction(BaseModel):
         return self
 
 
-def _field(loc: Sequence[str | int]) -> str:
-    """('poses', 2, 3) -> 'poses[2][3]'."""
-    out = ""
-    for part in loc:
-        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
-    return out
-
-
 def parse_line(text: str, path: Path, line: int) -> Prediction:
     """One JSON Lines row; a bad row is a DataError naming `path:line` and the field."""
     try:
         return Prediction.model_validate_json(text)
     except ValidationError as err:
-        e = err.errors(include_url=False)[0]
-        msg = e["msg"].removeprefix("Value error, ")
+        field, msg, e = first_error(err)
         if e["type"] == "missing" and len(e["loc"]) == 3 and e["loc"][0] == "poses":
-            msg = "a pose is [x, y, z, yaw]: 4 numbers"
-            e["loc"] = e["loc"][:2]
-        raise DataError(msg, path=f"{path}:{line}", field=_field(e["loc"]) or None) from None
+            msg, field = "a pose is [x, y, z, yaw]: 4 numbers", field_path(e["loc"][:2])
+        raise DataError(msg, path=f"{path}:{line}", field=field) from None
 
 
 def read_predictions(path: Path) -> list[tuple[int, Prediction]]:

@@ -9,7 +9,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from sagebench.errors import ConfigError
+from sagebench.errors import ConfigError, first_error
 from sagebench.stages.build_scene import TopdownConfig
 from sagebench.stages.export_usd import ExportConfig
 from sagebench.stages.gen_trajectories import GenTrajectoriesConfig
@@ -60,9 +60,8 @@ def load_run_config(path: Path, **overrides: Any) -> RunConfig:
     try:
         config = RunConfig.model_validate(raw)
     except ValidationError as err:
-        e = err.errors(include_url=False)[0]
-        loc = ".".join(str(p) for p in e["loc"])
-        raise ConfigError(e["msg"].removeprefix("Value error, "), path=path, field=loc or None) from None
+        loc, msg, _ = first_error(err)
+        raise ConfigError(msg, path=path, field=loc) from None
     return config.model_copy(update={
         "out": _under(base, config.out),
         "cache_dir": None if config.cache_dir is None else _under(base, config.cache_dir),

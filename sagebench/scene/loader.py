@@ -12,7 +12,7 @@ import numpy as np
 import trimesh
 from pydantic import ValidationError
 
-from sagebench.errors import MeshError, SceneError
+from sagebench.errors import MeshError, SceneError, first_error
 from sagebench.scene.model import UNIT_SCALE, Door, Room, SceneObject, SceneSpec, Transform
 
 SCENE_FILE = "scene.json"
@@ -58,9 +58,7 @@ def parse_spec(text: str, where: Path | str) -> SceneSpec:
 
 
 def _first_error(err: ValidationError) -> str:
-    e = err.errors(include_url=False)[0]
-    loc = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in e["loc"]).lstrip(".")
-    msg = e["msg"].removeprefix("Value error, ")
+    loc, msg, e = first_error(err)
     if e["type"] in ("literal_error", "string_pattern_mismatch", "greater_than_equal", "missing") or "input" in e:
         got = e.get("input")
         if e["type"] != "missing" and not isinstance(got, dict | list):

@@ -22,7 +22,7 @@ from sagebench.astar.sampling import GridMap, SamplingConfig, SamplingResult, Ta
 from sagebench.episodes.preview import render_paths
 from sagebench.episodes.shards import write_shards
 from sagebench.config import from_options
-from sagebench.errors import ConfigError, DataError
+from sagebench.errors import ConfigError, DataError, first_error
 from sagebench.fileio import staged_dir, write_bytes
 from sagebench.instructions import instructions_for
 from sagebench.instructions.base import HIGH_LEVEL_TYPES, SceneContext, TrajectoryText, make_context
@@ -145,8 +145,8 @@ def read_scene_inputs(scene_dir: Path) -> tuple[SceneSpec, SemanticMap, GridMap,
     try:
         smap = SemanticMap.model_validate_json(smap_path.read_bytes())
     except ValidationError as err:
-        e = err.errors(include_url=False)[0]
-        raise DataError(e["msg"], path=smap_path, field=".".join(str(p) for p in e["loc"]) or None) from None
+        loc, msg, _ = first_error(err)
+        raise DataError(msg, path=smap_path, field=loc) from None
     try:
         with np.load(npz_path) as npz:
             arrays = {k: npz[k] for k in ("navigable", "occupancy", "resolution", "origin") if k in npz.files}
