@@ -8,11 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
-from sagebench.replay.camera import Camera
-from sagebench.replay.splat_render import render
+from sagebench.render.camera import Camera
+from sagebench.render.gaussians import Gaussians
+from sagebench.render.splat_render import render
 from sagebench.scene.loader import load_scene
 from sagebench.scene.synth import write_synth_scene
-from sagebench.splats.model import Gaussians
 from sagebench.splats.prune import contribution_scores, mse, prune_lowest, psnr_from_mse
 from sagebench.splats.scene import SplatConfig, room_views, sampled_gaussians
 

@@ -9,12 +9,12 @@ from pathlib import Path
 
 import numpy as np
 
-from sagebench.replay.camera import agent_camera
-from sagebench.replay.splat_reference import render_reference
-from sagebench.replay.splat_render import render
+from sagebench.render.camera import agent_camera
+from sagebench.render.gaussians import Gaussians
+from sagebench.render.splat_reference import render_reference
+from sagebench.render.splat_render import render
 from sagebench.scene.loader import load_scene
 from sagebench.scene.synth import write_synth_scene
-from sagebench.splats.model import Gaussians
 from sagebench.splats.prune import psnr
 from sagebench.splats.scene import SplatConfig, sampled_gaussians
 

@@ -12,8 +12,8 @@ import pytest
 import trimesh
 from pxr import Usd, UsdGeom, UsdPhysics, UsdSemantics, UsdValidation, UsdVol
 
+from sagebench.render.gaussians import Gaussians
 from sagebench.scene.loader import door_pose, load_scene, write_normalised_scene
-from sagebench.splats.model import Gaussians
 from sagebench.splats.ply import read_ply, write_ply
 from tests.test_collider_convex import u_prism
 

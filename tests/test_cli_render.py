@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from sagebench.splats.model import Gaussians, logit, rgb_to_sh_dc
+from sagebench.render.gaussians import Gaussians, logit, rgb_to_sh_dc
 from sagebench.splats.ply import write_ply
 
 

@@ -85,7 +85,7 @@ def test_a_path_through_a_wall_fails_with_collision(validated_run, tmp_path, run
 
 
 def test_shifted_gaussians_fail_the_alignment(validated_run, tmp_path, run_cli):
-    from sagebench.splats.model import Gaussians
+    from sagebench.render.gaussians import Gaussians
     from sagebench.splats.ply import read_ply, write_ply
 
     run = _copy(validated_run, tmp_path)

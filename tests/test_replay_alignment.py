@@ -16,10 +16,10 @@ from sagebench.replay.alignment import (
     pixel_grid,
     ray_directions,
 )
-from sagebench.replay.camera import agent_camera
-from sagebench.replay.splat_render import render
+from sagebench.render.camera import agent_camera
+from sagebench.render.gaussians import Gaussians
+from sagebench.render.splat_render import render
 from sagebench.splats.from_mesh import mesh_gaussians
-from sagebench.splats.model import Gaussians
 from sagebench.splats.scene import quat_multiply
 
 TOLERANCE = 0.10  # m, validate's default depth tolerance

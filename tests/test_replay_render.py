@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from sagebench.replay.camera import Camera, agent_camera
-from sagebench.replay.splat_reference import render_reference
-from sagebench.replay.splat_render import contributions, render
-from sagebench.splats.model import Gaussians, logit, rgb_to_sh_dc
+from sagebench.render.camera import Camera, agent_camera
+from sagebench.render.gaussians import Gaussians, logit, rgb_to_sh_dc
+from sagebench.render.splat_reference import render_reference
+from sagebench.render.splat_render import contributions, render
 from sagebench.splats.prune import psnr
 
 

@@ -7,9 +7,9 @@ import pytest
 import trimesh
 from PIL import Image
 
-from sagebench.replay.splat_reference import quat_to_rotmat
+from sagebench.render.gaussians import SH_C0
+from sagebench.render.splat_reference import quat_to_rotmat
 from sagebench.splats.from_mesh import mesh_gaussians, normal_frames, sample_surface
-from sagebench.splats.model import SH_C0
 
 
 def _rgb(g) -> np.ndarray:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sagebench.errors import DataError
-from sagebench.splats.model import SH_C0, Gaussians
+from sagebench.render.gaussians import SH_C0, Gaussians
 from sagebench.splats.ply import read_ply, write_ply
 
 

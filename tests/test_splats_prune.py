@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sagebench.replay.camera import Camera
-from sagebench.splats.model import Gaussians, logit, rgb_to_sh_dc
+from sagebench.render.camera import Camera
+from sagebench.render.gaussians import Gaussians, logit, rgb_to_sh_dc
 from sagebench.splats.prune import contribution_scores, prune, prune_lowest, psnr
 
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import trimesh
 
+from sagebench.render.gaussians import Gaussians, logit
 from sagebench.scene.loader import load_scene
-from sagebench.splats.model import Gaussians, logit
 from sagebench.splats.ply import write_ply
 from sagebench.splats.scene import SplatConfig, quat_multiply, room_views, sampled_gaussians, scene_gaussians
 

@@ -11,9 +11,9 @@ from pxr import Gf, Usd, UsdGeom, UsdPhysics, UsdSemantics, UsdValidation, UsdVo
 
 from sagebench.collider_export.convex import hull_part
 from sagebench.collider_export.usd_writer import DENSITY_KG_M3, StageObject, build_stage, stage_text
+from sagebench.render.gaussians import Gaussians
 from sagebench.scene.loader import door_pose
 from sagebench.scene.model import Door
-from sagebench.splats.model import Gaussians
 
 
 def box_part(size, centre=(0, 0, 0)):

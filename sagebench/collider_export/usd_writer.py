@@ -24,8 +24,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sagebench.collider_export.convex import ConvexPart
+from sagebench.render.gaussians import Gaussians
 from sagebench.scene.model import Door
-from sagebench.splats.model import Gaussians
 
 MOVABLE_CATEGORIES: frozenset[str] = frozenset(
     {

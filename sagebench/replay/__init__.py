@@ -1,1 +1,1 @@
-"""Replay: seeing the scene from the agent (CPU splat renderer) and moving through it (MuJoCo)."""
+"""Replay: moving the agent through the scene (MuJoCo) and checking what it sees against the colliders."""

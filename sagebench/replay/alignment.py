@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from sagebench.replay.camera import Camera
+from sagebench.render.camera import Camera
 
 
 @dataclass(frozen=True)

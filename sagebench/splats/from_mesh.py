@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from sagebench.splats.model import Gaussians, logit, rgb_to_sh_dc
+from sagebench.render.gaussians import Gaussians, logit, rgb_to_sh_dc
 
 LIGHT = np.array([0.35, 0.25, 0.9]) / np.linalg.norm([0.35, 0.25, 0.9])  # baked light direction (towards it)
 DEFAULT_RGB = (0.7, 0.7, 0.7)

@@ -16,7 +16,7 @@ import numpy as np
 
 from sagebench.errors import DataError
 from sagebench.fileio import write_bytes
-from sagebench.splats.model import SH_C0, Gaussians
+from sagebench.render.gaussians import SH_C0, Gaussians
 
 _TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",

@@ -10,9 +10,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sagebench.replay.camera import Camera
-from sagebench.replay.splat_render import contributions, render
-from sagebench.splats.model import Gaussians
+from sagebench.render.camera import Camera
+from sagebench.render.gaussians import Gaussians
+from sagebench.render.splat_render import contributions, render
 
 
 @dataclass(frozen=True)

@@ -17,11 +17,11 @@ from shapely.geometry import Polygon
 from sagebench import ui
 from sagebench.config import AgentConfig
 from sagebench.errors import SceneError
-from sagebench.replay.camera import Camera, agent_camera
+from sagebench.render.camera import Camera, agent_camera
+from sagebench.render.gaussians import Gaussians, concat
 from sagebench.scene.loader import SCENE_FILE, LoadedScene, frame_matrix, parse_spec
 from sagebench.splats.assign import assign_instances
 from sagebench.splats.from_mesh import mesh_gaussians, rotmat_to_quat
-from sagebench.splats.model import Gaussians, concat
 from sagebench.splats.ply import read_ply
 from sagebench.splats.prune import PruneReport, prune
 

@@ -23,8 +23,8 @@ from sagebench.collider_export.usd_writer import StageObject, prim_name, stage_t
 from sagebench.config import from_options
 from sagebench.errors import DataError
 from sagebench.fileio import dumps_json, staged_dir, write_bytes, write_text
+from sagebench.render.gaussians import Gaussians
 from sagebench.scene.loader import SCENE_FILE, LoadedScene, door_pose, load_scene, read_mesh, resolve_mesh_path
-from sagebench.splats.model import Gaussians
 
 COLLIDERS_DIR = "colliders"
 COLLIDERS_INDEX = "colliders.json"

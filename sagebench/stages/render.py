@@ -16,8 +16,8 @@ from pydantic import BaseModel, ConfigDict, Field
 from sagebench.config import AgentConfig, from_options
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import write_bytes
-from sagebench.replay.camera import agent_camera
-from sagebench.replay.splat_reference import Frame
+from sagebench.render.camera import agent_camera
+from sagebench.render.splat_reference import Frame
 from sagebench.scene.loader import SCENE_FILE, parse_spec
 
 
@@ -56,7 +56,7 @@ def parse_pose(text: str) -> tuple[float, float, float]:
 
 def render_view(run_dir: Path, scene_id: str, pose: tuple[float, float, float], config: RenderConfig) -> Frame:
     """Render RUN/scenes/<scene_id>'s Gaussians from the agent camera at `pose` (x, y, yaw)."""
-    from sagebench.replay.splat_render import render
+    from sagebench.render.splat_render import render
     from sagebench.splats.ply import read_ply
 
     scene_dir = Path(run_dir) / "scenes" / scene_id

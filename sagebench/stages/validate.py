@@ -288,8 +288,8 @@ def _spot_checks(scene_dir: Path, rm, picks: list[tuple[Trajectory, ReplayRecord
     if not picks:
         return []
     from sagebench.replay.alignment import collider_depth, compare_depth, pixel_grid
-    from sagebench.replay.camera import agent_camera
-    from sagebench.replay.splat_render import render
+    from sagebench.render.camera import agent_camera
+    from sagebench.render.splat_render import render
     from sagebench.splats.ply import read_ply
 
     gaussians = read_ply(scene_dir / GAUSSIANS_FILE)

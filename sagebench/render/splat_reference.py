@@ -14,9 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sagebench.replay.camera import Camera
-from sagebench.replay.sh import sh_to_rgb
-from sagebench.splats.model import Gaussians
+from sagebench.render.camera import Camera
+from sagebench.render.gaussians import Gaussians
+from sagebench.render.sh import sh_to_rgb
 
 NEAR = 0.01  # m
 MIN_ALPHA = 1.0 / 255.0

@@ -13,9 +13,10 @@ import math
 import numba
 import numpy as np
 
-from sagebench.replay.camera import Camera
-from sagebench.replay.sh import C0, C1, C2, C3
-from sagebench.replay.splat_reference import (
+from sagebench.render.camera import Camera
+from sagebench.render.gaussians import Gaussians
+from sagebench.render.sh import C0, C1, C2, C3
+from sagebench.render.splat_reference import (
     CUTOFF,
     DILATION,
     FOV_CLAMP,
@@ -25,7 +26,6 @@ from sagebench.replay.splat_reference import (
     NEAR,
     Frame,
 )
-from sagebench.splats.model import Gaussians
 
 TILE = 16
 
