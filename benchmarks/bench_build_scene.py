@@ -16,7 +16,8 @@ import numpy as np
 from sagebench.fileio import dumps_json, write_bytes
 from sagebench.scene.loader import load_scene
 from sagebench.scene.synth import write_synth_scene
-from sagebench.stages.build_scene import TopdownConfig, build_scene, compute_topdown
+from sagebench.stages.build_scene import build_scene
+from sagebench.topdown.builder import TopdownConfig, compute_topdown
 from sagebench.topdown.footprints import mesh_parts
 from sagebench.topdown.occupancy import clip_to_band
 from sagebench.topdown.raster import Grid, touched_cells, touched_cells_reference

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from sagebench.scene.loader import load_scene
-from sagebench.stages.build_scene import TopdownConfig, compute_topdown
+from sagebench.topdown.builder import TopdownConfig, compute_topdown
 from sagebench.topdown.render_png import DOOR, NAVIGABLE, WALL, render_topdown
 
 

@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 
 if TYPE_CHECKING:
-    from sagebench.stages.build_scene import Topdown
+    from sagebench.topdown.builder import Topdown
 
 RGB = tuple[int, int, int]
 BACKGROUND: RGB = (250, 250, 250)
