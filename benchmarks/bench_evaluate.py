@@ -38,7 +38,7 @@ def run() -> list[dict]:
     from sagebench.stages.evaluate import evaluate
     from sagebench.config import AgentConfig
     from sagebench.evaluation.intensity import STEP_REPLAY
-    from sagebench.stages.validate import open_replay_model
+    from sagebench.replay.scene_model import open_replay_model
 
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

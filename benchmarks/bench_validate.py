@@ -11,8 +11,10 @@ from benchmarks.demo_run import built_demo_run
 
 def run() -> list[dict]:
 
+    from sagebench.episodes.load import read_trajectories
     from sagebench.replay.physics import replay_batch, replay_one
-    from sagebench.stages.validate import ValidateConfig, open_replay_model, read_trajectories, validate_scene
+    from sagebench.replay.scene_model import open_replay_model
+    from sagebench.stages.validate import ValidateConfig, validate_scene
     from sagebench.validation.checks import judge
 
     with tempfile.TemporaryDirectory() as tmp:

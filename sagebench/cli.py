@@ -86,7 +86,7 @@ def demo(
     the run layout under OUT (scenes/, episodes/, validation/, manifest.json) and the oracle baseline's
     predictions and scores (OUT/baselines/oracle.jsonl, oracle_results.json).
     """
-    from sagebench.stages.demo import run_demo
+    from sagebench.pipeline.demo import run_demo
 
     result = run_demo(out, seed=seed)
     summary = result.run

@@ -44,7 +44,7 @@ def run_cli(request):
 
 
 def _episodes(run_dir: Path) -> int:
-    from sagebench.stages.evaluate import load_episodes
+    from sagebench.episodes.load import load_episodes
 
     return len(load_episodes(run_dir))
 

@@ -16,11 +16,11 @@ from sagebench import ui
 from sagebench.agents.driver import drive
 from sagebench.agents.policies import PolicyConfig, make_policy
 from sagebench.config import AgentConfig, from_options
+from sagebench.episodes.load import load_episodes
 from sagebench.evaluation.intensity import STEP_REPLAY
 from sagebench.evaluation.predictions import Prediction, write_predictions
 from sagebench.replay.physics import ReplayConfig
-from sagebench.stages.evaluate import load_episodes
-from sagebench.stages.validate import open_replay_model
+from sagebench.replay.scene_model import open_replay_model
 
 
 class BaselineConfig(BaseModel):

@@ -13,21 +13,21 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pyarrow as pa
 from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench import ui
 from sagebench.config import AgentConfig, from_options
+from sagebench.episodes.load import load_episodes
 from sagebench.errors import DataError
 from sagebench.evaluation.intensity import STEP_REPLAY, replay_intensity
 from sagebench.evaluation.predictions import Prediction, match_episodes, read_predictions
 from sagebench.evaluation.scoring import (
-    METRIC_NAMES, NO_LEVEL, Episode, EpisodeScore, Summary, missing_metrics, score_prediction, summarise_scores,
+    METRIC_NAMES, Episode, EpisodeScore, Summary, missing_metrics, score_prediction, summarise_scores,
 )
 from sagebench.fileio import write_json
 from sagebench.metrics import MetricConfig
 from sagebench.replay.physics import ReplayConfig
-from sagebench.stages.validate import open_replay_model, scene_ids
+from sagebench.replay.scene_model import open_replay_model
 
 
 class EvaluateConfig(BaseModel):
@@ -53,32 +53,6 @@ def make_config(**fields: object) -> EvaluateConfig:
 
 
 # ---------------------------------------------------------------- inputs
-
-
-def load_episodes(run_dir: Path, scene_id: str | None = None) -> list[Episode]:
-    """Every episode row of the run (or of `scene_id`), in scene then file order."""
-    from sagebench.episodes.shards import read_episodes
-
-    out = []
-    for sid in scene_ids(Path(run_dir), scene_id):
-        episodes_dir = Path(run_dir) / "episodes" / sid
-        try:
-            table = read_episodes(episodes_dir)
-        except (OSError, pa.ArrowException) as err:
-            raise DataError(f"cannot read episode shards: {err}", path=episodes_dir) from None
-        for row in table.select(["episode_id", "scene_id", "instruction_level", "instruction_type",
-                                 "start_position", "start_yaw", "goal_position", "goal_radius",
-                                 "geodesic_distance", "reference_path"]).to_pylist():
-            path = np.asarray(row["reference_path"], dtype=np.float64).reshape(-1, 4)
-            if len(path) == 0:
-                raise DataError(f"episode {row['episode_id']}: empty path", path=episodes_dir, field="reference_path")
-            out.append(Episode(
-                episode_id=row["episode_id"], scene_id=row["scene_id"],
-                level=row["instruction_level"] or NO_LEVEL, type=row["instruction_type"] or NO_LEVEL,
-                start=np.asarray(row["start_position"], dtype=np.float64), start_yaw=float(row["start_yaw"]),
-                goal=np.asarray(row["goal_position"], dtype=np.float64), goal_radius=float(row["goal_radius"]),
-                geodesic_distance=float(row["geodesic_distance"]), reference_path=path))
-    return out
 
 
 def _check_start(episodes: dict[str, Episode], rows: list[tuple[int, Prediction]], path: Path,

@@ -22,8 +22,10 @@ from sagebench import ui
 from sagebench.config import AgentConfig, from_options
 from sagebench.errors import DataError
 from sagebench.fileio import dumps_json, staged_dir, write_bytes, write_text
-from sagebench.replay.physics import AGENT_BODY, ReplayConfig, ReplayModel, ReplayRecord, build_replay_model, replay_batch
-from sagebench.scene.loader import SCENE_FILE, parse_spec
+from sagebench.episodes.load import Trajectory, read_trajectories, scene_ids
+from sagebench.replay.physics import AGENT_BODY, ReplayConfig, ReplayRecord, replay_batch
+from sagebench.replay.scene_model import open_replay_model
+from sagebench.scene.loader import SCENE_FILE
 from sagebench.validation.checks import REASONS, CheckConfig, Verdict, judge
 
 MJCF_FILE = "scene.xml"
@@ -63,18 +65,6 @@ def make_config(**fields: object) -> ValidateConfig:
 
 
 @dataclass(frozen=True)
-class Trajectory:
-    """One trajectory of the episodes table (its rows share path and goal)."""
-
-    trajectory_id: str
-    episode_ids: tuple[str, ...]
-    reference_path: np.ndarray  # [M, 4] x, y, z, yaw
-    goal: np.ndarray  # [3]
-    goal_radius: float
-    geodesic_distance: float
-
-
-@dataclass(frozen=True)
 class FrameCheck:
     file: str
     trajectory_id: str
@@ -107,20 +97,6 @@ class SceneValidation:
                 f"{worst:.3f} m) -> {self.out_dir}")
 
 
-def scene_ids(run_dir: Path, scene_id: str | None) -> list[str]:
-    """The scenes to validate: `scene_id`, or every scene with episodes (sorted)."""
-    episodes = Path(run_dir) / "episodes"
-    if scene_id is not None:
-        if not (episodes / scene_id).is_dir():
-            raise DataError(f"no episodes for scene {scene_id!r} (run gen-trajectories first)", path=episodes)
-        return [scene_id]
-    found = sorted(p.name for p in episodes.glob("*") if p.is_dir() and any(p.glob("part-*.parquet")))
-    if not found:
-        raise DataError("no episodes/<scene_id>/part-*.parquet in this run directory (run gen-trajectories first)",
-                        path=run_dir)
-    return found
-
-
 def validate_run(run_dir: Path, config: ValidateConfig = ValidateConfig(), *, scene_id: str | None = None
                  ) -> list[SceneValidation]:
     """Validate every scene of the run (or `scene_id`); inputs are checked for all scenes before any write."""
@@ -136,56 +112,6 @@ def _require_inputs(run_dir: Path, scene_id: str) -> None:
     for name, stage in ((SCENE_FILE, "build-scene"), (GAUSSIANS_FILE, "build-scene"), (MJCF_FILE, "export-usd")):
         if not (scene_dir / name).is_file():
             raise DataError(f"missing; run `sagebench {stage}` on this run first", path=scene_dir / name)
-
-
-def read_trajectories(episodes_dir: Path) -> list[Trajectory]:
-    """The episodes table grouped by trajectory_id (sorted), with the episode ids of each."""
-    from sagebench.episodes.shards import read_episodes
-
-    try:
-        table = read_episodes(episodes_dir)
-    except (OSError, pa.ArrowException) as err:
-        raise DataError(f"cannot read episode shards: {err}", path=episodes_dir) from None
-    rows: dict[str, list[dict]] = {}
-    for row in table.select(["episode_id", "trajectory_id", "reference_path", "goal_position", "goal_radius",
-                             "geodesic_distance"]).to_pylist():
-        rows.setdefault(row["trajectory_id"], []).append(row)
-    out = []
-    for tid in sorted(rows):
-        first = rows[tid][0]
-        path = np.asarray(first["reference_path"], dtype=np.float64).reshape(-1, 4)
-        if len(path) == 0:
-            raise DataError(f"trajectory {tid}: empty path", path=episodes_dir, field="reference_path")
-        out.append(Trajectory(tid, tuple(sorted(r["episode_id"] for r in rows[tid])), path,
-                              np.asarray(first["goal_position"], dtype=np.float64), float(first["goal_radius"]),
-                              float(first["geodesic_distance"])))
-    return out
-
-
-def floor_body_names(scene_dir: Path) -> list[str]:
-    """MJCF bodies of the scene's floor objects (export-usd names bodies `<category>_<instance_id>`)."""
-    from pxr import Tf
-
-    spec_path = scene_dir / SCENE_FILE
-    spec = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)
-    return [Tf.MakeValidIdentifier(f"{o.category}_{o.instance_id}") for o in spec.objects if o.kind == "floor"]
-
-
-def open_replay_model(run_dir: Path, scene_id: str, *, agent: AgentConfig, replay: ReplayConfig) -> ReplayModel:
-    """The replay agent in RUN/scenes/<scene_id>/scene.xml, floors not colliding (validate, evaluate, baseline)."""
-    scene_dir = Path(run_dir) / "scenes" / scene_id
-    for name, stage in ((SCENE_FILE, "build-scene"), (MJCF_FILE, "export-usd")):
-        if not (scene_dir / name).is_file():
-            raise DataError(f"missing; run `sagebench {stage}` on this run first", path=scene_dir / name)
-    spec_path = scene_dir / SCENE_FILE
-    floor_z = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path).floor_height
-    try:
-        mjspec = mujoco.MjSpec.from_file(str(scene_dir / MJCF_FILE))
-    except ValueError as err:
-        raise DataError(f"cannot load: {err}", path=scene_dir / MJCF_FILE) from None
-    present = {b.name for b in mjspec.bodies}
-    return build_replay_model(mjspec, agent=agent, floor_z=floor_z, config=replay,
-                              floor_bodies=[n for n in floor_body_names(scene_dir) if n in present])
 
 
 def validate_scene(run_dir: Path, scene_id: str, config: ValidateConfig) -> SceneValidation:

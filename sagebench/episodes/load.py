@@ -1,0 +1,88 @@
+"""Reading a run's episodes: which scenes have them, the rows for scoring, the trajectories for replay."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+
+from sagebench.errors import DataError
+from sagebench.evaluation.scoring import NO_LEVEL, Episode
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """One trajectory of the episodes table (its rows share path and goal)."""
+
+    trajectory_id: str
+    episode_ids: tuple[str, ...]
+    reference_path: np.ndarray  # [M, 4] x, y, z, yaw
+    goal: np.ndarray  # [3]
+    goal_radius: float
+    geodesic_distance: float
+
+
+def scene_ids(run_dir: Path, scene_id: str | None) -> list[str]:
+    """The scenes to validate: `scene_id`, or every scene with episodes (sorted)."""
+    episodes = Path(run_dir) / "episodes"
+    if scene_id is not None:
+        if not (episodes / scene_id).is_dir():
+            raise DataError(f"no episodes for scene {scene_id!r} (run gen-trajectories first)", path=episodes)
+        return [scene_id]
+    found = sorted(p.name for p in episodes.glob("*") if p.is_dir() and any(p.glob("part-*.parquet")))
+    if not found:
+        raise DataError("no episodes/<scene_id>/part-*.parquet in this run directory (run gen-trajectories first)",
+                        path=run_dir)
+    return found
+
+
+def read_trajectories(episodes_dir: Path) -> list[Trajectory]:
+    """The episodes table grouped by trajectory_id (sorted), with the episode ids of each."""
+    from sagebench.episodes.shards import read_episodes
+
+    try:
+        table = read_episodes(episodes_dir)
+    except (OSError, pa.ArrowException) as err:
+        raise DataError(f"cannot read episode shards: {err}", path=episodes_dir) from None
+    rows: dict[str, list[dict]] = {}
+    for row in table.select(["episode_id", "trajectory_id", "reference_path", "goal_position", "goal_radius",
+                             "geodesic_distance"]).to_pylist():
+        rows.setdefault(row["trajectory_id"], []).append(row)
+    out = []
+    for tid in sorted(rows):
+        first = rows[tid][0]
+        path = np.asarray(first["reference_path"], dtype=np.float64).reshape(-1, 4)
+        if len(path) == 0:
+            raise DataError(f"trajectory {tid}: empty path", path=episodes_dir, field="reference_path")
+        out.append(Trajectory(tid, tuple(sorted(r["episode_id"] for r in rows[tid])), path,
+                              np.asarray(first["goal_position"], dtype=np.float64), float(first["goal_radius"]),
+                              float(first["geodesic_distance"])))
+    return out
+
+
+def load_episodes(run_dir: Path, scene_id: str | None = None) -> list[Episode]:
+    """Every episode row of the run (or of `scene_id`), in scene then file order."""
+    from sagebench.episodes.shards import read_episodes
+
+    out = []
+    for sid in scene_ids(Path(run_dir), scene_id):
+        episodes_dir = Path(run_dir) / "episodes" / sid
+        try:
+            table = read_episodes(episodes_dir)
+        except (OSError, pa.ArrowException) as err:
+            raise DataError(f"cannot read episode shards: {err}", path=episodes_dir) from None
+        for row in table.select(["episode_id", "scene_id", "instruction_level", "instruction_type",
+                                 "start_position", "start_yaw", "goal_position", "goal_radius",
+                                 "geodesic_distance", "reference_path"]).to_pylist():
+            path = np.asarray(row["reference_path"], dtype=np.float64).reshape(-1, 4)
+            if len(path) == 0:
+                raise DataError(f"episode {row['episode_id']}: empty path", path=episodes_dir, field="reference_path")
+            out.append(Episode(
+                episode_id=row["episode_id"], scene_id=row["scene_id"],
+                level=row["instruction_level"] or NO_LEVEL, type=row["instruction_type"] or NO_LEVEL,
+                start=np.asarray(row["start_position"], dtype=np.float64), start_yaw=float(row["start_yaw"]),
+                goal=np.asarray(row["goal_position"], dtype=np.float64), goal_radius=float(row["goal_radius"]),
+                geodesic_distance=float(row["geodesic_distance"]), reference_path=path))
+    return out
