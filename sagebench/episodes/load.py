@@ -10,6 +10,7 @@ import pyarrow as pa
 
 from sagebench.errors import DataError
 from sagebench.evaluation.scoring import NO_LEVEL, Episode
+from sagebench.run_layout import EPISODES, SHARDS, run_episodes_dir
 
 
 @dataclass(frozen=True)
@@ -26,12 +27,12 @@ class Trajectory:
 
 def scene_ids(run_dir: Path, scene_id: str | None) -> list[str]:
     """The scenes to validate: `scene_id`, or every scene with episodes (sorted)."""
-    episodes = Path(run_dir) / "episodes"
+    episodes = Path(run_dir) / EPISODES
     if scene_id is not None:
         if not (episodes / scene_id).is_dir():
             raise DataError(f"no episodes for scene {scene_id!r} (run gen-trajectories first)", path=episodes)
         return [scene_id]
-    found = sorted(p.name for p in episodes.glob("*") if p.is_dir() and any(p.glob("part-*.parquet")))
+    found = sorted(p.name for p in episodes.glob("*") if p.is_dir() and any(p.glob(SHARDS)))
     if not found:
         raise DataError("no episodes/<scene_id>/part-*.parquet in this run directory (run gen-trajectories first)",
                         path=run_dir)
@@ -68,7 +69,7 @@ def load_episodes(run_dir: Path, scene_id: str | None = None) -> list[Episode]:
 
     out = []
     for sid in scene_ids(Path(run_dir), scene_id):
-        episodes_dir = Path(run_dir) / "episodes" / sid
+        episodes_dir = run_episodes_dir(run_dir, sid)
         try:
             table = read_episodes(episodes_dir)
         except (OSError, pa.ArrowException) as err:

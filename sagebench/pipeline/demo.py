@@ -8,6 +8,7 @@ from pathlib import Path
 from sagebench.fileio import write_text
 from sagebench.pipeline.config import load_run_config
 from sagebench.pipeline.run import RunSummary, run_pipeline
+from sagebench.run_layout import BASELINES
 from sagebench.scene.loader import load_scene
 from sagebench.scene.summary import summarise
 from sagebench.scene.synth import write_synth_scene
@@ -42,7 +43,7 @@ def run_demo(out: Path, *, seed: int = 0) -> DemoResult:
     from sagebench.stages.baseline import BaselineConfig, run_baseline
     from sagebench.stages.evaluate import evaluate
 
-    predictions = out / "baselines" / "oracle.jsonl"
+    predictions = out / BASELINES / "oracle.jsonl"
     info(run_baseline(out, predictions, BaselineConfig(agent_name="oracle", seed=seed)).summary())
-    scored = evaluate(out, predictions, out=out / "baselines" / "oracle_results.json")
+    scored = evaluate(out, predictions, out=out / BASELINES / "oracle_results.json")
     return DemoResult(summary, scored.table())

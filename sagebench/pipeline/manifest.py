@@ -9,9 +9,7 @@ from typing import Any
 
 from sagebench import __version__
 from sagebench.fileio import write_json
-
-MANIFEST = "manifest.json"
-OUTPUT_ROOTS = ("scenes", "episodes", "validation")  # what the stages write; inputs are hashed under `inputs`
+from sagebench.run_layout import MANIFEST, OUTPUT_ROOTS  # the trees stages write; inputs are hashed under `inputs`
 
 
 def sha256_file(path: Path) -> str:
@@ -23,8 +21,8 @@ def sha256_file(path: Path) -> str:
 
 
 def run_files(run_dir: Path) -> list[Path]:
-    """Every output file of a run under scenes/, episodes/ and validation/, sorted; hidden files and
-    directories (stamps, temporaries) are not outputs."""
+    """Every output file of a run under the trees the stages write (scenes/, episodes/, validation/), sorted;
+    hidden files and directories (stamps, temporaries) are not outputs."""
     out = []
     for root in OUTPUT_ROOTS:
         for path in (run_dir / root).rglob("*"):

@@ -15,7 +15,8 @@ from sagebench.pipeline.config import RunConfig, resolve_scenes
 from sagebench.pipeline.executors import make_executor
 from sagebench.pipeline.manifest import sha256_file, write_manifest
 from sagebench.pipeline.stages import STAGES, Outcome, Task
-from sagebench.scene.loader import SCENE_FILE, parse_spec
+from sagebench.run_layout import SCENE_FILE, SHARDS, run_episodes_dir, stage_files
+from sagebench.scene.loader import parse_spec
 
 
 @dataclass
@@ -81,7 +82,7 @@ def run_pipeline(config: RunConfig, config_path: Path) -> RunSummary:
     summary.episodes = _count_episodes(run_dir, summary.scenes)
     summary.wall_seconds = time.perf_counter() - start
     write_manifest(run_dir, config=config.outputs_config(),
-                   inputs={sid: _tree_hash(src) for sid, src in sources.items()})
+                   inputs={sid: _inputs_hash(run_dir, sid, src) for sid, src in sources.items()})
     return summary
 
 
@@ -141,12 +142,13 @@ def clean_temporaries(run_dir: Path) -> None:
             shutil.rmtree(p) if p.is_dir() else p.unlink(missing_ok=True)
 
 
-def _tree_hash(root: Path) -> str:
+def _inputs_hash(run_dir: Path, scene_id: str, source: Path) -> str:
+    """sha256 over the path and content hash of every source file build-scene reads."""
     import hashlib
 
     h = hashlib.sha256()
-    for p in sorted(f for f in root.rglob("*") if f.is_file()):
-        h.update(p.relative_to(root).as_posix().encode() + b"\0" + sha256_file(p).encode() + b"\0")
+    for p in stage_files("build_scene", "reads", run_dir, scene_id, source):
+        h.update(p.relative_to(source).as_posix().encode() + b"\0" + sha256_file(p).encode() + b"\0")
     return h.hexdigest()
 
 
@@ -154,4 +156,4 @@ def _count_episodes(run_dir: Path, scene_ids: list[str]) -> int:
     import pyarrow.parquet as pq
 
     return sum(pq.ParquetFile(p).metadata.num_rows
-               for sid in scene_ids for p in sorted((run_dir / "episodes" / sid).glob("part-*.parquet")))
+               for sid in scene_ids for p in sorted(run_episodes_dir(run_dir, sid).glob(SHARDS)))

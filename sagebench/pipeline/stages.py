@@ -1,4 +1,5 @@
-"""The per-scene stages of a run, what each reads and writes, and the stamp that lets a re-run skip it.
+"""The per-scene stages of a run and the stamp that lets a re-run skip one; what each reads and writes, and
+so which stages it waits for, comes from the run layout's CONTRACT.
 
 A stage is skipped when its stamp (RUN/.stamps/<scene_id>/<stage>.json) records the same key — a hash of
 the sagebench version, the stage's settings and every input file — and every output file it recorded is
@@ -21,9 +22,7 @@ from sagebench import __version__
 from sagebench.errors import SagebenchError
 from sagebench.fileio import dumps_json, write_text
 from sagebench.pipeline.manifest import sha256_file
-
-STAMPS = ".stamps"
-EXPORT_OUTPUTS = ("colliders", "scene.usda", "scene.xml")  # export-usd writes these into scenes/<id>/
+from sagebench.run_layout import STAMPS, after, stage_files
 
 
 @dataclass(frozen=True)
@@ -46,34 +45,6 @@ class Outcome:
     seconds: float
     message: str = ""  # a summary line, or the error for a failure
     ok: bool = True  # False when the stage ran but judged its scene bad (validate failures)
-
-
-def _files(root: Path, rels: list[str]) -> list[Path]:
-    out: list[Path] = []
-    for rel in rels:
-        p = root / rel
-        if p.is_dir():
-            out += sorted(f for f in p.rglob("*") if f.is_file() and not f.name.startswith("."))
-        elif p.is_file():
-            out.append(p)
-    return out
-
-
-def _build_inputs(t: Task) -> list[Path]:
-    return _files(t.source, ["."])
-
-
-def _build_outputs(t: Task) -> list[Path]:
-    scene = t.run_dir / "scenes" / t.scene_id
-    return [p for p in _files(scene, ["."]) if p.relative_to(scene).parts[0] not in EXPORT_OUTPUTS]
-
-
-def _scene(t: Task, *rels: str) -> list[Path]:
-    return _files(t.run_dir / "scenes" / t.scene_id, list(rels))
-
-
-def _episodes(t: Task) -> list[Path]:
-    return _files(t.run_dir / "episodes" / t.scene_id, ["."])
 
 
 def _run_build(t: Task) -> tuple[str, bool]:
@@ -107,22 +78,24 @@ def _run_validate(t: Task) -> tuple[str, bool]:
 @dataclass(frozen=True)
 class Stage:
     name: str
-    after: tuple[str, ...]
-    inputs: Callable[[Task], list[Path]]
-    outputs: Callable[[Task], list[Path]]
     run: Callable[[Task], tuple[str, bool]]
+
+    @property
+    def after(self) -> tuple[str, ...]:
+        return after(self.name)
+
+    def inputs(self, t: Task) -> list[Path]:
+        return stage_files(self.name, "reads", t.run_dir, t.scene_id, t.source)
+
+    def outputs(self, t: Task) -> list[Path]:
+        return stage_files(self.name, "writes", t.run_dir, t.scene_id, t.source)
 
 
 STAGES: dict[str, Stage] = {s.name: s for s in (
-    Stage("build_scene", (), _build_inputs, _build_outputs, _run_build),
-    Stage("gen_trajectories", ("build_scene",),
-          lambda t: _scene(t, "scene.json", "topdown.npz", "semantic_map.json"), _episodes, _run_gen),
-    Stage("export_usd", ("build_scene",),
-          lambda t: _scene(t, "scene.json", "meshes", "gaussians.ply"), lambda t: _scene(t, *EXPORT_OUTPUTS),
-          _run_export),
-    Stage("validate", ("gen_trajectories", "export_usd"),
-          lambda t: _scene(t, "scene.json", "scene.xml", "colliders", "gaussians.ply") + _episodes(t),
-          lambda t: _files(t.run_dir / "validation" / t.scene_id, ["."]), _run_validate),
+    Stage("build_scene", _run_build),
+    Stage("gen_trajectories", _run_gen),
+    Stage("export_usd", _run_export),
+    Stage("validate", _run_validate),
 )}
 
 

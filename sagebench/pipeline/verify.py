@@ -7,7 +7,8 @@ import tempfile
 from pathlib import Path
 
 from sagebench.errors import DataError
-from sagebench.pipeline.manifest import MANIFEST, FileDiff, compare, hash_run
+from sagebench.pipeline.manifest import FileDiff, compare, hash_run
+from sagebench.run_layout import MANIFEST
 
 
 def read_manifest(run_dir: Path) -> dict:

@@ -9,9 +9,8 @@ import mujoco
 from sagebench.config import AgentConfig
 from sagebench.errors import DataError
 from sagebench.replay.physics import ReplayConfig, ReplayModel, build_replay_model
-from sagebench.scene.loader import SCENE_FILE, parse_spec
-
-MJCF_FILE = "scene.xml"
+from sagebench.run_layout import MJCF, REPLAY_MODEL, SCENE_FILE, require, run_scene_dir
+from sagebench.scene.loader import parse_spec
 
 
 def floor_body_names(scene_dir: Path) -> list[str]:
@@ -25,16 +24,14 @@ def floor_body_names(scene_dir: Path) -> list[str]:
 
 def open_replay_model(run_dir: Path, scene_id: str, *, agent: AgentConfig, replay: ReplayConfig) -> ReplayModel:
     """The replay agent in RUN/scenes/<scene_id>/scene.xml, floors not colliding (validate, evaluate, baseline)."""
-    scene_dir = Path(run_dir) / "scenes" / scene_id
-    for name, stage in ((SCENE_FILE, "build-scene"), (MJCF_FILE, "export-usd")):
-        if not (scene_dir / name).is_file():
-            raise DataError(f"missing; run `sagebench {stage}` on this run first", path=scene_dir / name)
+    scene_dir = run_scene_dir(run_dir, scene_id)
+    require(REPLAY_MODEL, run_dir, scene_id)
     spec_path = scene_dir / SCENE_FILE
     floor_z = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path).floor_height
     try:
-        mjspec = mujoco.MjSpec.from_file(str(scene_dir / MJCF_FILE))
+        mjspec = mujoco.MjSpec.from_file(str(scene_dir / MJCF))
     except ValueError as err:
-        raise DataError(f"cannot load: {err}", path=scene_dir / MJCF_FILE) from None
+        raise DataError(f"cannot load: {err}", path=scene_dir / MJCF) from None
     present = {b.name for b in mjspec.bodies}
     return build_replay_model(mjspec, agent=agent, floor_z=floor_z, config=replay,
                               floor_bodies=[n for n in floor_body_names(scene_dir) if n in present])

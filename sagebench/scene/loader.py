@@ -13,9 +13,8 @@ import trimesh
 from pydantic import ValidationError
 
 from sagebench.errors import MeshError, SceneError, first_error
+from sagebench.run_layout import SCENE_FILE  # an artist's scene directory and a run's scenes/<id>/ alike
 from sagebench.scene.model import UNIT_SCALE, Door, Room, SceneObject, SceneSpec, Transform
-
-SCENE_FILE = "scene.json"
 
 
 @dataclass(frozen=True)

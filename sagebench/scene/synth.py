@@ -21,7 +21,7 @@ from shapely.geometry import Polygon, box as rect
 
 from sagebench.fileio import dumps_json, staged_dir, write_bytes
 from sagebench.scene import assets
-from sagebench.scene.loader import yaw_quaternion
+from sagebench.scene.loader import SCENE_FILE, yaw_quaternion
 from sagebench.scene.model import Door, Room, SceneObject, SceneSpec, Transform
 
 WALL_T = 0.1  # wall thickness, m
@@ -126,7 +126,7 @@ def write_synth_scene(out: Path, *, seed: int = 0) -> SceneSpec:
     with staged_dir(Path(out)) as tmp:
         for name, data in files.items():
             write_bytes(tmp / name, data)
-        write_bytes(tmp / "scene.json", dumps_json(spec.model_dump(mode="json", exclude_defaults=True)).encode())
+        write_bytes(tmp / SCENE_FILE, dumps_json(spec.model_dump(mode="json", exclude_defaults=True)).encode())
     return spec
 
 

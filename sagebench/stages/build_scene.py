@@ -15,6 +15,7 @@ import numpy as np
 
 from sagebench.config import from_options
 from sagebench.fileio import dumps_json, staged_dir, write_bytes
+from sagebench.run_layout import GAUSSIANS, SEMANTIC_MAP, TOPDOWN, TOPDOWN_PNG, run_scene_dir
 from sagebench.scene.loader import load_scene, write_normalised_scene
 from sagebench.splats.prune import PruneReport
 from sagebench.topdown.builder import TopdownConfig, compute_topdown
@@ -68,10 +69,10 @@ def build_scene(scene_dir: Path, run_dir: Path, config: TopdownConfig | None = N
     td = compute_topdown(scene, config)
     png = render_topdown(td)
     gaussians, pruned = scene_gaussians(scene, config.splats, seed=config.seed, agent=config.agent)
-    out = Path(run_dir) / "scenes" / scene.spec.scene_id
+    out = run_scene_dir(run_dir, scene.spec.scene_id)
     with staged_dir(out) as tmp:
         write_normalised_scene(scene, tmp)
-        write_bytes(tmp / "topdown.npz", _npz_bytes({
+        write_bytes(tmp / TOPDOWN, _npz_bytes({
             "instance": td.instance,
             "category": td.category,
             "occupancy": td.occupancy,
@@ -81,9 +82,9 @@ def build_scene(scene_dir: Path, run_dir: Path, config: TopdownConfig | None = N
             "origin": np.asarray(td.grid.origin, dtype=np.float64),
             "category_names": np.asarray(td.categories, dtype=np.str_),
         }))
-        write_bytes(tmp / "semantic_map.json", dumps_json(td.semantic.model_dump(mode="json")).encode())
-        write_bytes(tmp / "topdown.png", png)
-        write_ply(tmp / "gaussians.ply", gaussians)
+        write_bytes(tmp / SEMANTIC_MAP, dumps_json(td.semantic.model_dump(mode="json")).encode())
+        write_bytes(tmp / TOPDOWN_PNG, png)
+        write_ply(tmp / GAUSSIANS, gaussians)
     best = max((len(r.reachable_rooms) + 1 for r in td.semantic.rooms if r.regions), default=0)
     return BuildSceneResult(
         scene_id=scene.spec.scene_id,

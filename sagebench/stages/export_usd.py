@@ -24,13 +24,9 @@ from sagebench.config import from_options
 from sagebench.errors import DataError
 from sagebench.fileio import dumps_json, staged_dir, write_bytes, write_text
 from sagebench.render.gaussians import Gaussians
+from sagebench.run_layout import COLLIDERS, COLLIDERS_INDEX, GAUSSIANS, MJCF, SCENES, USD
 from sagebench.scene.loader import SCENE_FILE, LoadedScene, door_pose, load_scene, read_mesh, resolve_mesh_path
 
-COLLIDERS_DIR = "colliders"
-COLLIDERS_INDEX = "colliders.json"
-USD_FILE = "scene.usda"
-MJCF_FILE = "scene.xml"
-GAUSSIANS_FILE = "gaussians.ply"
 
 
 class ExportConfig(BaseModel):
@@ -80,12 +76,12 @@ class ExportResult:
     def line(self) -> str:
         return (f"{self.scene_id}: {self.objects} objects, {self.parts} collider parts ({self.exact_parts} exact, "
                 f"CoACD {self.coacd_pieces} run / {self.cached_pieces} cached / {self.fallback_pieces} failed), "
-                f"{self.gaussians} Gaussians -> {self.out_dir / USD_FILE}, {self.out_dir / MJCF_FILE}")
+                f"{self.gaussians} Gaussians -> {self.out_dir / USD}, {self.out_dir / MJCF}")
 
 
 def scene_dirs(run_dir: Path, scene_id: str | None) -> list[Path]:
     """RUN/scenes/<id> for the scene asked for, or every scene of the run (sorted)."""
-    scenes = Path(run_dir) / "scenes"
+    scenes = Path(run_dir) / SCENES
     if scene_id is not None:
         one = scenes / scene_id
         if not (one / SCENE_FILE).is_file():
@@ -112,7 +108,7 @@ def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> 
     local = _local_meshes(scene)
     colliders = decompose_meshes(local, config.coacd, cache=cache, workers=config.workers,
                                  convex_tolerance=config.convex_tolerance)
-    per_object = _split_gaussians(scene_dir / GAUSSIANS_FILE, scene)
+    per_object = _split_gaussians(scene_dir / GAUSSIANS, scene)
     rooms = {r.id: r.type for r in spec.rooms}
     objects: list[StageObject] = []
     files: dict[str, bytes] = {}
@@ -139,16 +135,16 @@ def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> 
         bodies.append(MjcfBody(name, part_files))
         index.append(_index_entry(obj.instance_id, name, obj.mesh, part_files, mc))
     usda = stage_text(spec.scene_id, objects, None if per_object is None else per_object.get(0))
-    mjcf = mjcf_text(spec.scene_id, bodies, meshdir=COLLIDERS_DIR, floor_height=spec.floor_height)
+    mjcf = mjcf_text(spec.scene_id, bodies, meshdir=COLLIDERS, floor_height=spec.floor_height)
     files[COLLIDERS_INDEX] = dumps_json({
         "scene_id": spec.scene_id, "coacd_version": coacd_version(), "config": config.model_dump(exclude={"workers"}),
         "frame": "world", "objects": index,
     }).encode()
-    with staged_dir(scene_dir / COLLIDERS_DIR) as tmp:
+    with staged_dir(scene_dir / COLLIDERS) as tmp:
         for rel, data in files.items():
             write_bytes(tmp / rel, data)
-    write_text(scene_dir / USD_FILE, usda)
-    write_text(scene_dir / MJCF_FILE, mjcf)
+    write_text(scene_dir / USD, usda)
+    write_text(scene_dir / MJCF, mjcf)
     pieces = [p for mc in colliders.values() for p in mc.pieces]
     return ExportResult(
         scene_id=spec.scene_id, out_dir=scene_dir, objects=len(objects),

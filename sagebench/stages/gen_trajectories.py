@@ -28,13 +28,11 @@ from sagebench.instructions import instructions_for
 from sagebench.instructions.base import HIGH_LEVEL_TYPES, SceneContext, TrajectoryText, make_context
 from sagebench.instructions.llm import LLMConfig
 from sagebench.instructions.naming import ObjectInfo, RoomInfo
-from sagebench.scene.loader import SCENE_FILE, parse_spec
+from sagebench.run_layout import CONTRACT, PREVIEW, SCENE_FILE, SCENES, SEMANTIC_MAP, TOPDOWN, require, run_episodes_dir
+from sagebench.scene.loader import parse_spec
 from sagebench.scene.model import SceneSpec
 from sagebench.topdown.semantic_map import SemanticMap
 
-TOPDOWN_FILE = "topdown.npz"
-SEMANTIC_FILE = "semantic_map.json"
-PREVIEW = Path("_preview") / "paths.png"  # inside episodes/<scene_id>/
 TARGET_KINDS = ("object", "door")  # what a trajectory may start or end at, besides rooms
 FIXTURE_KINDS = ("window",)  # what else an instruction may mention
 
@@ -95,7 +93,7 @@ class SceneEpisodes:
 
 def gen_trajectories(run_dir: Path, config: GenTrajectoriesConfig, *, scene_id: str | None = None) -> list[SceneEpisodes]:
     """Sample, instruct and write the episodes of every scene in RUN_DIR/scenes (or only `scene_id`)."""
-    scenes_root = Path(run_dir) / "scenes"
+    scenes_root = Path(run_dir) / SCENES
     if not scenes_root.is_dir():
         raise DataError("no scenes/ directory: run build-scene on this run directory first", path=run_dir)
     if scene_id is not None:
@@ -107,7 +105,7 @@ def gen_trajectories(run_dir: Path, config: GenTrajectoriesConfig, *, scene_id: 
         scene_dirs = sorted(p for p in scenes_root.iterdir() if p.is_dir() and not p.name.startswith("."))
         if not scene_dirs:
             raise DataError("no scene directories: run build-scene first", path=scenes_root)
-    return [generate_scene(d, Path(run_dir) / "episodes" / d.name, config)
+    return [generate_scene(d, run_episodes_dir(run_dir, d.name), config)
             for d in ui.track(scene_dirs, "gen-trajectories")]
 
 
@@ -137,10 +135,8 @@ def generate_scene(scene_dir: Path, out_dir: Path, config: GenTrajectoriesConfig
 
 def read_scene_inputs(scene_dir: Path) -> tuple[SceneSpec, SemanticMap, GridMap, np.ndarray]:
     """The normalised spec, semantic map, navigable grid and occupancy [H, W] uint8 of one built scene."""
-    spec_path, smap_path, npz_path = scene_dir / SCENE_FILE, scene_dir / SEMANTIC_FILE, scene_dir / TOPDOWN_FILE
-    for path in (spec_path, smap_path, npz_path):
-        if not path.is_file():
-            raise DataError("missing: run build-scene first", path=path)
+    require(CONTRACT["gen_trajectories"].reads, scene_dir.parent.parent, scene_dir.name)
+    spec_path, smap_path, npz_path = scene_dir / SCENE_FILE, scene_dir / SEMANTIC_MAP, scene_dir / TOPDOWN
     spec = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)
     try:
         smap = SemanticMap.model_validate_json(smap_path.read_bytes())

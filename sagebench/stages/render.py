@@ -18,7 +18,8 @@ from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import write_bytes
 from sagebench.render.camera import agent_camera
 from sagebench.render.splat_reference import Frame
-from sagebench.scene.loader import SCENE_FILE, parse_spec
+from sagebench.run_layout import CONTRACT, GAUSSIANS, SCENE_FILE, run_scene_dir
+from sagebench.scene.loader import parse_spec
 
 
 class RenderConfig(BaseModel):
@@ -59,9 +60,9 @@ def render_view(run_dir: Path, scene_id: str, pose: tuple[float, float, float], 
     from sagebench.render.splat_render import render
     from sagebench.splats.ply import read_ply
 
-    scene_dir = Path(run_dir) / "scenes" / scene_id
-    spec_path, ply_path = scene_dir / SCENE_FILE, scene_dir / "gaussians.ply"
-    for path in (spec_path, ply_path):
+    scene_dir = run_scene_dir(run_dir, scene_id)
+    spec_path, ply_path = scene_dir / SCENE_FILE, scene_dir / GAUSSIANS
+    for path in (scene_dir / p.rel for p in CONTRACT["render"].reads):
         if not path.is_file():
             raise DataError(f"missing; run `sagebench build-scene ... --out {run_dir}` first", path=path)
     spec = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)

@@ -20,20 +20,16 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench import ui
 from sagebench.config import AgentConfig, from_options
-from sagebench.errors import DataError
 from sagebench.fileio import dumps_json, staged_dir, write_bytes, write_text
 from sagebench.episodes.load import Trajectory, read_trajectories, scene_ids
 from sagebench.replay.physics import AGENT_BODY, ReplayConfig, ReplayRecord, replay_batch
 from sagebench.replay.scene_model import open_replay_model
-from sagebench.scene.loader import SCENE_FILE
+from sagebench.run_layout import (
+    CONTACT_SHEET, CONTRACT, FRAMES, GAUSSIANS, REPORT, VALIDATION_SHARD, require, run_episodes_dir, run_scene_dir,
+    run_validation_dir,
+)
 from sagebench.validation.checks import REASONS, CheckConfig, Verdict, judge
 
-MJCF_FILE = "scene.xml"
-GAUSSIANS_FILE = "gaussians.ply"
-SHARD = "part-00000.parquet"
-REPORT = "report.json"
-FRAMES = "frames"
-CONTACT_SHEET = "contact_sheet.png"
 FRAME_POINTS = ("start", "middle", "goal")
 METRICS = ("csr", "icp", "ps", "ndtw", "final_distance", "path_length", "max_penetration", "max_deviation", "steps")
 
@@ -103,23 +99,16 @@ def validate_run(run_dir: Path, config: ValidateConfig = ValidateConfig(), *, sc
     run_dir = Path(run_dir)
     ids = scene_ids(run_dir, scene_id)
     for sid in ids:
-        _require_inputs(run_dir, sid)
+        require(CONTRACT["validate"].reads, run_dir, sid)
     return [validate_scene(run_dir, sid, config) for sid in ids]
-
-
-def _require_inputs(run_dir: Path, scene_id: str) -> None:
-    scene_dir = run_dir / "scenes" / scene_id
-    for name, stage in ((SCENE_FILE, "build-scene"), (GAUSSIANS_FILE, "build-scene"), (MJCF_FILE, "export-usd")):
-        if not (scene_dir / name).is_file():
-            raise DataError(f"missing; run `sagebench {stage}` on this run first", path=scene_dir / name)
 
 
 def validate_scene(run_dir: Path, scene_id: str, config: ValidateConfig) -> SceneValidation:
     """Replay, judge and spot-check one scene; writes RUN/validation/<scene_id>/ whole."""
     import time
 
-    scene_dir = Path(run_dir) / "scenes" / scene_id
-    trajectories = read_trajectories(Path(run_dir) / "episodes" / scene_id)
+    scene_dir = run_scene_dir(run_dir, scene_id)
+    trajectories = read_trajectories(run_episodes_dir(run_dir, scene_id))
     rm = open_replay_model(run_dir, scene_id, agent=config.agent, replay=config.replay)
     start = time.perf_counter()
     records = replay_batch(rm, [t.reference_path for t in trajectories], threads=config.workers)
@@ -128,11 +117,11 @@ def validate_scene(run_dir: Path, scene_id: str, config: ValidateConfig) -> Scen
                 for rec, t in zip(records, trajectories)]
     seconds = time.perf_counter() - start
     picks = _pick(len(trajectories), config)
-    out_dir = Path(run_dir) / "validation" / scene_id
+    out_dir = run_validation_dir(run_dir, scene_id)
     with staged_dir(out_dir) as tmp:
         frames = _spot_checks(scene_dir, rm, [(trajectories[i], records[i]) for i in picks], tmp / FRAMES, config)
         alignment_ok = all(not (f.median_abs_diff > config.depth_tolerance) for f in frames)
-        write_bytes(tmp / SHARD, _table_bytes(scene_id, trajectories, verdicts))
+        write_bytes(tmp / VALIDATION_SHARD, _table_bytes(scene_id, trajectories, verdicts))
         write_text(tmp / REPORT, dumps_json(_report(scene_id, trajectories, verdicts, frames, alignment_ok, config)))
     failures = [(t.trajectory_id, v.reasons) for t, v in zip(trajectories, verdicts) if v.reasons]
     return SceneValidation(scene_id=scene_id, out_dir=out_dir, trajectories=len(trajectories),
@@ -218,7 +207,7 @@ def _spot_checks(scene_dir: Path, rm, picks: list[tuple[Trajectory, ReplayRecord
     from sagebench.render.splat_render import render
     from sagebench.splats.ply import read_ply
 
-    gaussians = read_ply(scene_dir / GAUSSIANS_FILE)
+    gaussians = read_ply(scene_dir / GAUSSIANS)
     data = mujoco.MjData(rm.model)
     mujoco.mj_kinematics(rm.model, data)
     agent_body = rm.model.body(AGENT_BODY).id

@@ -13,7 +13,7 @@ from shapely.geometry.base import BaseGeometry
 
 from sagebench.config import AgentConfig
 from sagebench.errors import SceneError
-from sagebench.scene.loader import LoadedScene
+from sagebench.scene.loader import SCENE_FILE, LoadedScene
 from sagebench.splats.scene import SplatConfig
 from sagebench.topdown.footprints import footprint, mesh_parts
 from sagebench.topdown.occupancy import band_occupancy, clip_to_band, inflate
@@ -172,7 +172,7 @@ def floor_plan(scene: LoadedScene, footprints: dict[int, BaseGeometry], wall_gap
         shapes = [footprints[o.instance_id] for o in spec.objects if o.kind == "floor"]
     plan = shapely.union_all(shapes)
     if plan.is_empty or plan.area <= 0:
-        raise SceneError("no rooms and no floor meshes: cannot tell where the floor is", path=scene.source_dir / "scene.json",
+        raise SceneError("no rooms and no floor meshes: cannot tell where the floor is", path=scene.source_dir / SCENE_FILE,
                          field="rooms")
     if wall_gap > 0:
         plan = plan.buffer(wall_gap / 2, join_style="mitre").buffer(-wall_gap / 2, join_style="mitre")

@@ -1,0 +1,162 @@
+"""The run directory, declared once: every path in it, and for every command the files it reads and writes.
+
+The pipeline derives from CONTRACT what a stage's stamp hashes (its reads), what it records as written
+(its writes), which stages it waits for (those that write what it reads) and which trees the manifest
+hashes; the stages take their file names from here and check their inputs with `require`. A stage that
+starts reading a file must list it here, or its stamp would not notice the file change
+(tests/test_run_layout.py runs every stage with nothing but the files declared here).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+from sagebench.errors import DataError
+
+# RUN/
+SCENES = "scenes"
+EPISODES = "episodes"
+VALIDATION = "validation"
+BASELINES = "baselines"  # the demo's baseline predictions and scores
+STAMPS = ".stamps"  # RUN/.stamps/<scene_id>/<stage>.json
+MANIFEST = "manifest.json"
+
+# RUN/scenes/<scene_id>/ (build-scene, then export-usd)
+SCENE_FILE = "scene.json"  # the normalised scene; with the meshes it names, a loadable scene directory
+TOPDOWN = "topdown.npz"
+SEMANTIC_MAP = "semantic_map.json"
+TOPDOWN_PNG = "topdown.png"
+GAUSSIANS = "gaussians.ply"
+COLLIDERS = "colliders"  # convex parts per object (STL) and COLLIDERS_INDEX
+COLLIDERS_INDEX = "colliders.json"  # inside COLLIDERS
+USD = "scene.usda"
+MJCF = "scene.xml"
+
+# RUN/episodes/<scene_id>/ (gen-trajectories)
+SHARDS = "part-*.parquet"
+PREVIEW = "_preview/paths.png"
+
+# RUN/validation/<scene_id>/ (validate)
+VALIDATION_SHARD = "part-00000.parquet"
+REPORT = "report.json"
+FRAMES = "frames"
+CONTACT_SHEET = "contact_sheet.png"  # inside FRAMES
+
+Root = Literal["source", "scene", "episodes", "validation"]
+_RUN_ROOTS = {"scene": SCENES, "episodes": EPISODES, "validation": VALIDATION}
+
+
+@dataclass(frozen=True)
+class Place:
+    """A file or directory of one scene: `rel` under `root` ("." the whole directory); with `meshes`, every
+    mesh file that the scene.json in `root` names."""
+
+    root: Root
+    rel: str = "."
+    meshes: bool = False
+
+
+@dataclass(frozen=True)
+class StageFiles:
+    reads: tuple[Place, ...]
+    writes: tuple[Place, ...] = ()  # nothing in the run directory: evaluate, baseline and render write elsewhere
+
+
+NORMALISED_SCENE = (Place("scene", SCENE_FILE), Place("scene", meshes=True))
+REPLAY_MODEL = (Place("scene", SCENE_FILE), Place("scene", MJCF), Place("scene", COLLIDERS))  # the agent's world
+
+CONTRACT: dict[str, StageFiles] = {
+    "build_scene": StageFiles(
+        reads=(Place("source"),),
+        writes=(*NORMALISED_SCENE, Place("scene", TOPDOWN), Place("scene", SEMANTIC_MAP), Place("scene", TOPDOWN_PNG),
+                Place("scene", GAUSSIANS))),
+    "gen_trajectories": StageFiles(
+        reads=(Place("scene", SCENE_FILE), Place("scene", TOPDOWN), Place("scene", SEMANTIC_MAP)),
+        writes=(Place("episodes"),)),
+    "export_usd": StageFiles(
+        reads=(*NORMALISED_SCENE, Place("scene", GAUSSIANS)),
+        writes=(Place("scene", COLLIDERS), Place("scene", USD), Place("scene", MJCF))),
+    "validate": StageFiles(
+        reads=(*REPLAY_MODEL, Place("scene", GAUSSIANS), Place("episodes")),
+        writes=(Place("validation"),)),
+    "evaluate": StageFiles(reads=(Place("episodes"), *REPLAY_MODEL)),  # the model only to replay poses
+    "baseline": StageFiles(reads=(Place("episodes"), *REPLAY_MODEL)),
+    "render": StageFiles(reads=(Place("scene", SCENE_FILE), Place("scene", GAUSSIANS))),
+}
+
+OUTPUT_ROOTS = tuple(sorted({_RUN_ROOTS[p.root] for s in CONTRACT.values() for p in s.writes}))
+
+
+def run_scene_dir(run_dir: Path, scene_id: str) -> Path:
+    return Path(run_dir) / SCENES / scene_id
+
+
+def run_episodes_dir(run_dir: Path, scene_id: str) -> Path:
+    return Path(run_dir) / EPISODES / scene_id
+
+
+def run_validation_dir(run_dir: Path, scene_id: str) -> Path:
+    return Path(run_dir) / VALIDATION / scene_id
+
+
+def root_dir(root: Root, run_dir: Path, scene_id: str, source: Path | None = None) -> Path:
+    """The directory a Place's root names for one scene (`source`: the artist scene directory)."""
+    if root == "source":
+        if source is None:
+            raise ValueError("the source scene directory is needed to locate a source place")
+        return Path(source)
+    return Path(run_dir) / _RUN_ROOTS[root] / scene_id
+
+
+def producer(place: Place) -> str | None:
+    """The stage that writes `place`, None for the source scene."""
+    return next((name for name, s in CONTRACT.items() if place in s.writes), None)
+
+
+def after(stage: str) -> tuple[str, ...]:
+    """The stages that write what `stage` reads, in CONTRACT order: it runs once they have."""
+    makers = {producer(p) for p in CONTRACT[stage].reads} - {None, stage}
+    return tuple(name for name in CONTRACT if name in makers)
+
+
+def files(place: Place, run_dir: Path, scene_id: str, source: Path | None = None) -> list[Path]:
+    """The files `place` holds now, sorted; a directory's hidden entries (temporaries) are not its files."""
+    root = root_dir(place.root, run_dir, scene_id, source)
+    if place.meshes:
+        return sorted(p for p in (root / m for m in mesh_names(root / SCENE_FILE)) if p.is_file())
+    path = root / place.rel
+    if path.is_dir():
+        return sorted(f for f in path.rglob("*") if f.is_file()
+                      and not any(part.startswith(".") for part in f.relative_to(path).parts))
+    return [path] if path.is_file() else []
+
+
+def stage_files(stage: str, which: Literal["reads", "writes"], run_dir: Path, scene_id: str,
+                source: Path | None = None) -> list[Path]:
+    """Every file a stage reads (or wrote) for one scene, in CONTRACT order."""
+    return [f for p in getattr(CONTRACT[stage], which) for f in files(p, run_dir, scene_id, source)]
+
+
+def mesh_names(spec_path: Path) -> list[str]:
+    """The mesh files a scene.json names (relative to its directory), each once; none if it is unreadable."""
+    try:
+        objects = json.loads(spec_path.read_text(encoding="utf-8")).get("objects", [])
+        return sorted({o["mesh"] for o in objects if isinstance(o, dict) and isinstance(o.get("mesh"), str)})
+    except (OSError, ValueError, AttributeError):
+        return []
+
+
+def require(places: Iterable[Place], run_dir: Path, scene_id: str) -> None:
+    """A DataError naming the first of `places` missing for `scene_id`, and the command that writes it
+    (the source scene and the meshes scene.json names are checked by the scene loader)."""
+    for place in places:
+        if place.root == "source" or place.meshes:
+            continue
+        path = root_dir(place.root, run_dir, scene_id) / place.rel
+        if not path.exists():
+            raise DataError(f"missing; run `sagebench {producer(place).replace('_', '-')}` on this run first",
+                            path=path)

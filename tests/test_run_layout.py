@@ -1,0 +1,105 @@
+"""The run layout's CONTRACT is complete and is what the stamps use.
+
+Each stage, run in a fresh directory holding only the files the contract says it reads, writes the same
+bytes as in a full run, and nothing but the files the contract says it writes; changing any file it
+reads makes its stamp stale. So a stage that starts reading a file the contract does not list fails here.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from sagebench.pipeline.manifest import hash_run, sha256_file
+from sagebench.pipeline.stages import STAGES, Task, run_task, stage_key, stamp_path, up_to_date
+from sagebench.run_layout import CONTRACT, OUTPUT_ROOTS, STAMPS, after, files, producer, stage_files
+
+SCENE = "demo_apartment_0"
+
+
+def _settings() -> dict[str, dict]:
+    from sagebench.stages.export_usd import ExportConfig
+    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig
+    from sagebench.stages.validate import ValidateConfig
+    from sagebench.topdown.builder import TopdownConfig
+
+    return {"build_scene": TopdownConfig().model_dump(mode="json"),
+            "gen_trajectories": GenTrajectoriesConfig(per_scene=6).model_dump(mode="json"),
+            "export_usd": ExportConfig().model_dump(mode="json"),
+            "validate": ValidateConfig(frames_per_scene=1).model_dump(mode="json")}
+
+
+@pytest.fixture(scope="module")
+def full_run(demo_scene_dir, tmp_path_factory) -> tuple[Path, Path]:
+    """Every stage of the demo apartment, run by the pipeline's run_task in order; (run dir, CoACD cache)."""
+    run, cache = tmp_path_factory.mktemp("full_run"), tmp_path_factory.mktemp("layout_cache")
+    settings = _settings()
+    for name in STAGES:
+        outcome = run_task(Task(name, SCENE, demo_scene_dir, run, settings[name], cache))
+        assert outcome.status == "ran" and outcome.ok, outcome
+    return run, cache
+
+
+def _rel_hashes(paths: list[Path], root: Path) -> dict[str, str]:
+    return {p.relative_to(root).as_posix(): sha256_file(p) for p in paths}
+
+
+def test_every_file_of_a_run_is_written_by_exactly_one_stage(full_run):
+    run, _ = full_run
+    written = [p.relative_to(run).as_posix() for name in STAGES for p in stage_files(name, "writes", run, SCENE)]
+    assert len(written) == len(set(written))
+    assert sorted(written) == sorted(hash_run(run))  # the manifest's files: everything under OUTPUT_ROOTS
+    assert set(OUTPUT_ROOTS) == {"scenes", "episodes", "validation"}
+
+
+def test_stages_wait_for_the_stages_that_write_what_they_read():
+    assert after("build_scene") == ()
+    assert after("gen_trajectories") == ("build_scene",) and after("export_usd") == ("build_scene",)
+    assert set(after("validate")) == {"build_scene", "gen_trajectories", "export_usd"}
+    for name, contract in CONTRACT.items():
+        assert all(p.root == "source" or producer(p) in STAGES for p in contract.reads), name
+
+
+@pytest.mark.parametrize("stage", list(STAGES))
+def test_a_stage_needs_only_the_files_it_declares(stage, full_run, demo_scene_dir, tmp_path):
+    run, cache = full_run
+    alone = tmp_path / "run"
+    for p in stage_files(stage, "reads", run, SCENE, demo_scene_dir):
+        if p.is_relative_to(run):
+            (alone / p.relative_to(run)).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(p, alone / p.relative_to(run))
+    before = {p for p in alone.rglob("*") if p.is_file()}
+
+    outcome = run_task(Task(stage, SCENE, demo_scene_dir, alone, _settings()[stage], cache))
+
+    assert outcome.status == "ran" and outcome.ok, outcome.message
+    new = {p for p in alone.rglob("*") if p.is_file() and STAMPS not in p.relative_to(alone).parts} - before
+    declared = stage_files(stage, "writes", alone, SCENE, demo_scene_dir)
+    assert new <= set(declared) and declared  # nothing written beyond the contract
+    assert _rel_hashes(declared, alone) == _rel_hashes(stage_files(stage, "writes", run, SCENE), run)
+
+
+@pytest.mark.parametrize("stage", list(STAGES))
+def test_changing_any_file_a_stage_reads_makes_it_rerun(stage, full_run, demo_scene_dir, tmp_path):
+    run, cache = full_run
+    source = tmp_path / "source"
+    shutil.copytree(demo_scene_dir, source)
+    task = Task(stage, SCENE, source, run, _settings()[stage], cache)
+    stamp = json.loads(stamp_path(task).read_text())
+    assert up_to_date(task, stage_key(task, STAGES[stage].inputs(task)))  # nothing changed: skipped
+    assert stamp["key"] == stage_key(task, STAGES[stage].inputs(task))
+    checked = 0
+    for place in CONTRACT[stage].reads:
+        for path in files(place, run, SCENE, source)[:2]:  # the first two files of each declared place
+            data = path.read_bytes()
+            try:
+                path.write_bytes(data + b"\n")
+                assert not up_to_date(task, stage_key(task, STAGES[stage].inputs(task))), path
+            finally:
+                path.write_bytes(data)
+            checked += 1
+    assert checked >= len(CONTRACT[stage].reads)
+    assert up_to_date(task, stage_key(task, STAGES[stage].inputs(task)))
