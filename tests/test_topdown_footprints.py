@@ -8,7 +8,7 @@ import shapely
 import trimesh
 
 from sagebench.scene import assets
-from sagebench.topdown.builder import TopdownConfig
+from sagebench.topdown.config import TopdownConfig
 from sagebench.topdown.footprints import footprint, footprint_reference, mesh_parts, sample_surface
 
 DENSITY = TopdownConfig().sample_density

@@ -7,14 +7,17 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 from pydantic import ValidationError
 
 from sagebench.errors import MeshError, SceneError, first_error
 from sagebench.run_layout import SCENE_FILE  # an artist's scene directory and a run's scenes/<id>/ alike
 from sagebench.scene.model import UNIT_SCALE, Door, Room, SceneObject, SceneSpec, Transform
+
+if TYPE_CHECKING:  # trimesh costs a third of a second to import: only what reads meshes pays it
+    import trimesh
 
 
 @dataclass(frozen=True)
@@ -136,6 +139,8 @@ def resolve_mesh_path(scene_dir: Path, mesh: str, spec_path: Path, field: str) -
 
 def read_mesh(path: Path, spec_path: Path, field: str) -> trimesh.Trimesh:
     """One triangle mesh from a GLB/GLTF/OBJ/PLY file, in the file's own coordinates."""
+    import trimesh
+
     try:
         mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as err:  # trimesh raises many types for a bad file
@@ -149,6 +154,8 @@ def read_mesh(path: Path, spec_path: Path, field: str) -> trimesh.Trimesh:
 
 def door_pose(door: Door) -> np.ndarray:
     """[4, 4] rotation of a world-space (Z up) closed leaf about its hinge to its state's angle."""
+    import trimesh
+
     return trimesh.transformations.rotation_matrix(door.angle_rad(), [0, 0, 1], point=door.hinge)
 
 

@@ -10,15 +10,18 @@ import io
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from sagebench.config import from_options
 from sagebench.fileio import dumps_json, staged_dir, write_bytes
 from sagebench.run_layout import GAUSSIANS, SEMANTIC_MAP, TOPDOWN, TOPDOWN_PNG, run_scene_dir
-from sagebench.scene.loader import load_scene, write_normalised_scene
-from sagebench.splats.prune import PruneReport
-from sagebench.topdown.builder import TopdownConfig, compute_topdown
+from sagebench.scene.loader import LoadedScene, load_scene, write_normalised_scene
+from sagebench.topdown.config import TopdownConfig
+
+if TYPE_CHECKING:
+    from sagebench.splats.prune import PruneReport
 
 _OPTIONS = {"agent.radius": "agent_radius", "splats.prune": "prune", "splats.object_density": "object_density",
             "splats.structure_density": "structure_density"}
@@ -60,12 +63,16 @@ class BuildSceneResult:
 
 def build_scene(scene_dir: Path, run_dir: Path, config: TopdownConfig | None = None) -> BuildSceneResult:
     """Load `scene_dir`, compute its top-down maps and Gaussians and write RUN/scenes/<scene_id>/ atomically."""
+    scene = load_scene(scene_dir)  # a bad scene is refused before the map and splat code is even imported
+    return _build(scene, run_dir, config or TopdownConfig())
+
+
+def _build(scene: LoadedScene, run_dir: Path, config: TopdownConfig) -> BuildSceneResult:
     from sagebench.splats.ply import write_ply
     from sagebench.splats.scene import scene_gaussians
+    from sagebench.topdown.builder import compute_topdown
     from sagebench.topdown.render_png import render_topdown
 
-    config = config or TopdownConfig()
-    scene = load_scene(scene_dir)
     td = compute_topdown(scene, config)
     png = render_topdown(td)
     gaussians, pruned = scene_gaussians(scene, config.splats, seed=config.seed, agent=config.agent)

@@ -8,13 +8,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import shapely
-from pydantic import BaseModel, ConfigDict, Field, model_validator
 from shapely.geometry.base import BaseGeometry
 
-from sagebench.config import AgentConfig
 from sagebench.errors import SceneError
 from sagebench.scene.loader import SCENE_FILE, LoadedScene
-from sagebench.splats.scene import SplatConfig
+from sagebench.topdown.config import TopdownConfig
 from sagebench.topdown.footprints import footprint, mesh_parts
 from sagebench.topdown.occupancy import band_occupancy, clip_to_band, inflate
 from sagebench.topdown.raster import Grid, polygon_mask
@@ -24,29 +22,6 @@ from sagebench.ui import track
 
 NOT_BLOCKING_KINDS = frozenset({"floor", "ceiling"})  # walkable surfaces and what is above every head
 THIN_KINDS = frozenset({"door", "window"})  # painted where they touch a cell, so a 4 cm leaf shows
-
-
-class TopdownConfig(BaseModel):
-    """Settings of build-scene; the CLI maps its options onto these fields."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    resolution: float = Field(default=0.05, gt=0, le=1.0, description="Grid cell side, m.")
-    band_min: float = Field(default=0.05, ge=0, description="Lowest blocking height above the floor, m.")
-    band_max: float = Field(default=1.2, gt=0, description="Highest blocking height above the floor, m.")
-    sample_density: float = Field(default=400.0, gt=0, description="Footprint surface samples per m^2.")
-    wall_gap: float = Field(
-        default=0.3, ge=0, description="Room floor polygons closer than this join across the wall between them, m."
-    )
-    seed: int = Field(default=0, description="Seed of the footprint surface and Gaussian sampling.")
-    agent: AgentConfig = AgentConfig()
-    splats: SplatConfig = SplatConfig()
-
-    @model_validator(mode="after")
-    def _band_order(self) -> TopdownConfig:
-        if self.band_max <= self.band_min:
-            raise ValueError(f"band_max ({self.band_max}) must be above band_min ({self.band_min})")
-        return self
 
 
 @dataclass(frozen=True)
