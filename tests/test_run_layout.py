@@ -15,7 +15,7 @@ import pytest
 
 from sagebench.pipeline.manifest import hash_run, sha256_file
 from sagebench.pipeline.stages import STAGES, Task, run_task, stage_key, stamp_path, up_to_date
-from sagebench.run_layout import CONTRACT, OUTPUT_ROOTS, STAMPS, after, files, producer, stage_files
+from sagebench.run_layout import CONTRACT, MANIFEST, OUTPUT_ROOTS, STAMPS, after, files, producer, stage_files
 
 SCENE = "demo_apartment_0"
 
@@ -82,6 +82,44 @@ def test_a_stage_needs_only_the_files_it_declares(stage, full_run, demo_scene_di
     assert _rel_hashes(declared, alone) == _rel_hashes(stage_files(stage, "writes", run, SCENE), run)
 
 
+def _baseline(run: Path, out: Path) -> bytes:
+    from sagebench.stages.baseline import BaselineConfig, run_baseline
+
+    run_baseline(run, out / "oracle.jsonl", BaselineConfig(agent_name="oracle"))
+    return (out / "oracle.jsonl").read_bytes()
+
+
+def _evaluate(run: Path, out: Path) -> bytes:
+    """Scores predictions without collision intensities, so the poses are replayed against the colliders."""
+    from sagebench.stages.evaluate import evaluate
+
+    lines = _baseline(run, out).decode().splitlines()
+    bare = [json.dumps({k: v for k, v in json.loads(line).items() if k != "collision_intensity"}) for line in lines]
+    (out / "bare.jsonl").write_text("\n".join(bare) + "\n")
+    result = evaluate(run, out / "bare.jsonl").to_json()
+    assert result["intensity_replayed"] == len(lines) > 0
+    return json.dumps(result["overall"]).encode()
+
+
+def _render(run: Path, out: Path) -> bytes:
+    from sagebench.stages.render import make_render_config, render_view
+
+    frame = render_view(run, SCENE, (1.0, 1.0, 0.5), make_render_config(width=32, height=24))
+    return frame.rgb.tobytes() + frame.depth.tobytes()
+
+
+@pytest.mark.parametrize("command, call", [("baseline", _baseline), ("evaluate", _evaluate), ("render", _render)])
+def test_commands_outside_the_pipeline_need_only_the_files_they_declare(command, call, full_run, tmp_path):
+    run, _ = full_run
+    alone = tmp_path / "run"
+    for p in stage_files(command, "reads", run, SCENE):
+        (alone / p.relative_to(run)).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(p, alone / p.relative_to(run))
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    assert call(alone, tmp_path / "a") == call(run, tmp_path / "b")
+
+
 @pytest.mark.parametrize("stage", list(STAGES))
 def test_changing_any_file_a_stage_reads_makes_it_rerun(stage, full_run, demo_scene_dir, tmp_path):
     run, cache = full_run
@@ -103,3 +141,17 @@ def test_changing_any_file_a_stage_reads_makes_it_rerun(stage, full_run, demo_sc
             checked += 1
     assert checked >= len(CONTRACT[stage].reads)
     assert up_to_date(task, stage_key(task, STAGES[stage].inputs(task)))
+
+
+def test_the_readme_output_layout_names_every_file_the_stages_write():
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    block = readme.split("## Output layout", 1)[1].split("```", 2)[1]
+    roots = {"scene": "scenes/<scene_id>/", "episodes": "episodes/<scene_id>/", "validation": "validation/<scene_id>/"}
+    for name, contract in CONTRACT.items():
+        for place in contract.writes:
+            assert roots[place.root] in block, (name, place)
+            if place.meshes:
+                assert "meshes/" in block
+            elif place.rel != ".":
+                assert place.rel in block, (name, place)
+    assert MANIFEST in block
