@@ -142,12 +142,14 @@ def stage_files(stage: str, which: Literal["reads", "writes"], run_dir: Path, sc
 
 
 def mesh_names(spec_path: Path) -> list[str]:
-    """The mesh files a scene.json names (relative to its directory), each once; none if it is unreadable."""
+    """The mesh files a scene.json names inside its directory, each once; none if it is unreadable (the
+    scene loader refuses such a scene, and a name that leaves the directory, with a clear message)."""
     try:
         objects = json.loads(spec_path.read_text(encoding="utf-8")).get("objects", [])
-        return sorted({o["mesh"] for o in objects if isinstance(o, dict) and isinstance(o.get("mesh"), str)})
+        names = {o["mesh"] for o in objects if isinstance(o, dict) and isinstance(o.get("mesh"), str)}
     except (OSError, ValueError, AttributeError):
         return []
+    return sorted(n for n in names if not Path(n).is_absolute() and ".." not in Path(n).parts)
 
 
 def require(places: Iterable[Place], run_dir: Path, scene_id: str) -> None:

@@ -155,3 +155,14 @@ def test_the_readme_output_layout_names_every_file_the_stages_write():
             elif place.rel != ".":
                 assert place.rel in block, (name, place)
     assert MANIFEST in block
+
+
+def test_mesh_names_stay_inside_the_scene_directory(tmp_path):
+    from sagebench.run_layout import mesh_names
+
+    spec = tmp_path / "scene.json"
+    spec.write_text(json.dumps({"objects": [{"mesh": "meshes/a.glb"}, {"mesh": "../x.glb"}, {"mesh": "/etc/passwd"},
+                                            {"mesh": "meshes/a.glb"}, {"mesh": 3}, "junk"]}))
+    assert mesh_names(spec) == ["meshes/a.glb"]
+    spec.write_text("[1]")
+    assert mesh_names(spec) == [] and mesh_names(tmp_path / "absent.json") == []
