@@ -60,6 +60,19 @@ def test_ndtw_of_a_parallel_path_one_metre_off():
     assert off.sdtw == 0.0
 
 
+def test_ndtw_divides_by_the_reference_length_not_the_number_of_poses():
+    # reference (0,0)->(2,0) resampled every 0.25 m: 9 points at x = 0, 0.25, ..., 2.
+    ref = [[0, 0], [2, 0]]
+    # 3 poses at x = 0, 1, 2: each reference point aligns with its nearest pose; the distances are
+    # 0, .25, .5, .25, 0, .25, .5, .25, 0, so DTW = 2.0 and nDTW = exp(-2 / (9 * 3)), |P| = 3 != |R| = 9
+    few = _score(_poses([[0, 0], [1, 0], [2, 0]]), ref)
+    assert few.ndtw == pytest.approx(math.exp(-2.0 / 27.0), rel=1e-12)
+    # 17 poses every 0.125 m: the 8 poses between reference points each cost 0.125, so DTW = 1.0 and
+    # nDTW = exp(-1 / (9 * 3)) with |P| = 17
+    many = _score(_poses(np.column_stack([np.arange(17) * 0.125, np.zeros(17)])), ref)
+    assert many.ndtw == pytest.approx(math.exp(-1.0 / 27.0), rel=1e-12)
+
+
 def test_spl_for_a_detour_of_known_length():
     # goal 5 m away; the agent walks 2.5 m up, 5 m across, 2.5 m down... no: up 1.25, across 5, down 1.25 = 7.5 m
     xy = [[0, 0], [0, 1.25], [5, 1.25], [5, 0]]

@@ -9,6 +9,7 @@ import pytest
 
 from sagebench.render.camera import Camera, agent_camera
 from sagebench.render.gaussians import Gaussians, logit, rgb_to_sh_dc
+from sagebench.render.sh import sh_basis
 from sagebench.render.splat_reference import render_reference
 from sagebench.render.splat_render import contributions, render
 from sagebench.splats.prune import psnr
@@ -87,10 +88,24 @@ def test_fast_renderer_matches_the_reference():
     cam = agent_camera(0.0, 0.0, 0.0, camera_height=0.0, width=80, height=60, hfov_deg=70)
     cam = Camera(80, 60, cam.fx, cam.fy, cam.cx, cam.cy, np.eye(4))
     fast, ref = render(g, cam), render_reference(g, cam)
-    assert psnr(fast.rgb, ref.rgb) >= 40.0
-    assert np.abs(fast.alpha - ref.alpha).max() < 1e-4
-    assert np.abs(fast.depth - ref.depth).max() < 1e-3
-    assert (fast.instance == ref.instance).mean() > 0.999
+    # measured: 147.8 dB, |d alpha| 6e-8, |d depth| 1.2e-7 m (float32 rounding); a degree-3 SH coefficient
+    # halved in the fast path drops it far below 140 dB
+    assert psnr(fast.rgb, ref.rgb) >= 140.0
+    assert np.abs(fast.alpha - ref.alpha).max() < 1e-6
+    assert np.abs(fast.depth - ref.depth).max() < 1e-6
+    assert (fast.instance == ref.instance).all()
+
+
+def test_sh_basis_is_orthonormal_on_the_sphere():
+    # Gauss-Legendre in cos(theta) x uniform phi integrates products of degree <= 6 exactly
+    mu, w_mu = np.polynomial.legendre.leggauss(8)
+    phi = np.arange(16) * (2 * math.pi / 16)
+    m, p = np.meshgrid(mu, phi, indexing="ij")
+    s = np.sqrt(1 - m**2)
+    dirs = np.column_stack([(s * np.cos(p)).ravel(), (s * np.sin(p)).ravel(), m.ravel()])
+    w = np.repeat(w_mu, len(phi)) * (2 * math.pi / len(phi))
+    y = sh_basis(dirs, 16)  # [N, 16]
+    assert (y.T * w) @ y == pytest.approx(np.eye(16), abs=1e-12)
 
 
 def test_contributions_add_up_to_the_alpha_image():

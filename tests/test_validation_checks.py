@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from sagebench.replay.physics import build_replay_model, replay_batch
+from sagebench.replay.physics import ReplayRecord, build_replay_model, replay_batch
 from sagebench.validation.checks import CheckConfig, judge
 
 
@@ -71,3 +71,31 @@ def test_leaving_the_corridor_is_reported(room):
     off = judge(rec, path, np.array([-2, 0]), goal_radius=0.5, geodesic_distance=2.0, timestep=room.timestep)
     assert v.passed
     assert off.reasons == ("left_corridor",) and off.csr < 1.0
+
+
+def _record(offset: float, depth: float) -> ReplayRecord:
+    """A replay along y = offset of the reference (0,0)->(2,0) that reached its end after touching a collider
+    once, `depth` deep (no physics: the numbers are exact)."""
+    x = np.linspace(0.0, 2.0, 21)
+    poses = np.column_stack([x, np.full_like(x, offset), np.zeros_like(x), np.zeros_like(x)])
+    poses[-1, 1] = 0.0  # back on the reference at the end
+    contact = np.zeros(len(x), bool)
+    contact[10] = True
+    zeros = np.zeros((len(x), 2))
+    return ReplayRecord(poses=poses, command=zeros, achieved=zeros, contact=contact,
+                        penetration=np.where(contact, depth, 0.0), intensity=np.zeros(len(x)), outcome="reached",
+                        waypoint=1)
+
+
+@pytest.mark.parametrize(("offset", "depth", "reasons"), [
+    (0.0, 0.01, ()),  # exactly the 0.01 m penetration tolerance passes
+    (0.0, 0.011, ("collision",)),  # 1 mm deeper fails
+    (0.10, 0.0, ()),  # pushed exactly the 0.10 m deviation tolerance off the path passes
+    (0.11, 0.0, ("collision",)),  # 1 cm farther fails
+])
+def test_default_tolerances_at_and_beyond_their_thresholds(offset, depth, reasons):
+    ref = _path((0, 0), (2, 0))
+    v = judge(_record(offset, depth), ref, np.array([2.0, 0.0]), goal_radius=0.5, geodesic_distance=2.0,
+              timestep=0.01)
+    assert (v.max_penetration, v.max_deviation) == (depth, offset)
+    assert v.reasons == reasons

@@ -1,0 +1,32 @@
+"""A stage's stamp: an unchanged stage is skipped, a changed setting makes it run again."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pyarrow.parquet as pq
+
+from sagebench.pipeline.stages import Task, run_task, stamp_path
+from sagebench.stages.gen_trajectories import GenTrajectoriesConfig
+
+SCENE = "demo_apartment_0"
+
+
+def test_a_changed_setting_reruns_a_stamped_stage(demo_built_run, demo_scene_dir, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(demo_built_run / "scenes", run / "scenes")
+
+    def gen(per_scene: int) -> str:
+        settings = GenTrajectoriesConfig(per_scene=per_scene, seed=0).model_dump(mode="json")
+        return run_task(Task("gen_trajectories", SCENE, demo_scene_dir, run, settings)).status
+
+    assert gen(3) == "ran"
+    key = json.loads(stamp_path(Task("gen_trajectories", SCENE, demo_scene_dir, run, {})).read_text())["key"]
+    assert gen(3) == "skipped"
+    assert gen(4) == "ran"  # the stamp of per_scene=3 is stale
+    stamp = json.loads(stamp_path(Task("gen_trajectories", SCENE, demo_scene_dir, run, {})).read_text())
+    assert stamp["key"] != key
+    shard = pq.read_table(run / "episodes" / SCENE / "part-00000.parquet")
+    assert len(set(shard.column("trajectory_id").to_pylist())) == 4
+    assert gen(4) == "skipped"
