@@ -46,7 +46,7 @@ def test_the_oracle_scores_perfectly(demo_eval_run, oracle, tmp_path, run_cli):
     res = json.loads(out.read_text())
     o = res["overall"]
     assert (o["episodes"], o["sr"], o["osr"], o["csr"], o["icp"]) == (n, 1.0, 1.0, 1.0, 0.0)
-    assert o["spl"] > 0.99 and o["ndtw"] > 0.98
+    assert o["spl"] == pytest.approx(1.0, abs=1e-5) and o["ndtw"] == pytest.approx(0.99735, abs=2e-4)  # measured
     assert res["missing"] == [] and res["intensity_replayed"] == 0 and len(res["per_episode"]) == n
     assert res["predictions"]["file"] == "oracle.jsonl" and res["config"]["metrics"]["corridor_radius"] == 1.0
     assert set(res["by_type"]) >= {"Base_Action", "Single_Goal"} and set(res["by_level"]) >= {"low"}
