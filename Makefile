@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 DEMO_OUT := out/demo
 SEED ?= 0
 
-.PHONY: demo test bench schemas install clean
+.PHONY: demo test bench schemas mutants install clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -27,6 +27,10 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python -m pip install -q -e '.[test,bench]'
 	$(BIN)/python -m benchmarks
+
+# named breaks applied to a temporary copy; fails when a test no longer catches one (about 75 s)
+mutants: $(STAMP)
+	$(BIN)/python tools/mutants.py
 
 schemas: $(STAMP)
 	$(BIN)/sagebench schemas --out schemas

@@ -1,0 +1,138 @@
+"""Mutation check: apply named breaks to a temporary copy of the package and run the tests that should catch them.
+
+Each mutant replaces one exact snippet of one module (the snippet must occur exactly once, so a mutant
+that no longer applies after a refactor is reported, not silently skipped) and runs the named test files
+on that copy. A mutant "survives" when those tests still pass: a test has gone weak. The real working tree
+is never modified. Usage: python tools/mutants.py [NAME ...]   (`make mutants`; exit 1 if any survives).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+COPIED = ("sagebench", "tests", "schemas", "pyproject.toml", "README.md")
+
+
+@dataclass(frozen=True)
+class Mutant:
+    name: str
+    path: str  # module, relative to the repository root
+    old: str
+    new: str
+    tests: tuple[str, ...]
+
+
+MUTANTS = (
+    Mutant("ndtw divided by the number of poses", "sagebench/metrics/episode.py",
+           "(len(ref) * config.ndtw_threshold)", "(len(poses) * config.ndtw_threshold)", ("tests/test_metrics.py",)),
+    Mutant("fast renderer: one SH degree-3 coefficient halved", "sagebench/render/splat_render.py",
+           "C3[1] * x * y * z * sh[i, 10, c]", "0.5 * C3[1] * x * y * z * sh[i, 10, c]",
+           ("tests/test_replay_render.py",)),
+    Mutant("fast renderer: last SH term dropped", "sagebench/render/splat_render.py",
+           "\n                  + C3[6] * x * (xx - 3 * yy) * sh[i, 15, c])", ")", ("tests/test_replay_render.py",)),
+    Mutant("SH basis: a degree-3 constant halved", "sagebench/render/sh.py",
+           "1.445305721320277,", "0.7226528606601385,", ("tests/test_replay_render.py",)),
+    Mutant("validate: penetration tolerance 0.01 -> 0.05 m", "sagebench/validation/checks.py",
+           "default=0.01, ge=0", "default=0.05, ge=0", ("tests/test_validation_checks.py",)),
+    Mutant("validate: push-off rule removed", "sagebench/validation/checks.py",
+           "penetration > config.penetration_tolerance or deviation > config.deviation_tolerance",
+           "penetration > config.penetration_tolerance", ("tests/test_validation_checks.py",)),
+    Mutant("stamp key ignored", "sagebench/pipeline/stages.py",
+           'if stamp.get("key") != key:', "if False:", ("tests/test_pipeline_stages.py",)),
+    Mutant("stamps never current", "sagebench/pipeline/stages.py",
+           'return outputs == stamp.get("outputs") and bool(outputs)', "return False",
+           ("tests/test_pipeline_stages.py",)),
+    Mutant("write_bytes writes the final name in place", "sagebench/fileio.py",
+           'fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)',
+           "fd, tmp = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644), str(path)",
+           ("tests/test_fileio.py",)),
+    Mutant("category order from a set (hash seed)", "sagebench/topdown/builder.py",
+           "*sorted({o.category for o in objects})", "*list({o.category for o in objects})",
+           ("tests/test_hash_seed.py",)),
+    Mutant("A* cuts blocked corners", "sagebench/astar/grid_astar.py",
+           "if not (_free(nav, r + dr, c) and _free(nav, r, c + dc) and _free(nav, r + dr, c + dc)):",
+           "if not _free(nav, r + dr, c + dc):", ("tests/test_astar_grid.py",)),
+    Mutant("inflation measured to cell centres", "sagebench/topdown/occupancy.py",
+           "disk = _square_distance(dr, dc) * resolution < radius - 1e-9",
+           "disk = np.hypot(dr, dc) * resolution < radius - 1e-9", ("tests/test_topdown_occupancy.py",)),
+)
+
+
+def _copy(dest: Path) -> None:
+    for name in COPIED:
+        src = ROOT / name
+        if src.is_dir():  # without numba's caches: they miss changes to constants imported from other modules
+            shutil.copytree(src, dest / name, symlinks=True, ignore=shutil.ignore_patterns("*.nbi", "*.nbc"))
+        elif src.exists():
+            shutil.copy2(src, dest / name)
+
+
+def _pytest(copy: Path, tests: tuple[str, ...]) -> tuple[bool, float, str]:
+    env = os.environ | {"PYTHONPATH": str(copy)}
+    start = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", "-p", "no:xdist",
+                           *tests], cwd=copy, env=env, capture_output=True, text=True)
+    return proc.returncode == 0, time.perf_counter() - start, proc.stdout[-2000:] + proc.stderr[-2000:]
+
+
+def _first_failure(log: str) -> str:
+    """The test that failed first (pytest's short summary line), for the report."""
+    lines = [ln.split(" - ")[0].removeprefix("FAILED ") for ln in log.splitlines() if ln.startswith("FAILED ")]
+    return f"by {lines[0]}" if lines else "(the run failed before a test did: see pytest)"
+
+
+def _check_imports_from(copy: Path) -> None:
+    env = os.environ | {"PYTHONPATH": str(copy)}
+    where = subprocess.run([sys.executable, "-c", "import sagebench; print(sagebench.__file__)"], cwd=copy, env=env,
+                           capture_output=True, text=True, check=True).stdout.strip()
+    if not Path(where).is_relative_to(copy):
+        sys.exit(f"mutants: the copy's tests import sagebench from {where}, not from the copy")
+
+
+def main(names: list[str]) -> int:
+    chosen = [m for m in MUTANTS if not names or m.name in names]
+    if names and len(chosen) != len(names):
+        sys.exit(f"mutants: unknown name among {names}; known: {[m.name for m in MUTANTS]}")
+    survivors, broken = [], []
+    with tempfile.TemporaryDirectory(prefix="sagebench-mutants-") as tmp:
+        clean = Path(tmp) / "clean"
+        _copy(clean)
+        _check_imports_from(clean)
+        tests = tuple(sorted({t for m in chosen for t in m.tests}))
+        ok, seconds, log = _pytest(clean, tests)
+        print(f"{'unmutated':<52} {'pass' if ok else 'FAIL':>8} {seconds:6.1f} s")
+        if not ok:
+            print(log)
+            return 1
+        for i, m in enumerate(chosen):
+            copy = Path(tmp) / f"m{i}"
+            _copy(copy)
+            target = copy / m.path
+            text = target.read_text()
+            if text.count(m.old) != 1:
+                broken.append(m.name)
+                print(f"{m.name:<52} {'NO MATCH':>8}   ({m.path}: the snippet occurs {text.count(m.old)} times)")
+                continue
+            target.write_text(text.replace(m.old, m.new))
+            passed, seconds, log = _pytest(copy, m.tests)
+            by = " ".join(m.tests) if passed else _first_failure(log)
+            print(f"{m.name:<52} {'SURVIVED' if passed else 'killed':>8} {seconds:6.1f} s  {by}", flush=True)
+            if passed:
+                survivors.append(m.name)
+            shutil.rmtree(copy)
+    print(f"{len(chosen) - len(survivors) - len(broken)} of {len(chosen)} mutants killed"
+          + (f"; survived: {', '.join(survivors)}" if survivors else "")
+          + (f"; no longer apply: {', '.join(broken)}" if broken else ""))
+    return 1 if survivors or broken else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
