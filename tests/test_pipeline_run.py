@@ -12,10 +12,12 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from sagebench.pipeline.manifest import hash_run
 from sagebench.scene.synth import write_synth_scene
+from sagebench.versions import output_versions
 
 CONFIG = """scenes = ["scenes/*"]
 out = "{out}"
@@ -64,6 +66,7 @@ def test_manifest_lists_every_output(serial_run):
                     "scenes/{}/scene.xml", "episodes/{}/part-00000.parquet", "validation/{}/report.json"):
             assert rel.format(sid) in files
     assert set(manifest["inputs"]) == {"demo_apartment_0", "demo_apartment_1"}
+    assert manifest["versions"] == output_versions() and manifest["versions"]["numpy"] == np.__version__
     assert "workers" not in manifest["config"] and manifest["config"]["gen_trajectories"]["per_scene"] == 20
     assert not any(p.startswith(".") for p in files)
 
@@ -132,10 +135,20 @@ def test_verify_names_a_flipped_byte(workspace, serial_run, run_cli):
     assert out.splitlines() == ["changed: episodes/demo_apartment_1/part-00000.parquet"]
 
 
-def test_verify_regenerate_matches(workspace, serial_run, run_cli):
-    code, out, err = run_cli("verify", serial_run, "--regenerate", "--config", workspace / "serial.toml")
-    assert code == 0, out + err
-    assert "and a regeneration" in out
+def test_verify_regenerate_matches_and_names_other_library_versions(workspace, serial_run, run_cli):
+    # the run as if made with another numpy, and one shard's hash as that numpy gave it: a regeneration matches
+    # every other file, and names numpy as the likely cause of the one difference
+    run = workspace / "older_numpy"
+    shutil.copytree(serial_run, run)
+    manifest = json.loads(_manifest(run))
+    manifest["versions"]["numpy"] = "1.0.0"
+    manifest["files"]["episodes/demo_apartment_0/part-00000.parquet"] = "0" * 64
+    (run / "manifest.json").write_text(json.dumps(manifest))
+    code, out, err = run_cli("verify", run, "--regenerate", "--config", workspace / "serial.toml")
+    assert code == 1, out + err
+    assert out.splitlines() == [
+        "changed: episodes/demo_apartment_0/part-00000.parquet",
+        f"likely cause: other library versions than the run was made with: numpy 1.0.0 -> {np.__version__}"]
 
 
 def test_a_broken_scene_fails_alone(workspace, run_cli):

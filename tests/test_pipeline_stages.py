@@ -1,4 +1,4 @@
-"""A stage's stamp: an unchanged stage is skipped, a changed setting makes it run again."""
+"""A stage's stamp: an unchanged stage is skipped, a changed setting or library version makes it run again."""
 
 from __future__ import annotations
 
@@ -7,8 +7,10 @@ import shutil
 
 import pyarrow.parquet as pq
 
+from sagebench.pipeline import stages
 from sagebench.pipeline.stages import Task, run_task, stamp_path
 from sagebench.stages.gen_trajectories import GenTrajectoriesConfig
+from sagebench.versions import output_versions
 
 SCENE = "demo_apartment_0"
 
@@ -30,3 +32,15 @@ def test_a_changed_setting_reruns_a_stamped_stage(demo_built_run, demo_scene_dir
     shard = pq.read_table(run / "episodes" / SCENE / "part-00000.parquet")
     assert len(set(shard.column("trajectory_id").to_pylist())) == 4
     assert gen(4) == "skipped"
+
+
+def test_a_changed_library_version_reruns_a_stamped_stage(demo_built_run, demo_scene_dir, tmp_path, monkeypatch):
+    run = tmp_path / "run"
+    shutil.copytree(demo_built_run / "scenes", run / "scenes")
+    settings = GenTrajectoriesConfig(per_scene=2, seed=0).model_dump(mode="json")
+    task = Task("gen_trajectories", SCENE, demo_scene_dir, run, settings)
+    assert run_task(task).status == "ran" and run_task(task).status == "skipped"
+    older = output_versions() | {"pyarrow": "0.0.1"}  # Parquet bytes embed the writer's version
+    monkeypatch.setattr(stages, "output_versions", lambda: older)
+    assert run_task(task).status == "ran"
+    assert run_task(task).status == "skipped"

@@ -10,6 +10,7 @@ from typing import Any
 from sagebench import __version__
 from sagebench.fileio import write_json
 from sagebench.run_layout import MANIFEST, OUTPUT_ROOTS  # the trees stages write; inputs are hashed under `inputs`
+from sagebench.versions import output_versions
 
 
 def sha256_file(path: Path) -> str:
@@ -37,9 +38,11 @@ def hash_run(run_dir: Path) -> dict[str, str]:
 
 
 def write_manifest(run_dir: Path, *, config: dict[str, Any], inputs: dict[str, str]) -> dict[str, Any]:
-    """Hash the run and write manifest.json: version, config, input hashes per scene, file hashes."""
+    """Hash the run and write manifest.json: versions (sagebench's, Python's and the libraries' that shape
+    outputs), config, input hashes per scene, file hashes."""
     manifest = {
         "sagebench_version": __version__,
+        "versions": output_versions(),
         "config": config,
         "inputs": dict(sorted(inputs.items())),
         "files": hash_run(run_dir),
@@ -55,14 +58,19 @@ class FileDiff:
     changed: tuple[str, ...]
     missing: tuple[str, ...]
     extra: tuple[str, ...]
+    version_changes: tuple[str, ...] = ()  # libraries whose versions differ from the manifest's ('numpy 1 -> 2')
 
     @property
     def ok(self) -> bool:
         return not (self.changed or self.missing or self.extra)
 
     def lines(self) -> list[str]:
-        return ([f"changed: {p}" for p in self.changed] + [f"missing: {p}" for p in self.missing]
-                + [f"extra: {p}" for p in self.extra])
+        lines = ([f"changed: {p}" for p in self.changed] + [f"missing: {p}" for p in self.missing]
+                 + [f"extra: {p}" for p in self.extra])
+        if lines and self.version_changes:
+            lines.append("likely cause: other library versions than the run was made with: "
+                         + ", ".join(self.version_changes))
+        return lines
 
 
 def compare(expected: dict[str, str], actual: dict[str, str]) -> FileDiff:

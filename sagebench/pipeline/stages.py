@@ -2,7 +2,8 @@
 so which stages it waits for, comes from the run layout's CONTRACT.
 
 A stage is skipped when its stamp (RUN/.stamps/<scene_id>/<stage>.json) records the same key — a hash of
-the sagebench version, the stage's settings and every input file — and every output file it recorded is
+the sagebench version, the versions of Python and the libraries that shape outputs (sagebench.versions),
+the stage's settings and every input file — and every output file it recorded is
 still there with the same hash. Stamps are written after the outputs, so a run killed at any moment
 re-runs exactly the stages whose stamps are missing or stale.
 """
@@ -23,6 +24,7 @@ from sagebench.errors import SagebenchError
 from sagebench.fileio import dumps_json, write_text
 from sagebench.pipeline.manifest import sha256_file
 from sagebench.run_layout import STAMPS, after, stage_files
+from sagebench.versions import output_versions
 
 
 @dataclass(frozen=True)
@@ -100,8 +102,9 @@ STAGES: dict[str, Stage] = {s.name: s for s in (
 
 
 def stage_key(task: Task, inputs: list[Path]) -> str:
-    """sha256 of (version, stage, settings, every input file's path and content hash)."""
+    """sha256 of (versions, stage, settings, every input file's path and content hash)."""
     h = hashlib.sha256(f"{__version__}\0{task.stage}\0".encode())
+    h.update(json.dumps(output_versions(), sort_keys=True).encode() + b"\0")
     h.update(json.dumps(task.settings, sort_keys=True).encode())
     for p in inputs:
         root = task.source if p.is_relative_to(task.source) else task.run_dir

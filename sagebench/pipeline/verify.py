@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import json
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 from sagebench.errors import DataError
 from sagebench.pipeline.manifest import FileDiff, compare, hash_run
 from sagebench.run_layout import MANIFEST
+from sagebench.versions import output_versions, version_changes
 
 
 def read_manifest(run_dir: Path) -> dict:
@@ -30,7 +32,8 @@ def verify_run(run_dir: Path) -> FileDiff:
 
 
 def regenerate_and_compare(run_dir: Path, config_path: Path, *, workers: int = 1) -> FileDiff:
-    """Run CONFIG again into a temporary directory and compare its files with RUN_DIR's manifest."""
+    """Run CONFIG again into a temporary directory and compare its files with RUN_DIR's manifest; when they
+    differ, the diff also names the libraries whose versions differ from the manifest's."""
     from sagebench.pipeline.config import load_run_config
     from sagebench.pipeline.run import run_pipeline
 
@@ -41,4 +44,7 @@ def regenerate_and_compare(run_dir: Path, config_path: Path, *, workers: int = 1
             raise DataError("this config differs from the one the run was made with (see the manifest's 'config')",
                             path=config_path)
         run_pipeline(config, config_path)
-        return compare(expected["files"], hash_run(Path(tmp)))
+        diff = compare(expected["files"], hash_run(Path(tmp)))
+    if diff.ok:
+        return diff
+    return replace(diff, version_changes=tuple(version_changes(expected.get("versions"), output_versions())))
