@@ -3,17 +3,19 @@ PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+# exact versions everything was tested with; `make lock` regenerates it after a dependency change
+LOCK := constraints.txt
 DEMO_OUT := out/demo
 SEED ?= 0
 
-.PHONY: demo test bench schemas mutants install clean
+.PHONY: demo test bench schemas mutants lock install clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 
-$(STAMP): pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install -q -e '.[test]'
+$(STAMP): pyproject.toml $(LOCK) | $(BIN)/python
+	$(BIN)/python -m pip install -q -c $(LOCK) -e '.[test]'
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -25,12 +27,21 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -n 2
 
 bench: $(STAMP)
-	$(BIN)/python -m pip install -q -e '.[test,bench]'
+	$(BIN)/python -m pip install -q -c $(LOCK) -e '.[test,bench]'
 	$(BIN)/python -m benchmarks
 
 # named breaks applied to a temporary copy; fails when a test no longer catches one (about 75 s)
 mutants: $(STAMP)
 	$(BIN)/python tools/mutants.py
+
+# pins what is installed now (keeping installed versions, adding new dependencies); run the tests, then commit it
+lock: | $(BIN)/python
+	$(BIN)/python -m pip install -q -e '.[test,bench]'
+	{ echo "# Exact versions sagebench is tested with: make test / make demo / CI install with -c $(LOCK)."; \
+	  echo "# Regenerate with make lock after changing dependencies in pyproject.toml."; \
+	  $(BIN)/python -m pip freeze --exclude-editable; } > $(LOCK).tmp
+	mv $(LOCK).tmp $(LOCK)
+	touch $(STAMP)
 
 schemas: $(STAMP)
 	$(BIN)/sagebench schemas --out schemas
