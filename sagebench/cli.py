@@ -5,11 +5,13 @@ Every SagebenchError becomes one line on stderr and exit status 2, here and nowh
 
 from __future__ import annotations
 
+import importlib
 import sys
 from pathlib import Path
 from typing import Annotated
 
 import typer
+import typer.core
 
 from sagebench.errors import SagebenchError
 from sagebench.ui import SETTINGS
@@ -20,6 +22,30 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     help="Turn artist-made indoor scenes into a physically executable VLN benchmark.",
 )
+
+
+def _defaults_from(settings: str) -> type[typer.core.TyperCommand]:
+    """A command class whose --help adds "(default X)" to each option, X read from the settings model
+    "module:Model" through the module's OPTIONS (option -> field path) when help is shown: the defaults have
+    one source, and a command that is run rather than asked for help imports nothing more."""
+
+    class Command(typer.core.TyperCommand):
+        def format_help(self, ctx, formatter) -> None:  # noqa: ANN001 - click's signature
+            if not getattr(self, "_defaults_shown", False):
+                from sagebench.config import option_defaults
+
+                module_name, model = settings.split(":")
+                module = importlib.import_module(module_name)
+                defaults = option_defaults(getattr(module, model), module.OPTIONS)
+                for param in self.params:
+                    value = next((defaults[o] for o in param.opts if o in defaults), None)
+                    if value is not None and not isinstance(value, bool) and not param.required:
+                        shown = f"{value:g}" if isinstance(value, float) else str(value)
+                        param.help = f"{param.help.removesuffix('.')} (default {shown})."
+                self._defaults_shown = True
+            super().format_help(ctx, formatter)
+
+    return Command
 
 
 @app.callback()
@@ -100,7 +126,7 @@ def demo(
         raise typer.Exit(1)
 
 
-@app.command("build-scene")
+@app.command("build-scene", cls=_defaults_from("sagebench.stages.build_scene:TopdownConfig"))
 def build_scene_cmd(
     scene_dir: Annotated[Path, typer.Argument(help="Artist scene directory (scene.json + meshes).")],
     out: Annotated[Path, typer.Option("--out", help="Run directory; writes OUT/scenes/<scene_id>/.")],
@@ -123,8 +149,6 @@ def build_scene_cmd(
     semantic_map.json, topdown.png and gaussians.ply (the scene's trained gaussians.ply with
     instance ids, else Gaussians sampled on every mesh).
 
-    Defaults: resolution 0.05, band-min 0.05, band-max 1.2, sample-density 400,
-    wall-gap 0.3, agent-radius 0.2, seed 0, object-density 900, structure-density 300, prune 0.
     With --prune it prints the held-out PSNR of the pruned against the unpruned Gaussians.
     """
     from sagebench.stages.build_scene import build_scene, make_config
@@ -135,26 +159,26 @@ def build_scene_cmd(
     typer.echo(build_scene(scene_dir, out, config).summary())
 
 
-@app.command("gen-trajectories")
+@app.command("gen-trajectories", cls=_defaults_from("sagebench.stages.gen_trajectories:GenTrajectoriesConfig"))
 def gen_trajectories_cmd(
     run_dir: Annotated[Path, typer.Argument(help="Run directory that build-scene wrote (RUN/scenes/<id>/).")],
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene id (default: every scene).")] = None,
-    per_scene: Annotated[int | None, typer.Option(help="Distinct trajectories per scene (default 200).")] = None,
-    seed: Annotated[int | None, typer.Option(help="Seed of sampling and wording (default 0).")] = None,
-    shard_size: Annotated[int | None, typer.Option(help="Episode rows per Parquet shard (default 1000).")] = None,
+    per_scene: Annotated[int | None, typer.Option(help="Distinct trajectories per scene.")] = None,
+    seed: Annotated[int | None, typer.Option(help="Seed of sampling and wording.")] = None,
+    shard_size: Annotated[int | None, typer.Option(help="Episode rows per Parquet shard.")] = None,
     instructions: Annotated[
         str | None, typer.Option(help="template: two low-level rows and one high-level row per trajectory; llm: the "
-                                      "high-level row from a chat model; none: bare trajectories (default template).")
+                                      "high-level row from a chat model; none: bare trajectories.")
     ] = None,
-    min_geodesic: Annotated[float | None, typer.Option(help="Shortest accepted path, m (default 2).")] = None,
-    max_geodesic: Annotated[float | None, typer.Option(help="Longest accepted path, m (default 20).")] = None,
-    goal_radius: Annotated[float | None, typer.Option(help="Success radius written with each episode, m (default 1).")] = None,
+    min_geodesic: Annotated[float | None, typer.Option(help="Shortest accepted path, m.")] = None,
+    max_geodesic: Annotated[float | None, typer.Option(help="Longest accepted path, m.")] = None,
+    goal_radius: Annotated[float | None, typer.Option(help="Success radius written with each episode, m.")] = None,
     llm_base_url: Annotated[str | None, typer.Option(
         help="OpenAI-compatible API root for --instructions llm, e.g. http://localhost:8000/v1.")] = None,
     llm_model: Annotated[str | None, typer.Option(help="Chat model name for --instructions llm.")] = None,
     llm_cache_dir: Annotated[Path | None, typer.Option(
         help="Answer cache, keyed by sha256 of (model, prompt) (default: the user cache directory).")] = None,
-    llm_concurrency: Annotated[int | None, typer.Option(help="LLM requests in flight at once (default 4).")] = None,
+    llm_concurrency: Annotated[int | None, typer.Option(help="LLM requests in flight at once.")] = None,
 ) -> None:
     """Sample A* trajectories between objects and rooms and write them with low- and high-level instructions.
 
@@ -174,7 +198,7 @@ def gen_trajectories_cmd(
         typer.echo(result.summary())
 
 
-@app.command("render")
+@app.command("render", cls=_defaults_from("sagebench.stages.render:RenderConfig"))
 def render_cmd(
     run_dir: Annotated[Path, typer.Argument(help="Run directory with scenes/<scene_id>/ from build-scene.")],
     scene: Annotated[str, typer.Option("--scene", help="Scene id (a directory under RUN_DIR/scenes).")],
@@ -197,8 +221,6 @@ def render_cmd(
 
     Writes OUT (PNG), and with --depth-out the expected z-depth (float32 .npy, metres, 0 where nothing
     was hit) and with --instance-out the instance id per pixel (int32 .npy, 0 = background).
-
-    Defaults: camera-height 1.2, pitch 0, hfov 90, width 640, height 480.
     """
     from sagebench.stages.render import make_render_config, parse_pose, render_view, write_frame
 
@@ -208,22 +230,22 @@ def render_cmd(
         typer.echo(f"wrote {path}")
 
 
-@app.command("export-usd")
+@app.command("export-usd", cls=_defaults_from("sagebench.stages.export_usd:ExportConfig"))
 def export_usd_cmd(
     run_dir: Annotated[Path, typer.Argument(help="Run directory that build-scene wrote (RUN/scenes/<id>/).")],
     scene: Annotated[str | None, typer.Option("--scene", help="Export only this scene id (default: every scene).")] = None,
     cache_dir: Annotated[
         Path | None, typer.Option("--cache-dir", help="CoACD result cache (default: the user cache directory).")
     ] = None,
-    workers: Annotated[int | None, typer.Option(help="Processes running CoACD in parallel (default 1).")] = None,
+    workers: Annotated[int | None, typer.Option(help="Processes running CoACD in parallel.")] = None,
     coacd_threshold: Annotated[
-        float | None, typer.Option(help="CoACD concavity threshold; smaller gives more parts (default 0.05).")
+        float | None, typer.Option(help="CoACD concavity threshold; smaller gives more parts.")
     ] = None,
     coacd_max_hulls: Annotated[
-        int | None, typer.Option(help="Most CoACD parts per concave piece, -1 for no cap (default -1).")
+        int | None, typer.Option(help="Most CoACD parts per concave piece, -1 for no cap.")
     ] = None,
     coacd_preprocess: Annotated[
-        str | None, typer.Option(help="CoACD manifold preprocessing: auto, on or off (default auto).")
+        str | None, typer.Option(help="CoACD manifold preprocessing: auto, on or off.")
     ] = None,
 ) -> None:
     """Decompose colliders and write each scene's USD stage and MuJoCo model.
@@ -242,17 +264,17 @@ def export_usd_cmd(
         typer.echo(result.line())
 
 
-@app.command("validate")
+@app.command("validate", cls=_defaults_from("sagebench.stages.validate:ValidateConfig"))
 def validate_cmd(
     run_dir: Annotated[Path, typer.Argument(help="Run directory with scenes/<id>/ (build-scene, export-usd) and episodes/<id>/.")],
     scene: Annotated[str | None, typer.Option("--scene", help="Validate only this scene id (default: every scene).")] = None,
     frames_per_scene: Annotated[
-        int | None, typer.Option(help="Trajectories per scene rendered at start, middle and goal (default 3).")
+        int | None, typer.Option(help="Trajectories per scene rendered at start, middle and goal.")
     ] = None,
     depth_tolerance: Annotated[
-        float | None, typer.Option(help="Largest median |splat - collider depth| per frame, m (default 0.10).")
+        float | None, typer.Option(help="Largest median |splat - collider depth| per frame, m.")
     ] = None,
-    workers: Annotated[int | None, typer.Option(help="Threads stepping the MuJoCo replays (default 2).")] = None,
+    workers: Annotated[int | None, typer.Option(help="Threads stepping the MuJoCo replays.")] = None,
 ) -> None:
     """Replay every trajectory in MuJoCo, score it and spot-check appearance against physics.
 
@@ -332,7 +354,7 @@ def verify_cmd(
     typer.echo(f"ok: every file of {run_dir} matches its manifest" + (" and a regeneration" if regenerate else ""))
 
 
-@app.command("evaluate")
+@app.command("evaluate", cls=_defaults_from("sagebench.stages.evaluate:EvaluateConfig"))
 def evaluate_cmd(
     run_dir: Annotated[Path, typer.Option("--run", help="Run directory with episodes/<id>/ (and scenes/<id>/scene.xml).")],
     predictions: Annotated[Path, typer.Option("--predictions", help="Agent predictions, JSON Lines (one object per episode).")],
@@ -342,9 +364,9 @@ def evaluate_cmd(
         bool, typer.Option("--allow-missing", help="Score episodes without a prediction as failures instead of stopping.")
     ] = False,
     start_tolerance: Annotated[
-        float | None, typer.Option(help="Largest distance of the first pose from the episode's start, m (default 0.1).")
+        float | None, typer.Option(help="Largest distance of the first pose from the episode's start, m.")
     ] = None,
-    workers: Annotated[int | None, typer.Option(help="Threads replaying poses for collision intensity (default 2).")] = None,
+    workers: Annotated[int | None, typer.Option(help="Threads replaying poses for collision intensity.")] = None,
 ) -> None:
     """Score agent predictions: SR, OSR, SPL, NE, nDTW, SDTW, CSR, ICP, PS.
 
@@ -370,15 +392,15 @@ def evaluate_cmd(
         typer.echo(f"wrote {out}")
 
 
-@app.command("baseline")
+@app.command("baseline", cls=_defaults_from("sagebench.stages.baseline:BaselineConfig"))
 def baseline_cmd(
     agent: Annotated[str, typer.Option("--agent", help="oracle, straight or random.")],
     run_dir: Annotated[Path, typer.Option("--run", help="Run directory with episodes/<id>/ and scenes/<id>/scene.xml.")],
     out: Annotated[Path, typer.Option("--out", help="Predictions file to write (JSON Lines).")],
-    seed: Annotated[int | None, typer.Option(help="Seed of the random agent (default 0).")] = None,
+    seed: Annotated[int | None, typer.Option(help="Seed of the random agent.")] = None,
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene's episodes (default: every scene).")] = None,
-    max_actions: Annotated[int | None, typer.Option(help="Actions per episode before it ends unstopped (default 500).")] = None,
-    workers: Annotated[int | None, typer.Option(help="Threads stepping the MuJoCo agents (default 2).")] = None,
+    max_actions: Annotated[int | None, typer.Option(help="Actions per episode before it ends unstopped.")] = None,
+    workers: Annotated[int | None, typer.Option(help="Threads stepping the MuJoCo agents.")] = None,
 ) -> None:
     """Drive a baseline agent through every episode in MuJoCo and write its predictions.
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
@@ -24,17 +24,31 @@ class AgentConfig(BaseModel):
 M = TypeVar("M", bound=BaseModel)
 
 
-def from_options(model: type[M], given: Mapping[str, object], option_of: Callable[[str], str | None] = str) -> M:
+def from_options(model: type[M], given: Mapping[str, object], options: Mapping[str, str]) -> M:
     """Validate a stage's settings from command options (None = keep the default).
 
-    A bad value is one ConfigError naming the option: `option_of` maps the failing field's dotted path
-    ("coacd.threshold") to the option the user typed.
+    given: the settings as nested field names; options: each command option and the dotted field path it
+    sets ({"--prune": "splats.prune"}), so a bad value is one ConfigError naming the option the user typed.
     """
     try:
         return model.model_validate(_drop_none(given))
     except ValidationError as err:
         loc, msg, _ = first_error(err)
-        raise ConfigError(msg, field=(option_of(loc) if loc else None) or None) from None
+        option = {path: opt for opt, path in options.items()}.get(loc or "", loc)
+        raise ConfigError(msg, field=option or None) from None
+
+
+def option_defaults(model: type[BaseModel], options: Mapping[str, str]) -> dict[str, object]:
+    """Each option's default: the default of the model field it sets (options as in `from_options`), so
+    help text and README show the model's defaults and nothing restates them."""
+    defaults = {}
+    for option, path in options.items():
+        first, *rest = path.split(".")
+        value = model.model_fields[first].get_default(call_default_factory=True)
+        for part in rest:
+            value = getattr(value, part)
+        defaults[option] = value
+    return defaults
 
 
 def _drop_none(given: Mapping[str, object]) -> dict[str, object]:

@@ -189,9 +189,9 @@ def test_without_gaussians_the_stage_still_gets_colliders(tmp_path, run_cli):
     ("args", "message"),
     [
         (["--scene", "nope"], "no scene 'nope' in this run (run build-scene first)"),
-        (["--coacd-threshold", "0"], "error: coacd_threshold: Input should be greater than 0"),
-        (["--coacd-preprocess", "maybe"], "error: coacd_preprocess: Input should be 'auto', 'on' or 'off'"),
-        (["--workers", "0"], "error: workers: Input should be greater than or equal to 1"),
+        (["--coacd-threshold", "0"], "error: --coacd-threshold: Input should be greater than 0"),
+        (["--coacd-preprocess", "maybe"], "error: --coacd-preprocess: Input should be 'auto', 'on' or 'off'"),
+        (["--workers", "0"], "error: --workers: Input should be greater than or equal to 1"),
     ],
 )
 def test_bad_options_exit_2_and_write_nothing(tmp_path, run_cli, args, message):

@@ -171,7 +171,7 @@ def test_no_rooms_and_no_floor_is_an_error(tmp_path):
 def test_config_errors_name_the_option():
     with pytest.raises(ConfigError, match="band_max .* must be above band_min"):
         make_config(band_min=0.5, band_max=0.4)
-    with pytest.raises(ConfigError, match="^agent_radius: "):
+    with pytest.raises(ConfigError, match="^--agent-radius: "):
         make_config(agent_radius=-1.0)
     assert make_config() == TopdownConfig()
     assert make_config(agent_radius=0.3).agent.radius == 0.3

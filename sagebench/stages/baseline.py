@@ -37,12 +37,13 @@ class BaselineConfig(BaseModel):
     workers: int = Field(default=2, ge=1, description="Threads stepping the MuJoCo agents.")
 
 
-_OPTIONS = {"agent_name": "--agent", "max_actions": "--max-actions", "workers": "--workers", "seed": "--seed"}
+# baseline's options and the BaselineConfig fields they set (their defaults and error names come from here)
+OPTIONS = {"--agent": "agent_name", "--max-actions": "max_actions", "--workers": "workers", "--seed": "seed"}
 
 
 def make_config(**fields: object) -> BaselineConfig:
     """A BaselineConfig from the options given (None = keep the default); a bad value is a ConfigError."""
-    return from_options(BaselineConfig, fields, lambda loc: _OPTIONS.get(loc, loc))
+    return from_options(BaselineConfig, fields, OPTIONS)
 
 
 @dataclass(frozen=True)

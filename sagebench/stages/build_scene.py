@@ -23,8 +23,11 @@ from sagebench.topdown.config import TopdownConfig
 if TYPE_CHECKING:
     from sagebench.splats.prune import PruneReport
 
-_OPTIONS = {"agent.radius": "agent_radius", "splats.prune": "prune", "splats.object_density": "object_density",
-            "splats.structure_density": "structure_density"}
+# build-scene's options and the TopdownConfig fields they set (their defaults and error names come from here)
+OPTIONS = {"--resolution": "resolution", "--band-min": "band_min", "--band-max": "band_max",
+           "--sample-density": "sample_density", "--wall-gap": "wall_gap", "--agent-radius": "agent.radius",
+           "--seed": "seed", "--object-density": "splats.object_density",
+           "--structure-density": "splats.structure_density", "--prune": "splats.prune"}
 
 
 def make_config(*, agent_radius: float | None = None, prune: float | None = None,
@@ -33,7 +36,7 @@ def make_config(*, agent_radius: float | None = None, prune: float | None = None
     """A TopdownConfig from the options given (None = keep the default); a bad value is a ConfigError."""
     given = {**fields, "agent": {"radius": agent_radius},
              "splats": {"prune": prune, "object_density": object_density, "structure_density": structure_density}}
-    return from_options(TopdownConfig, given, lambda loc: _OPTIONS.get(loc, loc))
+    return from_options(TopdownConfig, given, OPTIONS)
 
 
 @dataclass(frozen=True)

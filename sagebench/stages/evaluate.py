@@ -44,12 +44,13 @@ class EvaluateConfig(BaseModel):
     workers: int = Field(default=2, ge=1, description="Threads replaying poses for collision intensity.")
 
 
-_OPTIONS = {"workers": "--workers", "start_tolerance": "--start-tolerance"}
+# evaluate's options and the EvaluateConfig fields they set (their defaults and error names come from here)
+OPTIONS = {"--workers": "workers", "--start-tolerance": "start_tolerance", "--allow-missing": "allow_missing"}
 
 
 def make_config(**fields: object) -> EvaluateConfig:
     """A EvaluateConfig from the options given (None = keep the default); a bad value is a ConfigError."""
-    return from_options(EvaluateConfig, fields, lambda loc: _OPTIONS.get(loc, loc))
+    return from_options(EvaluateConfig, fields, OPTIONS)
 
 
 # ---------------------------------------------------------------- inputs

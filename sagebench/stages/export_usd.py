@@ -41,8 +41,9 @@ class ExportConfig(BaseModel):
     workers: int = Field(default=1, ge=1, description="Processes running CoACD in parallel.")
 
 
-_OPTION_NAMES = {"coacd.threshold": "coacd_threshold", "coacd.max_convex_hull": "coacd_max_hulls",
-                 "coacd.preprocess_mode": "coacd_preprocess"}
+# export-usd's options and the ExportConfig fields they set (their defaults and error names come from here)
+OPTIONS = {"--coacd-threshold": "coacd.threshold", "--coacd-max-hulls": "coacd.max_convex_hull",
+           "--coacd-preprocess": "coacd.preprocess_mode", "--workers": "workers"}
 
 
 def make_config(
@@ -52,7 +53,7 @@ def make_config(
     """An ExportConfig from the options given (None = keep the default); a bad value is a ConfigError."""
     coacd = {k: v for k, v in (("threshold", coacd_threshold), ("max_convex_hull", coacd_max_hulls),
                                ("preprocess_mode", coacd_preprocess)) if v is not None}
-    return from_options(ExportConfig, {"coacd": coacd, "workers": workers}, lambda loc: _OPTION_NAMES.get(loc, loc))
+    return from_options(ExportConfig, {"coacd": coacd, "workers": workers}, OPTIONS)
 
 
 def default_cache_dir() -> Path:

@@ -65,13 +65,14 @@ class GenTrajectoriesConfig(SamplingConfig):
 
 def make_config(**fields: object) -> GenTrajectoriesConfig:
     """A config from the options given (None = keep the default); a bad value is a ConfigError naming the option."""
-    return from_options(GenTrajectoriesConfig, fields, _option_of)
+    return from_options(GenTrajectoriesConfig, fields, OPTIONS)
 
 
-def _option_of(loc: str) -> str:
-    """gen-trajectories options are the field names (nested llm.<field> is --llm-<field>), metres' _m dropped."""
-    name = loc.replace(".", "_") if loc.startswith("llm.") else loc.split(".")[0]
-    return "--" + name.removesuffix("_m").replace("_", "-")
+# gen-trajectories' options and the GenTrajectoriesConfig fields they set (their defaults and error names come from here)
+OPTIONS = {"--per-scene": "per_scene", "--seed": "seed", "--shard-size": "shard_size", "--instructions": "instructions",
+           "--min-geodesic": "min_geodesic_m", "--max-geodesic": "max_geodesic_m", "--goal-radius": "goal_radius_m",
+           "--llm-base-url": "llm.base_url", "--llm-model": "llm.model", "--llm-cache-dir": "llm.cache_dir",
+           "--llm-concurrency": "llm.concurrency"}
 
 
 @dataclass(frozen=True)

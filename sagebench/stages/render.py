@@ -33,14 +33,15 @@ class RenderConfig(BaseModel):
     height: int = Field(default=480, ge=1, le=8192, description="Image height, px.")
 
 
-_OPTIONS = {"agent.camera_height": "--camera-height", "agent.hfov_deg": "--hfov", "pitch_deg": "--pitch",
-            "width": "--width", "height": "--height"}
+# render's options and the RenderConfig fields they set (their defaults and error names come from here)
+OPTIONS = {"--camera-height": "agent.camera_height", "--hfov": "agent.hfov_deg", "--pitch": "pitch_deg",
+           "--width": "width", "--height": "height"}
 
 
 def make_render_config(*, camera_height: float | None = None, hfov: float | None = None, **fields: object) -> RenderConfig:
     """A RenderConfig from the options given (None = default); a bad value is a ConfigError naming the option."""
     given = {**fields, "agent": {"camera_height": camera_height, "hfov_deg": hfov}}
-    return from_options(RenderConfig, given, lambda loc: _OPTIONS.get(loc, loc))
+    return from_options(RenderConfig, given, OPTIONS)
 
 
 def parse_pose(text: str) -> tuple[float, float, float]:

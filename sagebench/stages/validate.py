@@ -52,12 +52,13 @@ class ValidateConfig(BaseModel):
     seed: int = Field(default=0, description="Picks the spot-checked trajectories.")
 
 
-_OPTIONS = {"frames_per_scene": "--frames-per-scene", "depth_tolerance": "--depth-tolerance", "workers": "--workers"}
+# validate's options and the ValidateConfig fields they set (their defaults and error names come from here)
+OPTIONS = {"--frames-per-scene": "frames_per_scene", "--depth-tolerance": "depth_tolerance", "--workers": "workers"}
 
 
 def make_config(**fields: object) -> ValidateConfig:
     """A ValidateConfig from the options given (None = keep the default); a bad value is a ConfigError."""
-    return from_options(ValidateConfig, fields, lambda loc: _OPTIONS.get(loc, loc))
+    return from_options(ValidateConfig, fields, OPTIONS)
 
 
 @dataclass(frozen=True)

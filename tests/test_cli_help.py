@@ -1,0 +1,112 @@
+"""Option defaults have one source: --help shows each settings model's defaults, the README's option blocks
+match --help, and a bad option value is an error naming the option as typed."""
+
+from __future__ import annotations
+
+import importlib
+import re
+from pathlib import Path
+
+import pytest
+from pydantic import BaseModel
+
+from sagebench.config import from_options
+from sagebench.errors import ConfigError
+
+ROOT = Path(__file__).resolve().parent.parent
+COMMANDS = {  # command -> (stage module, settings model)
+    "build-scene": ("sagebench.stages.build_scene", "TopdownConfig"),
+    "gen-trajectories": ("sagebench.stages.gen_trajectories", "GenTrajectoriesConfig"),
+    "render": ("sagebench.stages.render", "RenderConfig"),
+    "export-usd": ("sagebench.stages.export_usd", "ExportConfig"),
+    "validate": ("sagebench.stages.validate", "ValidateConfig"),
+    "evaluate": ("sagebench.stages.evaluate", "EvaluateConfig"),
+    "baseline": ("sagebench.stages.baseline", "BaselineConfig"),
+}
+
+
+def _settings(command: str) -> tuple[type[BaseModel], dict[str, str]]:
+    module = importlib.import_module(COMMANDS[command][0])
+    return getattr(module, COMMANDS[command][1]), module.OPTIONS
+
+
+def _default(model: type[BaseModel], path: str) -> object:
+    value: object = model()  # the model's own defaults, read through an instance
+    for part in path.split("."):
+        value = getattr(value, part)
+    return value
+
+
+def _shown(value: object) -> str:
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _help(run_cli, monkeypatch, command: str) -> dict[str, str]:
+    """--help of COMMAND as option -> its help text (one line each: a wide terminal)."""
+    monkeypatch.setenv("COLUMNS", "400")
+    code, out, _ = run_cli(command, "--help")
+    assert code == 0
+    rows = re.findall(r"^│\s+\*?\s*(--[a-z-]+)(?:,\s*-\w)?\s+(?:<\w+>)?\s+(.*?)\s*│$", out, re.MULTILINE)
+    return dict(rows)
+
+
+@pytest.mark.parametrize("command", list(COMMANDS))
+def test_help_shows_the_models_defaults(command, run_cli, monkeypatch):
+    model, options = _settings(command)
+    shown = _help(run_cli, monkeypatch, command)
+    assert set(options) <= set(shown), "OPTIONS names an option the command does not have"
+    for option, path in options.items():
+        value = _default(model, path)
+        if value is None or isinstance(value, bool) or "[required]" in shown[option]:
+            assert "(default " not in shown[option], option
+        else:
+            assert shown[option].endswith(f"(default {_shown(value)})."), (option, shown[option])
+
+
+def test_no_default_is_typed_into_the_cli():
+    # "(default 200)" written by hand would drift from the model; "(default: every scene)" describes behaviour
+    text = (ROOT / "sagebench" / "cli.py").read_text()
+    assert re.findall(r"\(default (?!X\)|\{)[^:)]*\)", text) == []
+
+
+def _readme_blocks() -> dict[str, list[tuple[str, str]]]:
+    """command -> the [--option VALUE] pairs of its README usage block (```bash ... sagebench COMMAND ...)."""
+    found: dict[str, list[tuple[str, str]]] = {}
+    for block in re.findall(r"```bash\n(.*?)```", (ROOT / "README.md").read_text(), re.DOTALL):
+        for usage in re.split(r"\n(?=sagebench )", block):
+            m = re.match(r"sagebench ([a-z-]+)", usage)
+            if m and m.group(1) in COMMANDS:
+                found.setdefault(m.group(1), []).extend(re.findall(r"\[(--[a-z-]+)(?: ([^\]\s]+))?\]", usage))
+    return found
+
+
+def test_readme_option_blocks_match_help(run_cli, monkeypatch):
+    blocks = _readme_blocks()
+    assert {"build-scene", "gen-trajectories", "export-usd", "validate"} <= set(blocks)
+    for command, pairs in blocks.items():
+        model, options = _settings(command)
+        shown = _help(run_cli, monkeypatch, command)
+        for option, value in pairs:
+            assert option in shown, f"README: {command} has no {option}"
+            if option in options and re.fullmatch(r"-?[0-9.]+", value):  # a number is the default; N, ID placeholders
+                default = _default(model, options[option])
+                assert float(value) == default, f"README: {command} {option} {value}, but its default is {default}"
+
+
+def _nested(path: str, value: object) -> dict:
+    first, *rest = path.split(".")
+    return {first: _nested(".".join(rest), value) if rest else value}
+
+
+@pytest.mark.parametrize("command", list(COMMANDS))
+def test_a_bad_value_names_the_option(command):
+    model, options = _settings(command)
+    checked = 0
+    for option, path in options.items():
+        if isinstance(_default(model, path), str | type(None)):
+            continue  # a free string (a URL, a model name) has no bad value of this kind
+        with pytest.raises(ConfigError) as err:
+            from_options(model, _nested(path, "not a value"), options)
+        assert str(err.value).startswith(f"{option}: "), str(err.value)
+        checked += 1
+    assert checked
