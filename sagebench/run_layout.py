@@ -83,7 +83,7 @@ CONTRACT: dict[str, StageFiles] = {
     "validate": StageFiles(
         reads=(*REPLAY_MODEL, Place("scene", GAUSSIANS), Place("episodes")),
         writes=(Place("validation"),)),
-    "evaluate": StageFiles(reads=(Place("episodes"), *REPLAY_MODEL)),  # the model only to replay poses
+    "evaluate": StageFiles(reads=(Place("episodes"), Place("scene", TOPDOWN), *REPLAY_MODEL)),  # the model only to replay poses
     "baseline": StageFiles(reads=(Place("episodes"), *REPLAY_MODEL)),
     "render": StageFiles(reads=(Place("scene", SCENE_FILE), Place("scene", GAUSSIANS))),
 }

@@ -48,7 +48,7 @@ def test_oracle_follows_the_reference_exactly(rm):
     assert p.stopped and len(p.poses) == len(oracle_targets(e.reference_path, 0.25))
     np.testing.assert_allclose(np.array(p.poses)[:, :2], oracle_targets(e.reference_path, 0.25), atol=0.02)
     assert max(p.collision_intensity) == 0.0
-    m = score_prediction(e, p, np.asarray(p.collision_intensity))
+    m = score_prediction(e, p, np.asarray(p.collision_intensity), on_foot=None)
     assert (m.sr, m.csr, m.icp) == (1.0, 1.0, 0.0)
     # measured 0.99860: only the corner poses (on the corners, not at 0.25 m of arc) are off the resampled reference
     assert m.spl == pytest.approx(1.0, abs=1e-6) and m.ndtw == pytest.approx(0.9986, abs=2e-4)
@@ -75,7 +75,7 @@ def test_straight_pushes_into_the_wall_then_gives_up(rm):
     # 2.1 -> 2.35 -> 2.6 free; 2.6 -> 2.85 stops at 2.75 (the 0.2 m agent against the face at 2.95): 0.4 blocked;
     # then stall_patience moves in a row are stopped dead
     np.testing.assert_allclose(c, [0, 0, 0, 0.4] + [1.0] * config.stall_patience, atol=0.01)
-    m = score_prediction(e, p, c)
+    m = score_prediction(e, p, c, on_foot=None)
     assert m.sr == 0.0 and m.icp == pytest.approx(c.mean()) and m.icp > 0.3
 
 

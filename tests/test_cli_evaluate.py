@@ -10,9 +10,12 @@ from pathlib import Path
 
 import pytest
 
+from sagebench.episodes.load import load_episodes
+
 SCENE = "demo_apartment_0"
-HEADER = ("group                            EPISODES       SR      OSR      SPL       NE     NDTW     SDTW      CSR"
-          "      ICP       PS      LEN")
+HEADER = ("group                            EPISODES       SR      OSR      SPL       NE   NE_STR     NDTW     SDTW"
+          "      CSR      ICP       PS      LEN")
+DISTANCES = "distance to the goal: on foot for SR, OSR, SPL, NE, SDTW; straight for NE_STR"
 
 
 @pytest.fixture(scope="module")
@@ -41,8 +44,9 @@ def test_the_oracle_scores_perfectly(demo_eval_run, oracle, tmp_path, run_cli):
     n = len(_lines(oracle))
     assert lines[0] == HEADER
     assert lines[1].startswith(f"overall                          {n:>8d}    1.000    1.000")
-    groups = [ln.split()[0] for ln in lines[2:-1]]
+    groups = [ln.split()[0] for ln in lines[2:-2]]
     assert groups == sorted(groups, key=("level", "type").index) and lines[-1] == f"wrote {out}"  # levels, then types
+    assert lines[-2] == DISTANCES
     res = json.loads(out.read_text())
     o = res["overall"]
     assert (o["episodes"], o["sr"], o["osr"], o["csr"], o["icp"]) == (n, 1.0, 1.0, 1.0, 0.0)
@@ -52,7 +56,8 @@ def test_the_oracle_scores_perfectly(demo_eval_run, oracle, tmp_path, run_cli):
     assert set(res["by_type"]) >= {"Base_Action", "Single_Goal"} and set(res["by_level"]) >= {"low"}
     assert sum(g["episodes"] for g in res["by_type"].values()) == n
     assert sum(g["episodes"] for g in res["by_level"].values()) == n
-    assert len(lines) == 1 + 1 + len(res["by_level"]) + len(res["by_type"]) + 1
+    assert len(lines) == 1 + 1 + len(res["by_level"]) + len(res["by_type"]) + 2
+    assert res["distance_used"]["sr"] == "on_foot" and res["distance_used"]["ne_straight"] == "straight"
     first = out.read_bytes()
     assert run_cli("evaluate", "--run", demo_eval_run, "--predictions", oracle, "--out", out)[0] == 0
     assert out.read_bytes() == first
@@ -90,6 +95,10 @@ def test_missing_episodes_are_an_error_unless_allowed(demo_eval_run, oracle, tmp
     assert res["missing"] == dropped
     assert res["overall"]["sr"] == pytest.approx((n - 2) / n, abs=1e-6)
     assert res["overall"]["icp"] == pytest.approx(2 / n, abs=1e-6)  # missing: ICP 1, every other metric 0
+    # a missing episode's NE is the farthest walk from its goal, never less than the walk from its start
+    geodesic = {e.episode_id: e.geodesic_distance for e in load_episodes(demo_eval_run)}
+    for row in (r for r in res["per_episode"] if r["missing"]):
+        assert row["ne"] >= geodesic[row["episode_id"]] - 1e-6
 
 
 @pytest.mark.parametrize("edit, message", [

@@ -8,7 +8,7 @@ import pytest
 from sagebench.evaluation.predictions import Prediction
 from sagebench.metrics import EpisodeMetrics
 from sagebench.evaluation.scoring import (
-    Episode, EpisodeScore, missing_metrics, score_prediction, summarise_scores,
+    Episode, EpisodeScore, score_prediction, summarise_scores,
 )
 
 
@@ -22,21 +22,15 @@ def test_a_prediction_is_scored_with_its_intensity():
     e = _episode("a")
     p = Prediction(episode_id="a", poses=[(0, 0, 0, 0), (2, 0, 0, 0), (3.5, 0, 0, 0)], stopped=True,
                    collision_intensity=[0, 0.3, 0.0])
-    m = score_prediction(e, p, np.asarray(p.collision_intensity))
+    m = score_prediction(e, p, np.asarray(p.collision_intensity), on_foot=None)
     assert m.sr == 1.0 and m.ne == pytest.approx(0.5) and m.spl == 1.0  # 3.5 m walked < 4 m geodesic
     assert m.icp == pytest.approx(0.1) and m.csr == 1.0 and m.ps == 1.0
-    assert not score_prediction(e, p.model_copy(update={"stopped": False}), np.zeros(3)).sr
-
-
-def test_a_missing_episode_gets_every_metric_at_its_worst():
-    m = missing_metrics(_episode("a"))
-    assert (m.sr, m.osr, m.spl, m.ndtw, m.sdtw, m.csr, m.ps, m.icp) == (0, 0, 0, 0, 0, 0, 0, 1)
-    assert m.ne == 4.0 and m.path_length == 0.0
+    assert not score_prediction(e, p.model_copy(update={"stopped": False}), np.zeros(3), on_foot=None).sr
 
 
 def test_means_overall_per_level_and_per_type():
     def score(eid, level, kind, sr, icp):
-        m = EpisodeMetrics(ne=1.0, sr=sr, osr=sr, spl=sr, ndtw=0.5, sdtw=sr / 2, csr=1.0, icp=icp, ps=1.0,
+        m = EpisodeMetrics(ne=1.0, ne_straight=1.0, sr=sr, osr=sr, spl=sr, ndtw=0.5, sdtw=sr / 2, csr=1.0, icp=icp, ps=1.0,
                            path_length=2.0)
         return EpisodeScore(_episode(eid, level, kind), m, missing=False, replayed=False)
 

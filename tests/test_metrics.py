@@ -23,7 +23,7 @@ def _poses(xy, yaw=None) -> np.ndarray:
 
 
 def _score(poses, ref, **kw):
-    args = dict(goal=np.asarray(ref, float)[-1], goal_radius=1.0, geodesic_distance=5.0, stopped=True) | kw
+    args = dict(goal=np.asarray(ref, float)[-1], on_foot=None, goal_radius=1.0, geodesic_distance=5.0, stopped=True) | kw
     return score_episode(poses, np.asarray(ref, float), **args)
 
 

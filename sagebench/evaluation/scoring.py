@@ -1,8 +1,8 @@
 """Score predictions against episodes and aggregate: overall, per instruction level and per type, plain means.
 
 An episode without a prediction (evaluate --allow-missing) counts as a failure at every metric's worst value:
-SR, OSR, SPL, nDTW, SDTW, CSR and PS 0, ICP 1, path length 0 and NE the straight-line start-goal distance
-(where an agent that never moved would be), so a missing prediction can only lower a score.
+SR, OSR, SPL, nDTW, SDTW, CSR and PS 0, ICP 1, path length 0 and NE the largest distance on foot from the goal to
+any navigable cell (NE_STRAIGHT the largest straight distance to one), so a missing prediction can only lower a score.
 """
 
 from __future__ import annotations
@@ -14,8 +14,12 @@ import numpy as np
 
 from sagebench.evaluation.predictions import Prediction
 from sagebench.metrics import EpisodeMetrics, MetricConfig, score_episode
+from sagebench.metrics.on_foot import GoalField
 
-METRIC_NAMES = ("sr", "osr", "spl", "ne", "ndtw", "sdtw", "csr", "icp", "ps", "path_length")
+METRIC_NAMES = ("sr", "osr", "spl", "ne", "ne_straight", "ndtw", "sdtw", "csr", "icp", "ps", "path_length")
+# which distance to the goal each metric stands on (evaluate reports this with the scores)
+DISTANCE_USED = {"sr": "on_foot", "osr": "on_foot", "spl": "on_foot (success)", "ne": "on_foot",
+                 "ne_straight": "straight", "sdtw": "on_foot (success)"}
 NO_LEVEL = "none"  # group of rows without instruction_level/type (gen-trajectories --instructions none)
 
 
@@ -44,18 +48,18 @@ class EpisodeScore:
 
 
 def score_prediction(episode: Episode, prediction: Prediction, intensity: np.ndarray,
-                     config: MetricConfig = MetricConfig()) -> EpisodeMetrics:
-    """Metrics of one prediction; `intensity` [T] is the prediction's c(t) or the replayed one."""
+                     config: MetricConfig = MetricConfig(), *, on_foot: GoalField | None) -> EpisodeMetrics:
+    """Metrics of one prediction; `intensity` [T] is the prediction's c(t) or the replayed one; `on_foot` the
+    goal's distances on foot (None: straight distances, an open floor)."""
     return score_episode(np.asarray(prediction.poses, dtype=np.float64), episode.reference_path, episode.goal,
-                         goal_radius=episode.goal_radius, geodesic_distance=episode.geodesic_distance,
+                         on_foot=on_foot, goal_radius=episode.goal_radius, geodesic_distance=episode.geodesic_distance,
                          stopped=prediction.stopped, collision_intensity=intensity, config=config)
 
 
-def missing_metrics(episode: Episode) -> EpisodeMetrics:
-    """The worst value of every metric (module docstring)."""
-    ne = float(np.linalg.norm(episode.goal[:2] - episode.start[:2]))
-    return EpisodeMetrics(ne=ne, sr=0.0, osr=0.0, spl=0.0, ndtw=0.0, sdtw=0.0, csr=0.0, icp=1.0, ps=0.0,
-                          path_length=0.0)
+def missing_metrics(on_foot: GoalField) -> EpisodeMetrics:
+    """The worst value of every metric on the goal's map (module docstring)."""
+    return EpisodeMetrics(ne=on_foot.worst, ne_straight=on_foot.worst_straight, sr=0.0, osr=0.0, spl=0.0, ndtw=0.0,
+                          sdtw=0.0, csr=0.0, icp=1.0, ps=0.0, path_length=0.0)
 
 
 def mean_metrics(scores: Sequence[EpisodeScore]) -> dict[str, float]:

@@ -1,9 +1,11 @@
 """Scores of one episode: the navigation metrics of habitat/VLN-CE and the SAGE-Bench continuity metrics.
 
 Definitions (DESIGN.md; all distances in the XY plane):
-- NE  = distance from the final pose to the goal.
+- NE  = distance on foot (`on_foot.py`) from the final pose to the goal; a final pose that cannot reach the goal
+        gets the largest distance on foot from the goal to any navigable cell (the worst NE on that map).
+- NE_STRAIGHT = the straight distance from the final pose to the goal (reported, never used for success).
 - SR  = 1 if the agent stopped (`stopped`) with NE <= goal_radius, else 0.
-- OSR = 1 if any pose came within goal_radius of the goal.
+- OSR = 1 if any pose came within goal_radius of the goal on foot.
 - SPL = SR * g / max(g, L): g the geodesic start->goal distance, L the agent's path length.
 - nDTW = exp(-DTW(P, R) / (|R| * d_th)), d_th = 3.0 m, R the reference resampled every 0.25 m.
 - SDTW = SR * nDTW.
@@ -20,6 +22,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from sagebench.metrics.dtw import dtw
+from sagebench.metrics.on_foot import GoalField
 from sagebench.metrics.polyline import distance_to_polyline, path_length, resample
 
 
@@ -35,6 +38,7 @@ class MetricConfig:
 @dataclass(frozen=True)
 class EpisodeMetrics:
     ne: float
+    ne_straight: float
     sr: float
     osr: float
     spl: float
@@ -68,6 +72,7 @@ def score_episode(
     reference_path: np.ndarray,
     goal: np.ndarray,
     *,
+    on_foot: GoalField | None,
     goal_radius: float,
     geodesic_distance: float,
     stopped: bool,
@@ -77,14 +82,16 @@ def score_episode(
     """Score one episode.
 
     poses: [T, 4] agent (x, y, z, yaw) as given; reference_path: [M, >=2] waypoints; goal: [>=2];
-    collision_intensity: [T] in [0, 1] (zeros when None).
+    collision_intensity: [T] in [0, 1] (zeros when None); on_foot: the goal's distances on foot, or None where
+    there is no map (then every distance is the straight one: an open floor).
     """
     poses = np.asarray(poses, dtype=np.float64)
     if poses.ndim != 2 or poses.shape[1] != 4 or len(poses) == 0:
         raise ValueError(f"poses must be [T, 4] with T >= 1, got shape {poses.shape}")
     goal_xy = np.asarray(goal, dtype=np.float64)[:2]
-    dist_to_goal = np.linalg.norm(poses[:, :2] - goal_xy, axis=1)
-    ne = float(dist_to_goal[-1])
+    straight = np.linalg.norm(poses[:, :2] - goal_xy, axis=1)
+    dist_to_goal = straight if on_foot is None else on_foot.distance(poses[:, :2])
+    ne = float(dist_to_goal[-1]) if np.isfinite(dist_to_goal[-1]) else on_foot.worst
     sr = float(stopped and ne <= goal_radius)
     osr = float((dist_to_goal <= goal_radius).any())
     length = path_length(poses)
@@ -100,5 +107,5 @@ def score_episode(
         if c.shape != (len(poses),):
             raise ValueError(f"collision_intensity must have one value per pose ({len(poses)}), got {c.shape}")
         icp = float(np.clip(c, 0.0, 1.0).mean())
-    return EpisodeMetrics(ne=ne, sr=sr, osr=osr, spl=spl, ndtw=ndtw, sdtw=sr * ndtw, csr=csr, icp=icp,
+    return EpisodeMetrics(ne=ne, ne_straight=float(straight[-1]), sr=sr, osr=osr, spl=spl, ndtw=ndtw, sdtw=sr * ndtw, csr=csr, icp=icp,
                           ps=path_smoothness(poses[:, 3]), path_length=length)

@@ -22,12 +22,14 @@ from sagebench.errors import DataError
 from sagebench.evaluation.intensity import STEP_REPLAY, replay_intensity
 from sagebench.evaluation.predictions import Prediction, match_episodes, read_predictions
 from sagebench.evaluation.scoring import (
-    METRIC_NAMES, Episode, EpisodeScore, Summary, missing_metrics, score_prediction, summarise_scores,
+    DISTANCE_USED, METRIC_NAMES, Episode, EpisodeScore, Summary, missing_metrics, score_prediction, summarise_scores,
 )
 from sagebench.fileio import write_json
-from sagebench.metrics import MetricConfig
+from sagebench.metrics import MetricConfig, NavigableMap
 from sagebench.replay.physics import ReplayConfig
 from sagebench.replay.scene_model import open_replay_model
+from sagebench.run_layout import TOPDOWN, run_scene_dir
+from sagebench.topdown.grid_file import read_topdown_grids
 
 
 class EvaluateConfig(BaseModel):
@@ -94,20 +96,33 @@ class Evaluation:
                              "instruction_level": s.episode.level, "instruction_type": s.episode.type,
                              "missing": s.missing, **{m: _r(getattr(s.metrics, m)) for m in METRIC_NAMES}}
                             for s in self.scores],
+            "distance_used": DISTANCE_USED,
             "config": self.config.model_dump(mode="json"),
         }
 
     def table(self) -> str:
         """The means as a fixed-width text table: overall, then per level, then per type."""
         cols = ("episodes", *METRIC_NAMES)
-        head = f"{'group':<32}" + "".join(f"{c.upper() if c != 'path_length' else 'LEN':>9}" for c in cols)
+        label = {"path_length": "LEN", "ne_straight": "NE_STR"}
+        head = f"{'group':<32}" + "".join(f"{label.get(c, c.upper()):>9}" for c in cols)
         lines = [head]
         groups = [("overall", self.summary.overall)]
         groups += [(f"level {k}", v) for k, v in self.summary.by_level.items()]
         groups += [(f"type {k}", v) for k, v in self.summary.by_type.items()]
         for name, d in groups:
             lines.append(f"{name:<32}" + f"{d['episodes']:>9d}" + "".join(f"{d[m]:>9.3f}" for m in METRIC_NAMES))
+        used: dict[str, list[str]] = {}
+        for m, how in DISTANCE_USED.items():
+            used.setdefault(how.split()[0], []).append(label.get(m, m.upper()))
+        lines.append("distance to the goal: " + "; ".join(f"{how.replace('_', ' ')} for {', '.join(ms)}"
+                                                         for how, ms in used.items()))
         return "\n".join(lines)
+
+
+def read_navigable_map(run_dir: Path, scene_id: str, agent_radius: float) -> NavigableMap:
+    """The scene's navigable map, for distances on foot (a final pose off it snaps back within the agent radius)."""
+    grids = read_topdown_grids(run_scene_dir(run_dir, scene_id) / TOPDOWN)
+    return NavigableMap(grids.navigable, grids.resolution, grids.origin, snap_radius=agent_radius)
 
 
 def _r(x: float) -> float | None:
@@ -127,6 +142,7 @@ def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = Evaluate
     matched, missing = match_episodes(rows, by_id, predictions, allow_missing=config.allow_missing)
     _check_start(by_id, rows, predictions, config.start_tolerance)
     need_replay = sorted({by_id[p.episode_id].scene_id for p in matched.values() if p.collision_intensity is None})
+    maps = {sid: read_navigable_map(run_dir, sid, config.agent.radius) for sid in sorted({e.scene_id for e in episodes})}
     models = {sid: open_replay_model(run_dir, sid, agent=config.agent, replay=config.replay) for sid in need_replay}
 
     intensity: dict[str, np.ndarray] = {}
@@ -139,11 +155,13 @@ def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = Evaluate
     for e in episodes:
         p = matched.get(e.episode_id)
         if p is None:
-            scores.append(EpisodeScore(e, missing_metrics(e), missing=True, replayed=False))
+            scores.append(EpisodeScore(e, missing_metrics(maps[e.scene_id].field(e.goal)), missing=True,
+                                       replayed=False))
             continue
         replayed = p.collision_intensity is None
         c = intensity[e.episode_id] if replayed else np.asarray(p.collision_intensity, dtype=np.float64)
-        scores.append(EpisodeScore(e, score_prediction(e, p, c, config.metrics), missing=False, replayed=replayed))
+        scores.append(EpisodeScore(e, score_prediction(e, p, c, config.metrics, on_foot=maps[e.scene_id].field(e.goal)),
+                                   missing=False, replayed=replayed))
     result = Evaluation(scores=scores, summary=summarise_scores(scores), missing=missing, predictions=predictions,
                         predictions_sha256=hashlib.sha256(predictions.read_bytes()).hexdigest(), config=config)
     if out is not None:

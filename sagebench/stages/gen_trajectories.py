@@ -8,7 +8,6 @@ preview sits in a "_" folder so that the directory reads as one Parquet dataset 
 from __future__ import annotations
 
 import hashlib
-import zipfile
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +30,7 @@ from sagebench.instructions.naming import ObjectInfo, RoomInfo
 from sagebench.run_layout import CONTRACT, PREVIEW, SCENE_FILE, SCENES, SEMANTIC_MAP, TOPDOWN, require, run_episodes_dir
 from sagebench.scene.loader import parse_spec
 from sagebench.scene.model import SceneSpec
+from sagebench.topdown.grid_file import read_topdown_grids
 from sagebench.topdown.semantic_map import SemanticMap
 
 TARGET_KINDS = ("object", "door")  # what a trajectory may start or end at, besides rooms
@@ -144,25 +144,9 @@ def read_scene_inputs(scene_dir: Path) -> tuple[SceneSpec, SemanticMap, GridMap,
     except ValidationError as err:
         loc, msg, _ = first_error(err)
         raise DataError(msg, path=smap_path, field=loc) from None
-    try:
-        with np.load(npz_path) as npz:
-            arrays = {k: npz[k] for k in ("navigable", "occupancy", "resolution", "origin") if k in npz.files}
-    except (OSError, ValueError, zipfile.BadZipFile) as err:
-        raise DataError(f"cannot read: {err}", path=npz_path) from None
-    for key in ("navigable", "occupancy", "resolution", "origin"):
-        if key not in arrays:
-            raise DataError("array missing", path=npz_path, field=key)
-    nav, occ = arrays["navigable"], arrays["occupancy"]
-    if nav.ndim != 2 or occ.shape != nav.shape:
-        raise DataError(f"navigable {nav.shape} and occupancy {occ.shape} must be the same [H, W] shape",
-                        path=npz_path, field="navigable")
-    origin = np.asarray(arrays["origin"], dtype=np.float64).ravel()
-    resolution = float(np.asarray(arrays["resolution"]).ravel()[0])
-    if origin.shape != (2,) or not resolution > 0:
-        raise DataError("origin must be [x, y] and resolution > 0", path=npz_path, field="origin")
-    grid = GridMap(np.ascontiguousarray(nav != 0, dtype=np.uint8), resolution, (float(origin[0]), float(origin[1])),
-                   float(spec.floor_height))
-    return spec, smap, grid, np.asarray(occ, dtype=np.uint8)
+    grids = read_topdown_grids(npz_path)
+    grid = GridMap(grids.navigable, grids.resolution, grids.origin, float(spec.floor_height))
+    return spec, smap, grid, grids.occupancy
 
 
 def scene_context(spec: SceneSpec, smap: SemanticMap, type_mix: dict[str, float] | None = None) -> SceneContext:

@@ -76,7 +76,7 @@ def judge(
 ) -> Verdict:
     """Score a replay of `reference_path` [M, 4] against `goal` [>=2] and list what is wrong with it."""
     ref = np.asarray(reference_path, dtype=np.float64)
-    scores = score_episode(record.poses, ref, goal, goal_radius=goal_radius, geodesic_distance=geodesic_distance,
+    scores = score_episode(record.poses, ref, goal, on_foot=None, goal_radius=goal_radius, geodesic_distance=geodesic_distance,
                            stopped=True, collision_intensity=record.intensity, config=metrics)
     deviation = float(distance_to_polyline(record.poses, ref).max())
     end_gap = float(np.linalg.norm(record.poses[-1, :2] - ref[-1, :2]))

@@ -1,0 +1,133 @@
+"""Distance on foot to a goal: what success is measured by (habitat and VLN-CE use the geodesic, not the straight line).
+
+The walk is the shortest 8-connected, no-corner-cutting path on the navigable map (the graph the A* planner uses),
+found by one Dijkstra from the goal's cell, so a stop 0.9 m from a goal behind a wall is as far as the walk round it.
+A point with a clear straight line to the goal over navigable cells is at its straight distance (the grid path would
+overstate it by up to 8 %); a point off the navigable map (the agent's centre pressed against an obstacle) is
+snapped to the nearest navigable cell within `snap_radius` (the agent radius), else it cannot reach the goal (inf).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.ndimage import distance_transform_edt
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from sagebench.astar.dijkstra_reference import grid_graph
+
+
+@dataclass(frozen=True)
+class GoalField:
+    """Distances on foot (m) to one goal from every cell of its map, with the lookups to use them at any point."""
+
+    goal_xy: np.ndarray  # [2]
+    cost: np.ndarray  # [H, W] m, cell centre -> goal cell along the grid; inf where unreachable
+    navmap: "NavigableMap"
+
+    @property
+    def worst(self) -> float:
+        """The largest distance on foot from the goal to any navigable cell it connects to (0 for a lone cell)."""
+        finite = self.cost[np.isfinite(self.cost)]
+        return float(finite.max()) if finite.size else 0.0
+
+    @property
+    def worst_straight(self) -> float:
+        """The largest straight distance from the goal to any navigable cell it connects to."""
+        rows, cols = np.nonzero(np.isfinite(self.cost))
+        if not len(rows):
+            return 0.0
+        centres = (np.stack([cols, rows], axis=1) + 0.5) * self.navmap.resolution + np.asarray(self.navmap.origin)
+        return float(np.linalg.norm(centres - self.goal_xy, axis=1).max())
+
+    def distance(self, xy: np.ndarray) -> np.ndarray:
+        """[N] distance on foot (m) from points [N, >=2] to the goal; inf where a point cannot reach it."""
+        xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))[:, :2]
+        straight = np.linalg.norm(xy - self.goal_xy, axis=1)
+        cells = self.navmap.snap(xy)
+        out = np.full(len(xy), np.inf)
+        ok = cells[:, 0] >= 0
+        out[ok] = np.maximum(straight[ok], self.cost[cells[ok, 0], cells[ok, 1]])
+        check = np.flatnonzero(ok & (out > straight))  # only where a clear line could shorten it
+        clear = check[self.navmap.clear_to(xy[check], self.goal_xy)]
+        out[clear] = straight[clear]
+        return out
+
+
+@dataclass
+class NavigableMap:
+    """One scene's navigable raster (index [row, col] = [y, x]; origin = world (x, y) of cell (0, 0)'s lower-left
+    corner) and its goal fields, each computed once and cached by goal cell."""
+
+    navigable: np.ndarray  # [H, W], nonzero = the agent's centre may stand here
+    resolution: float
+    origin: tuple[float, float]
+    snap_radius: float = 0.20
+    _fields: dict[tuple[int, int], np.ndarray] = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        self.navigable = np.asarray(self.navigable).astype(bool)
+        self._graph: csr_matrix | None = None
+        # nearest navigable cell of every cell and its distance (cells, centre to centre)
+        self._gap, self._nearest = distance_transform_edt(~self.navigable, return_indices=True)
+
+    def cell_of(self, xy: np.ndarray) -> np.ndarray:
+        """[N, 2] (row, col) of the cells holding points [N, 2] (may lie outside the grid)."""
+        xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))[:, :2]
+        col_row = np.floor((xy - np.asarray(self.origin)) / self.resolution).astype(np.int64)
+        return col_row[:, ::-1]
+
+    def snap(self, xy: np.ndarray) -> np.ndarray:
+        """[N, 2] the navigable cell each point stands on or snaps to (within snap_radius); (-1, -1) for none."""
+        cells = self.cell_of(xy)
+        h, w = self.navigable.shape
+        out = np.full_like(cells, -1)
+        inside = (cells[:, 0] >= 0) & (cells[:, 0] < h) & (cells[:, 1] >= 0) & (cells[:, 1] < w)
+        r, c = cells[inside, 0], cells[inside, 1]
+        near = np.stack([self._nearest[0][r, c], self._nearest[1][r, c]], axis=1)
+        centre = (near[:, ::-1] + 0.5) * self.resolution + np.asarray(self.origin)
+        xy_in = np.atleast_2d(np.asarray(xy, dtype=np.float64))[inside, :2]
+        on_nav = self.navigable[r, c]
+        close = on_nav | (np.linalg.norm(centre - xy_in, axis=1) <= self.snap_radius)
+        out[np.flatnonzero(inside)[close]] = near[close]
+        return out
+
+    def clear_to(self, xy: np.ndarray, goal_xy: np.ndarray) -> np.ndarray:
+        """[N] bool: the straight segment from each point to the goal crosses only navigable cells."""
+        xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))[:, :2]
+        length = np.linalg.norm(xy - goal_xy, axis=1)
+        if not len(xy):
+            return np.zeros(0, dtype=bool)
+        steps = int(np.ceil(length.max() / (0.25 * self.resolution))) + 1
+        t = np.linspace(0.0, 1.0, steps + 1)
+        samples = xy[:, None, :] + (np.asarray(goal_xy)[None, None, :] - xy[:, None, :]) * t[None, :, None]
+        cells = self.cell_of(samples.reshape(-1, 2))
+        h, w = self.navigable.shape
+        inside = (cells[:, 0] >= 0) & (cells[:, 0] < h) & (cells[:, 1] >= 0) & (cells[:, 1] < w)
+        free = np.zeros(len(cells), dtype=bool)
+        free[inside] = self.navigable[cells[inside, 0], cells[inside, 1]]
+        return free.reshape(len(xy), -1).all(axis=1)
+
+    def field(self, goal_xy: np.ndarray) -> GoalField:
+        """The distances on foot to `goal_xy` (one Dijkstra per goal cell, cached). A goal off the map (nothing
+        navigable within snap_radius) is reachable from nowhere: every distance is inf."""
+        goal_xy = np.asarray(goal_xy, dtype=np.float64)[:2]
+        r, c = (int(v) for v in self.snap(goal_xy)[0])
+        if (r, c) not in self._fields:
+            h, w = self.navigable.shape
+            if r < 0:
+                cost = np.full((h, w), np.inf)
+            else:
+                if self._graph is None:
+                    self._graph = grid_graph(self.navigable).tocsr()
+                cost = dijkstra(self._graph, directed=True, indices=r * w + c).reshape(h, w) * self.resolution
+            self._fields[(r, c)] = cost
+        return GoalField(goal_xy, self._fields[(r, c)], self)
+
+
+def distance_on_foot(navigable: np.ndarray, resolution: float, origin: tuple[float, float], goal_xy: np.ndarray,
+                     *, snap_radius: float = 0.20) -> GoalField:
+    """The distances on foot to one goal over a navigable map; `.distance(points)` gives them at any points."""
+    return NavigableMap(navigable, resolution, origin, snap_radius).field(goal_xy)

@@ -1,0 +1,43 @@
+"""Reading the grids of topdown.npz back: one place that checks the arrays every consumer needs."""
+
+from __future__ import annotations
+
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from sagebench.errors import DataError
+
+
+@dataclass(frozen=True)
+class TopdownGrids:
+    navigable: np.ndarray  # [H, W] uint8, 1 = the agent's centre may stand here
+    occupancy: np.ndarray  # [H, W] uint8, 1 = blocked in the agent's height band
+    resolution: float  # metres per cell
+    origin: tuple[float, float]  # world (x, y) of cell (0, 0)'s lower-left corner
+
+
+def read_topdown_grids(npz_path: Path) -> TopdownGrids:
+    """navigable, occupancy, resolution and origin of a topdown.npz; a missing or malformed one is a DataError."""
+    if not Path(npz_path).is_file():
+        raise DataError("missing: run build-scene first", path=npz_path)
+    try:
+        with np.load(npz_path) as npz:
+            arrays = {k: npz[k] for k in ("navigable", "occupancy", "resolution", "origin") if k in npz.files}
+    except (OSError, ValueError, zipfile.BadZipFile) as err:
+        raise DataError(f"cannot read: {err}", path=npz_path) from None
+    for key in ("navigable", "occupancy", "resolution", "origin"):
+        if key not in arrays:
+            raise DataError("array missing", path=npz_path, field=key)
+    nav, occ = arrays["navigable"], arrays["occupancy"]
+    if nav.ndim != 2 or occ.shape != nav.shape:
+        raise DataError(f"navigable {nav.shape} and occupancy {occ.shape} must be the same [H, W] shape",
+                        path=npz_path, field="navigable")
+    origin = np.asarray(arrays["origin"], dtype=np.float64).ravel()
+    resolution = float(np.asarray(arrays["resolution"]).ravel()[0])
+    if origin.shape != (2,) or not resolution > 0:
+        raise DataError("origin must be [x, y] and resolution > 0", path=npz_path, field="origin")
+    return TopdownGrids(np.ascontiguousarray(nav != 0, dtype=np.uint8), np.asarray(occ, dtype=np.uint8), resolution,
+                        (float(origin[0]), float(origin[1])))
