@@ -30,7 +30,7 @@ bench: $(STAMP)
 	$(BIN)/python -m pip install -q -c $(LOCK) -e '.[test,bench]'
 	$(BIN)/python -m benchmarks
 
-# named breaks applied to a temporary copy; fails when a test no longer catches one (about 75 s)
+# named breaks applied to a temporary copy; fails when a test no longer catches one (about 100 s)
 mutants: $(STAMP)
 	$(BIN)/python tools/mutants.py
 

@@ -33,6 +33,10 @@ class Mutant:
 MUTANTS = (
     Mutant("ndtw divided by the number of poses", "sagebench/metrics/episode.py",
            "(len(ref) * config.ndtw_threshold)", "(len(poses) * config.ndtw_threshold)", ("tests/test_metrics.py",)),
+    Mutant("SPL rewards a path shorter than the geodesic", "sagebench/metrics/episode.py",
+           "spl = sr * g / max(g, length) if", "spl = sr * g / length if length > 0 and", ("tests/test_metrics.py",)),
+    Mutant("height band without its top", "sagebench/topdown/occupancy.py",
+           "valid = [(z >= z_lo) & (z <= z_hi)]", "valid = [z >= z_lo]", ("tests/test_topdown_occupancy.py",)),
     Mutant("fast renderer: one SH degree-3 coefficient halved", "sagebench/render/splat_render.py",
            "C3[1] * x * y * z * sh[i, 10, c]", "0.5 * C3[1] * x * y * z * sh[i, 10, c]",
            ("tests/test_replay_render.py",)),
