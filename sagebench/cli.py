@@ -360,6 +360,8 @@ def evaluate_cmd(
     predictions: Annotated[Path, typer.Option("--predictions", help="Agent predictions, JSON Lines (one object per episode).")],
     out: Annotated[Path | None, typer.Option("--out", help="Write the results here as JSON (default: print only).")] = None,
     scene: Annotated[str | None, typer.Option("--scene", help="Score only this scene's episodes (default: every scene).")] = None,
+    split: Annotated[str | None, typer.Option(
+        "--split", help="Score only this split's episodes: train, val_seen, val_unseen or test (default: all).")] = None,
     allow_missing: Annotated[
         bool, typer.Option("--allow-missing", help="Score episodes without a prediction as failures instead of stopping.")
     ] = False,
@@ -375,8 +377,9 @@ def evaluate_cmd(
     collision_intensity also RUN/scenes/<id>/scene.json and scene.xml, replaying each step against
     the colliders.
 
-    Prints the means overall, per instruction level and per instruction type. Writes OUT (JSON: those
-    means, every episode's metrics, missing episode ids, the settings) when given.
+    Prints the means overall, per instruction level, per instruction type and per split, and which
+    distance to the goal each metric used (on foot over the navigable map, or straight). Writes OUT
+    (JSON: those means, every episode's metrics, missing episode ids, the settings) when given.
 
     Unknown or duplicate episode ids, and episodes without a prediction (unless --allow-missing), are
     errors (exit status 2, nothing written).
@@ -384,7 +387,7 @@ def evaluate_cmd(
     from sagebench.stages.evaluate import evaluate, make_config
 
     config = make_config(allow_missing=allow_missing, start_tolerance=start_tolerance, workers=workers)
-    result = evaluate(run_dir, predictions, config, scene_id=scene, out=out)
+    result = evaluate(run_dir, predictions, config, scene_id=scene, split=split, out=out)
     typer.echo(result.table())
     if result.missing:
         typer.echo(f"{len(result.missing)} episodes had no prediction and were scored as failures")

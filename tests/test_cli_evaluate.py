@@ -45,7 +45,7 @@ def test_the_oracle_scores_perfectly(demo_eval_run, oracle, tmp_path, run_cli):
     assert lines[0] == HEADER
     assert lines[1].startswith(f"overall                          {n:>8d}    1.000    1.000")
     groups = [ln.split()[0] for ln in lines[2:-2]]
-    assert groups == sorted(groups, key=("level", "type").index) and lines[-1] == f"wrote {out}"  # levels, then types
+    assert groups == sorted(groups, key=("level", "type", "split").index) and lines[-1] == f"wrote {out}"  # levels, then types
     assert lines[-2] == DISTANCES
     res = json.loads(out.read_text())
     o = res["overall"]
@@ -56,7 +56,8 @@ def test_the_oracle_scores_perfectly(demo_eval_run, oracle, tmp_path, run_cli):
     assert set(res["by_type"]) >= {"Base_Action", "Single_Goal"} and set(res["by_level"]) >= {"low"}
     assert sum(g["episodes"] for g in res["by_type"].values()) == n
     assert sum(g["episodes"] for g in res["by_level"].values()) == n
-    assert len(lines) == 1 + 1 + len(res["by_level"]) + len(res["by_type"]) + 2
+    assert len(lines) == 1 + 1 + len(res["by_level"]) + len(res["by_type"]) + len(res["by_split"]) + 2
+    assert res["by_split"] == {"val_unseen": res["overall"]}  # the demo scene, held out at the default fractions
     assert res["distance_used"]["sr"] == "on_foot" and res["distance_used"]["ne_straight"] == "straight"
     first = out.read_bytes()
     assert run_cli("evaluate", "--run", demo_eval_run, "--predictions", oracle, "--out", out)[0] == 0
@@ -146,3 +147,34 @@ def test_bad_options_are_exit_2(demo_eval_run, oracle, run_cli, args, message):
 def test_absent_predictions_file_is_exit_2(demo_eval_run, tmp_path, run_cli):
     code, _, err = run_cli("evaluate", "--run", demo_eval_run, "--predictions", tmp_path / "none.jsonl")
     assert code == 2 and err.strip() == f"error: {tmp_path / 'none.jsonl'}: no such file"
+
+
+def test_splits_are_scored_apart_and_predictions_of_other_splits_are_left_out(demo_built_run, tmp_path, run_cli):
+    from sagebench.episodes.splits import SplitConfig
+    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, gen_trajectories
+
+    run = tmp_path / "run"
+    shutil.copytree(demo_built_run / "scenes", run / "scenes")
+    gen_trajectories(run, GenTrajectoriesConfig(per_scene=8, seed=0, instructions="none",
+                                                splits=SplitConfig(val_unseen=0, test=0, val_seen=0.25)))
+    episodes = load_episodes(run)
+    assert sorted(e.split for e in episodes) == ["train"] * 6 + ["val_seen"] * 2
+    # the reference path followed exactly, for every episode of both splits
+    pred = _write(tmp_path / "p.jsonl", [{"episode_id": e.episode_id, "poses": e.reference_path.tolist(),
+                                          "stopped": True, "collision_intensity": [0.0] * len(e.reference_path)}
+                                         for e in episodes])
+    out = tmp_path / "r.json"
+    code, stdout, err = run_cli("evaluate", "--run", run, "--predictions", pred, "--out", out, "--split", "val_seen")
+    assert code == 0, err
+    res = json.loads(out.read_text())
+    assert res["split"] == "val_seen" and res["episodes"] == 2 and list(res["by_split"]) == ["val_seen"]
+    assert {r["episode_id"] for r in res["per_episode"]} == {e.episode_id for e in episodes if e.split == "val_seen"}
+    code, stdout, _ = run_cli("evaluate", "--run", run, "--predictions", pred, "--out", out)
+    res = json.loads(out.read_text())
+    assert {k: v["episodes"] for k, v in res["by_split"].items()} == {"train": 6, "val_seen": 2}
+    assert [ln.split()[:3] for ln in stdout.splitlines() if ln.startswith("split ")] == [
+        ["split", "train", "6"], ["split", "val_seen", "2"]]
+    code, _, err = run_cli("evaluate", "--run", run, "--predictions", pred, "--split", "test")
+    assert code == 2 and err.strip() == f"error: {run}: no episodes in split 'test'"
+    code, _, err = run_cli("evaluate", "--run", run, "--predictions", pred, "--split", "dev")
+    assert code == 2 and "'dev' is not a split (one of train, val_seen, val_unseen, test)" in err

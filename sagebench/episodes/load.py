@@ -64,7 +64,8 @@ def read_trajectories(episodes_dir: Path) -> list[Trajectory]:
 
 
 def load_episodes(run_dir: Path, scene_id: str | None = None) -> list[Episode]:
-    """Every episode row of the run (or of `scene_id`), in scene then file order."""
+    """Every episode row of the run (or of `scene_id`), in scene then file order (split "none" for shards written
+    before the split column)."""
     from sagebench.episodes.shards import read_episodes
 
     out = []
@@ -74,9 +75,9 @@ def load_episodes(run_dir: Path, scene_id: str | None = None) -> list[Episode]:
             table = read_episodes(episodes_dir)
         except (OSError, pa.ArrowException) as err:
             raise DataError(f"cannot read episode shards: {err}", path=episodes_dir) from None
-        for row in table.select(["episode_id", "scene_id", "instruction_level", "instruction_type",
-                                 "start_position", "start_yaw", "goal_position", "goal_radius",
-                                 "geodesic_distance", "reference_path"]).to_pylist():
+        columns = ["episode_id", "scene_id", "instruction_level", "instruction_type", "start_position", "start_yaw",
+                   "goal_position", "goal_radius", "geodesic_distance", "reference_path"]
+        for row in table.select(columns + (["split"] if "split" in table.column_names else [])).to_pylist():
             path = np.asarray(row["reference_path"], dtype=np.float64).reshape(-1, 4)
             if len(path) == 0:
                 raise DataError(f"episode {row['episode_id']}: empty path", path=episodes_dir, field="reference_path")
@@ -85,5 +86,6 @@ def load_episodes(run_dir: Path, scene_id: str | None = None) -> list[Episode]:
                 level=row["instruction_level"] or NO_LEVEL, type=row["instruction_type"] or NO_LEVEL,
                 start=np.asarray(row["start_position"], dtype=np.float64), start_yaw=float(row["start_yaw"]),
                 goal=np.asarray(row["goal_position"], dtype=np.float64), goal_radius=float(row["goal_radius"]),
-                geodesic_distance=float(row["geodesic_distance"]), reference_path=path))
+                geodesic_distance=float(row["geodesic_distance"]), reference_path=path,
+                split=row.get("split") or NO_LEVEL))
     return out

@@ -35,6 +35,8 @@ EPISODE_FIELDS: list[tuple[pa.Field, str]] = [
     (pa.field("geodesic_distance", _F64, nullable=False), "Length of reference_path in the XY plane, metres."),
     (pa.field("instruction_source", pa.string()), "template or llm:<model>."),
     (pa.field("seed", pa.int64(), nullable=False), "The --seed the row was generated with."),
+    (pa.field("split", pa.string(), nullable=False),
+     "train, val_seen, val_unseen or test: unseen splits hold whole scenes, seen splits share scenes with train."),
 ]
 
 EPISODE_SCHEMA = pa.schema([f for f, _ in EPISODE_FIELDS])

@@ -37,6 +37,7 @@ class Episode:
     goal_radius: float
     geodesic_distance: float
     reference_path: np.ndarray  # [M, 4] x, y, z, yaw
+    split: str = NO_LEVEL  # train / val_seen / val_unseen / test; NO_LEVEL for runs made before splits
 
 
 @dataclass(frozen=True)
@@ -71,11 +72,12 @@ def mean_metrics(scores: Sequence[EpisodeScore]) -> dict[str, float]:
 
 @dataclass(frozen=True)
 class Summary:
-    """Means overall, per instruction level and per instruction type (keys sorted)."""
+    """Means overall, per instruction level, per instruction type and per split (keys sorted)."""
 
     overall: dict[str, float]
     by_level: dict[str, dict[str, float]]
     by_type: dict[str, dict[str, float]]
+    by_split: dict[str, dict[str, float]]
 
 
 def summarise_scores(scores: Sequence[EpisodeScore]) -> Summary:
@@ -83,4 +85,5 @@ def summarise_scores(scores: Sequence[EpisodeScore]) -> Summary:
         names = sorted({getattr(s.episode, key) for s in scores})
         return {n: mean_metrics([s for s in scores if getattr(s.episode, key) == n]) for n in names}
 
-    return Summary(overall=mean_metrics(scores), by_level=groups("level"), by_type=groups("type"))
+    return Summary(overall=mean_metrics(scores), by_level=groups("level"), by_type=groups("type"),
+                   by_split=groups("split"))

@@ -18,6 +18,10 @@ RUN_CONFIG = """# The demo run: `sagebench run` reads this file (`make demo` wri
 scenes = ["input/demo_apartment_{seed}"]
 out = "."
 seed = {seed}
+
+[gen_trajectories.splits]  # one scene: none to hold out for the unseen splits, so train and val_seen only
+val_unseen = 0.0
+test = 0.0
 """
 
 

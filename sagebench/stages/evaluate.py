@@ -18,7 +18,8 @@ from pydantic import BaseModel, ConfigDict, Field
 from sagebench import ui
 from sagebench.config import AgentConfig, from_options
 from sagebench.episodes.load import load_episodes
-from sagebench.errors import DataError
+from sagebench.episodes.splits import SPLITS
+from sagebench.errors import ConfigError, DataError
 from sagebench.evaluation.intensity import STEP_REPLAY, replay_intensity
 from sagebench.evaluation.predictions import Prediction, match_episodes, read_predictions
 from sagebench.evaluation.scoring import (
@@ -79,6 +80,7 @@ class Evaluation:
     predictions: Path
     predictions_sha256: str
     config: EvaluateConfig
+    split: str | None = None  # the split scored (evaluate --split), None for all
 
     def to_json(self) -> dict:
         def rounded(d: dict[str, float]) -> dict[str, float]:
@@ -92,8 +94,11 @@ class Evaluation:
             "overall": rounded(self.summary.overall),
             "by_level": {k: rounded(v) for k, v in self.summary.by_level.items()},
             "by_type": {k: rounded(v) for k, v in self.summary.by_type.items()},
+            "by_split": {k: rounded(v) for k, v in self.summary.by_split.items()},
+            "split": self.split,
             "per_episode": [{"episode_id": s.episode.episode_id, "scene_id": s.episode.scene_id,
                              "instruction_level": s.episode.level, "instruction_type": s.episode.type,
+                             "split": s.episode.split,
                              "missing": s.missing, **{m: _r(getattr(s.metrics, m)) for m in METRIC_NAMES}}
                             for s in self.scores],
             "distance_used": DISTANCE_USED,
@@ -109,6 +114,7 @@ class Evaluation:
         groups = [("overall", self.summary.overall)]
         groups += [(f"level {k}", v) for k, v in self.summary.by_level.items()]
         groups += [(f"type {k}", v) for k, v in self.summary.by_type.items()]
+        groups += [(f"split {k}", v) for k, v in self.summary.by_split.items()]
         for name, d in groups:
             lines.append(f"{name:<32}" + f"{d['episodes']:>9d}" + "".join(f"{d[m]:>9.3f}" for m in METRIC_NAMES))
         used: dict[str, list[str]] = {}
@@ -130,15 +136,24 @@ def _r(x: float) -> float | None:
 
 
 def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = EvaluateConfig(), *,
-             scene_id: str | None = None, out: Path | None = None) -> Evaluation:
-    """Score `predictions` against the run's episodes (or `scene_id`'s); write `out` (JSON) when given.
+             scene_id: str | None = None, split: str | None = None, out: Path | None = None) -> Evaluation:
+    """Score `predictions` against the run's episodes (or `scene_id`'s, or `split`'s: predictions of the run's
+    other episodes are then left out); write `out` (JSON) when given.
 
     Every check (format, ids, starts, inputs) passes before anything is replayed or written.
     """
     run_dir, predictions = Path(run_dir), Path(predictions)
     episodes = load_episodes(run_dir, scene_id)
-    by_id = {e.episode_id: e for e in episodes}
     rows = read_predictions(predictions)
+    if split is not None:
+        if split not in SPLITS:
+            raise ConfigError(f"{split!r} is not a split (one of {', '.join(SPLITS)})", field="--split")
+        others = {e.episode_id for e in episodes if e.split != split}
+        episodes = [e for e in episodes if e.split == split]
+        if not episodes:
+            raise DataError(f"no episodes in split {split!r}", path=run_dir)
+        rows = [(n, p) for n, p in rows if p.episode_id not in others]
+    by_id = {e.episode_id: e for e in episodes}
     matched, missing = match_episodes(rows, by_id, predictions, allow_missing=config.allow_missing)
     _check_start(by_id, rows, predictions, config.start_tolerance)
     need_replay = sorted({by_id[p.episode_id].scene_id for p in matched.values() if p.collision_intensity is None})
@@ -163,7 +178,8 @@ def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = Evaluate
         scores.append(EpisodeScore(e, score_prediction(e, p, c, config.metrics, on_foot=maps[e.scene_id].field(e.goal)),
                                    missing=False, replayed=replayed))
     result = Evaluation(scores=scores, summary=summarise_scores(scores), missing=missing, predictions=predictions,
-                        predictions_sha256=hashlib.sha256(predictions.read_bytes()).hexdigest(), config=config)
+                        predictions_sha256=hashlib.sha256(predictions.read_bytes()).hexdigest(), config=config,
+                        split=split)
     if out is not None:
         write_json(Path(out), result.to_json())
     return result

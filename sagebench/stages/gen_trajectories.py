@@ -20,6 +20,7 @@ from sagebench import ui
 from sagebench.astar.sampling import GridMap, SamplingConfig, SamplingResult, TargetSpec, Trajectory, sample_trajectories
 from sagebench.episodes.preview import render_paths
 from sagebench.episodes.shards import write_shards
+from sagebench.episodes.splits import SplitConfig, assign_splits
 from sagebench.config import from_options
 from sagebench.errors import ConfigError, DataError, first_error
 from sagebench.fileio import staged_dir, write_bytes
@@ -53,6 +54,7 @@ class GenTrajectoriesConfig(SamplingConfig):
         default=1.0, gt=0,
         description="Success radius, m: the stand point is ~0.2-0.3 m from the target, so 1 m means next to it.")
     preview_paths: int = Field(default=40, ge=0, description="Paths drawn in paths.png.")
+    splits: SplitConfig = Field(default=SplitConfig(), description="Split fractions and seed (episodes/splits.py).")
 
     @model_validator(mode="after")
     def _instruction_settings(self) -> GenTrajectoriesConfig:
@@ -218,6 +220,7 @@ def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str,
             instructed = list(ui.track(pool.map(instruct, trajectories), "instructions (llm)", len(trajectories)))
     else:
         instructed = [instruct(t) for t in trajectories]
+    split_of = assign_splits(scene_id, [t.trajectory_id for t in trajectories], config.splits)
     rows = []
     for traj, instructions in zip(trajectories, instructed, strict=True):
         wps = traj.waypoints
@@ -235,6 +238,7 @@ def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str,
             "reference_path": wps.tolist(),
             "geodesic_distance": traj.path_length_m,
             "seed": config.seed,
+            "split": split_of[traj.trajectory_id],
         }
         if not instructions:
             rows.append({**base, "episode_id": _episode_id(traj.trajectory_id, "none", "", 0),

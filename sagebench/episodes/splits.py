@@ -1,0 +1,64 @@
+"""Benchmark splits (R2R / SAGE-Bench style): unseen splits hold whole scenes, seen splits share scenes with train.
+
+A scene goes to `val_unseen` or `test` by a hash of (seed, scene_id) against the configured scene fractions, so a
+scene's split depends on nothing else: adding scenes to a run, or building them in another order or on more
+workers, never moves another scene (the realised scene fractions approach the configured ones as scenes grow).
+Every other scene is seen: its trajectories are ranked by a hash of (seed, trajectory_id) and the first
+round(n * val_seen) go to `val_seen`, the rest to `train`. All rows of one trajectory share its split, so a path
+seen in training is never scored in validation under another wording.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Sequence
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+SPLITS = ("train", "val_seen", "val_unseen", "test")
+Split = Literal["train", "val_seen", "val_unseen", "test"]
+
+
+class SplitConfig(BaseModel):
+    """Split fractions and their seed (defaults here, nowhere else)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    val_unseen: float = Field(default=0.1, ge=0, le=1, description="Share of scenes held out for val_unseen.")
+    test: float = Field(default=0.1, ge=0, le=1, description="Share of scenes held out for test.")
+    val_seen: float = Field(default=0.1, ge=0, le=1,
+                            description="Share of the seen scenes' trajectories for val_seen (the rest: train).")
+    seed: int = Field(default=0, ge=0, description="Seed of the split hashes.")
+
+    @model_validator(mode="after")
+    def _fractions(self) -> SplitConfig:
+        if self.val_unseen + self.test > 1:
+            raise ValueError(f"val_unseen + test is {self.val_unseen + self.test:g} of the scenes (at most 1)")
+        return self
+
+
+def _unit(seed: int, key: str) -> float:
+    """A number in [0, 1) fixed by (seed, key)."""
+    digest = hashlib.sha256(f"{seed}\0{key}".encode()).digest()
+    return int.from_bytes(digest[:8], "big") / 2.0**64
+
+
+def scene_split(scene_id: str, config: SplitConfig) -> Split | None:
+    """`val_unseen` or `test` for a held-out scene, None for a seen one."""
+    u = _unit(config.seed, "scene\0" + scene_id)
+    if u < config.val_unseen:
+        return "val_unseen"
+    if u < config.val_unseen + config.test:
+        return "test"
+    return None
+
+
+def assign_splits(scene_id: str, trajectory_ids: Sequence[str], config: SplitConfig) -> dict[str, Split]:
+    """The split of every trajectory of one scene (module docstring)."""
+    held_out = scene_split(scene_id, config)
+    if held_out is not None:
+        return {t: held_out for t in trajectory_ids}
+    ranked = sorted(set(trajectory_ids), key=lambda t: (_unit(config.seed, "trajectory\0" + t), t))
+    n_val = round(len(ranked) * config.val_seen)
+    return {t: ("val_seen" if i < n_val else "train") for i, t in enumerate(ranked)}
