@@ -12,7 +12,7 @@ from sagebench.episodes.shards import read_episodes, rows_table, write_shards
 DESIGN_COLUMNS = ["episode_id", "trajectory_id", "scene_id", "instruction_level", "instruction_type",
                   "instruction_text", "start_instance_id", "goal_instance_id", "start_room", "goal_room",
                   "start_position", "start_yaw", "goal_position", "goal_radius", "reference_path",
-                  "geodesic_distance", "instruction_source", "seed"]
+                  "geodesic_distance", "instruction_source", "seed", "split"]  # split: issue 14
 
 
 def _row(i: int, **over):
@@ -21,7 +21,7 @@ def _row(i: int, **over):
            "start_instance_id": 3, "goal_instance_id": None, "start_room": "r1", "goal_room": "r2",
            "start_position": [1.0, 2.0, 0.0], "start_yaw": 0.5, "goal_position": [4.0, 2.0, 0.0], "goal_radius": 1.0,
            "reference_path": [[1.0, 2.0, 0.0, 0.5], [4.0, 2.0, 0.0, 0.0]], "geodesic_distance": 3.2,
-           "instruction_source": "template", "seed": 7}
+           "instruction_source": "template", "seed": 7, "split": "train"}
     return {**row, **over}
 
 
