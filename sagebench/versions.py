@@ -31,10 +31,15 @@ def output_versions() -> dict[str, str]:
     return versions
 
 
-def version_changes(recorded: dict[str, str] | None, current: dict[str, str]) -> list[str]:
-    """'numpy 1.26.4 -> 2.1.3' for each library whose recorded version differs from the current one;
-    one line saying so when nothing was recorded (a manifest written before versions were recorded)."""
-    if not recorded:
-        return ["the manifest records no library versions"]
+def likely_cause(recorded: object, current: dict[str, str]) -> str:
+    """Why a regeneration may differ from a run whose manifest recorded `recorded` ("" when the versions match)."""
+    if not isinstance(recorded, dict):
+        return "unknown, the manifest records no library versions (an older sagebench wrote it)"
+    changes = version_changes(recorded, current)
+    return "other library versions than the run was made with: " + ", ".join(changes) if changes else ""
+
+
+def version_changes(recorded: dict[str, str], current: dict[str, str]) -> list[str]:
+    """'numpy 1.26.4 -> 2.1.3' for each library whose recorded version differs from the current one."""
     return [f"{name} {recorded.get(name, 'not recorded')} -> {current.get(name, 'not recorded')}"
             for name in sorted(recorded.keys() | current.keys()) if recorded.get(name) != current.get(name)]

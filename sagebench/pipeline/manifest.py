@@ -58,7 +58,7 @@ class FileDiff:
     changed: tuple[str, ...]
     missing: tuple[str, ...]
     extra: tuple[str, ...]
-    version_changes: tuple[str, ...] = ()  # libraries whose versions differ from the manifest's ('numpy 1 -> 2')
+    cause: str = ""  # what probably made the files differ, when known
 
     @property
     def ok(self) -> bool:
@@ -67,10 +67,7 @@ class FileDiff:
     def lines(self) -> list[str]:
         lines = ([f"changed: {p}" for p in self.changed] + [f"missing: {p}" for p in self.missing]
                  + [f"extra: {p}" for p in self.extra])
-        if lines and self.version_changes:
-            lines.append("likely cause: other library versions than the run was made with: "
-                         + ", ".join(self.version_changes))
-        return lines
+        return lines + ([f"likely cause: {self.cause}"] if lines and self.cause else [])
 
 
 def compare(expected: dict[str, str], actual: dict[str, str]) -> FileDiff:

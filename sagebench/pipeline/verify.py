@@ -10,7 +10,7 @@ from pathlib import Path
 from sagebench.errors import DataError
 from sagebench.pipeline.manifest import FileDiff, compare, hash_run
 from sagebench.run_layout import MANIFEST
-from sagebench.versions import output_versions, version_changes
+from sagebench.versions import likely_cause, output_versions
 
 
 def read_manifest(run_dir: Path) -> dict:
@@ -47,4 +47,4 @@ def regenerate_and_compare(run_dir: Path, config_path: Path, *, workers: int = 1
         diff = compare(expected["files"], hash_run(Path(tmp)))
     if diff.ok:
         return diff
-    return replace(diff, version_changes=tuple(version_changes(expected.get("versions"), output_versions())))
+    return replace(diff, cause=likely_cause(expected.get("versions"), output_versions()))
