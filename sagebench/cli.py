@@ -61,14 +61,17 @@ def _global(
 def synth_scene(
     out: Annotated[Path, typer.Option("--out", help="Scene directory to create (replaced if it exists).")],
     seed: Annotated[int, typer.Option(help="Layout seed; the same seed gives byte-identical files.")] = 0,
+    furniture: Annotated[Path | None, typer.Option(
+        help="Sweet Home 3D furniture catalogue (directory or .sh3f) whose models replace the procedural pieces.")] = None,
 ) -> None:
     """Write a procedural apartment in the artist-scene input format.
 
-    Reads nothing. Writes OUT/scene.json and OUT/meshes/*.glb|.ply|.obj.
+    Reads FURNITURE/PluginFurnitureCatalog.properties and its OBJ/MTL models when given. Writes
+    OUT/scene.json and OUT/meshes/*.glb|.ply|.obj.
     """
     from sagebench.scene.synth import write_synth_scene
 
-    spec = write_synth_scene(out, seed=seed)
+    spec = write_synth_scene(out, seed=seed, furniture=furniture)
     typer.echo(f"wrote {out} ({len(spec.rooms)} rooms, {len(spec.objects)} objects)")
 
 

@@ -21,6 +21,7 @@ from shapely.geometry import Polygon, box as rect
 
 from sagebench.fileio import dumps_json, staged_dir, write_bytes
 from sagebench.scene import assets
+from sagebench.scene.furniture import CATEGORY_NOUNS, Catalogue, fit_to_slot
 from sagebench.scene.loader import SCENE_FILE, yaw_quaternion
 from sagebench.scene.model import Door, Room, SceneObject, SceneSpec, Transform
 
@@ -72,9 +73,14 @@ class _Layout:
     clear_zones: list[Polygon] = field(default_factory=list)
 
 
-def synth_spec_and_meshes(seed: int) -> tuple[SceneSpec, dict[str, bytes]]:
-    """The demo scene for `seed`: its spec and mesh files (relative path -> bytes)."""
+def synth_spec_and_meshes(seed: int, furniture: Catalogue | None = None) -> tuple[SceneSpec, dict[str, bytes]]:
+    """The demo scene for `seed`: its spec and mesh files (relative path -> bytes).
+
+    With a `furniture` catalogue, each piece whose category some catalogue entry fits (by its name's head
+    noun, entries taken in turn) is that entry's model instead of the procedural one; the layout is the same.
+    """
     rng = np.random.default_rng(seed)
+    pick = _FurniturePicker(furniture) if furniture is not None else None
     layout = _layout(rng)
     files: dict[str, bytes] = {}
     objects: list[SceneObject] = []
@@ -108,11 +114,16 @@ def synth_spec_and_meshes(seed: int) -> tuple[SceneSpec, dict[str, bytes]]:
             room_id=room_id, attributes={"material": "glass"})
     for room in layout.rooms:
         for item, colour, material in _furnish(room, layout, rng):
+            transform = Transform(translation=_r3((*item.xy, item.z)), rotation_wxyz=yaw_quaternion(item.yaw))
+            model = None if pick is None else pick(item)
+            if model is not None:
+                mesh, entry_id = model
+                add(item.category, "object", mesh, "glb", transform, room_id=room.id, attributes={"asset": entry_id})
+                continue
             asset = assets.CATALOGUE[item.category]
             mesh = asset.build(*item.size, assets.COLOURS[colour])
-            add(item.category, "object", mesh, asset.ext,
-                Transform(translation=_r3((*item.xy, item.z)), rotation_wxyz=yaw_quaternion(item.yaw)),
-                room_id=room.id, attributes={"colour": colour, "material": material})
+            add(item.category, "object", mesh, asset.ext, transform, room_id=room.id,
+                attributes={"colour": colour, "material": material})
 
     rooms = [Room(id=r.id, type=r.type, polygon=[_r2(p) for p in r.poly.exterior.coords[:-1]]) for r in layout.rooms]
     spec = SceneSpec(scene_id=f"demo_apartment_{seed}", units="m", up_axis="Z", floor_height=0.0,
@@ -120,9 +131,33 @@ def synth_spec_and_meshes(seed: int) -> tuple[SceneSpec, dict[str, bytes]]:
     return spec, files
 
 
-def write_synth_scene(out: Path, *, seed: int = 0) -> SceneSpec:
-    """Write the demo scene for `seed` into `out` (replaced whole, atomically)."""
-    spec, files = synth_spec_and_meshes(seed)
+class _FurniturePicker:
+    """Catalogue models for placed items: the entries fitting a category in turn (shared between categories
+    with the same nouns, so a scene shows as many different models as the catalogue has), each shrunk to its
+    slot; None where no entry fits."""
+
+    def __init__(self, catalogue: Catalogue):
+        self.catalogue = catalogue
+        self.turn: dict[frozenset[str], int] = {}
+        self.models: dict[int, trimesh.Trimesh] = {}
+
+    def __call__(self, item: _Item) -> tuple[trimesh.Trimesh, str] | None:
+        entries = self.catalogue.matching(item.category)
+        if not entries or item.size is None:
+            return None
+        key = CATEGORY_NOUNS[item.category]
+        k = self.turn.get(key, 0)
+        self.turn[key] = k + 1
+        entry = entries[k % len(entries)]
+        if entry.number not in self.models:
+            self.models[entry.number] = self.catalogue.load_model(entry)
+        return fit_to_slot(self.models[entry.number], item.size, CEILING - 0.1 - item.z), entry.id
+
+
+def write_synth_scene(out: Path, *, seed: int = 0, furniture: Path | None = None) -> SceneSpec:
+    """Write the demo scene for `seed` into `out` (replaced whole, atomically), furnished from the Sweet Home
+    3D catalogue `furniture` (a directory or .sh3f) where given."""
+    spec, files = synth_spec_and_meshes(seed, None if furniture is None else Catalogue(furniture))
     with staged_dir(Path(out)) as tmp:
         for name, data in files.items():
             write_bytes(tmp / name, data)
