@@ -31,6 +31,12 @@ class Mutant:
 
 
 MUTANTS = (
+    Mutant("collider quality: faces between touching parts counted as surface", "sagebench/collider_export/quality.py",
+           "keep = ~_inside_other(coll_pts + 1e-6 * collider.face_normals[coll_face], owner, planes)",
+           "keep = np.ones(len(coll_pts), dtype=bool)", ("tests/test_collider_quality.py",)),
+    Mutant("collider quality: band footprints without their enclosed areas", "sagebench/collider_export/quality.py",
+           "src = ndimage.binary_fill_holes(rasterise(src_polys, lo, pitch, shape))",
+           "src = rasterise(src_polys, lo, pitch, shape)", ("tests/test_collider_quality.py",)),
     Mutant("ndtw divided by the number of poses", "sagebench/metrics/episode.py",
            "(len(ref) * config.ndtw_threshold)", "(len(poses) * config.ndtw_threshold)", ("tests/test_metrics.py",)),
     Mutant("SPL rewards a path shorter than the geodesic", "sagebench/metrics/episode.py",

@@ -19,6 +19,7 @@ from sagebench.collider_export.coacd_cache import CoacdParams, PartCache, coacd_
 from sagebench.collider_export.convex import hull_part
 from sagebench.collider_export.decompose import MeshColliders, decompose_meshes
 from sagebench.collider_export.mjcf_writer import MjcfBody, mjcf_text
+from sagebench.collider_export.quality import ColliderQuality, measure_objects
 from sagebench.collider_export.usd_writer import StageObject, prim_name, stage_text
 from sagebench.config import from_options
 from sagebench.errors import DataError
@@ -73,11 +74,19 @@ class ExportResult:
     cached_pieces: int  # concave pieces read back from the cache
     fallback_pieces: int  # concave pieces CoACD failed on (now their convex hull)
     gaussians: int  # Gaussians written into the stage
+    worst: tuple[str, ColliderQuality] | None = None  # the measured object with the largest band error
 
     def line(self) -> str:
         return (f"{self.scene_id}: {self.objects} objects, {self.parts} collider parts ({self.exact_parts} exact, "
                 f"CoACD {self.coacd_pieces} run / {self.cached_pieces} cached / {self.fallback_pieces} failed), "
-                f"{self.gaussians} Gaussians -> {self.out_dir / USD}, {self.out_dir / MJCF}")
+                f"{self.gaussians} Gaussians{self.quality_text()} -> {self.out_dir / USD}, {self.out_dir / MJCF}")
+
+    def quality_text(self) -> str:
+        if self.worst is None:
+            return ""
+        name, q = self.worst
+        return (f", worst collider {name}: agent band {q.band_over_cm:.1f} cm over / {q.band_under_cm:.1f} cm under, "
+                f"surface {q.to_source_max_cm:.1f} / {q.from_source_max_cm:.1f} cm")
 
 
 def scene_dirs(run_dir: Path, scene_id: str | None) -> list[Path]:
@@ -109,6 +118,7 @@ def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> 
     local = _local_meshes(scene)
     colliders = decompose_meshes(local, config.coacd, cache=cache, workers=config.workers,
                                  convex_tolerance=config.convex_tolerance)
+    quality = _measure_objects(scene, local, colliders)
     per_object = _split_gaussians(scene_dir / GAUSSIANS, scene)
     rooms = {r.id: r.type for r in spec.rooms}
     objects: list[StageObject] = []
@@ -134,7 +144,7 @@ def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> 
             files[rel] = trimesh.Trimesh(world.vertices, world.faces, process=False).export(file_type="stl")
             part_files.append(rel)
         bodies.append(MjcfBody(name, part_files))
-        index.append(_index_entry(obj.instance_id, name, obj.mesh, part_files, mc))
+        index.append(_index_entry(obj.instance_id, name, obj.mesh, part_files, mc, quality.get(obj.instance_id)))
     usda = stage_text(spec.scene_id, objects, None if per_object is None else per_object.get(0))
     mjcf = mjcf_text(spec.scene_id, bodies, meshdir=COLLIDERS, floor_height=spec.floor_height)
     files[COLLIDERS_INDEX] = dumps_json({
@@ -147,14 +157,24 @@ def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> 
     write_text(scene_dir / USD, usda)
     write_text(scene_dir / MJCF, mjcf)
     pieces = [p for mc in colliders.values() for p in mc.pieces]
+    names = {o.instance_id: prim_name(o) for o in objects}
+    worst = max(((names[i], q) for i, q in quality.items()), key=lambda nq: nq[1].band_error_cm, default=None)
     return ExportResult(
         scene_id=spec.scene_id, out_dir=scene_dir, objects=len(objects),
         parts=sum(len(colliders[o.mesh].parts) for o in spec.objects),
         exact_parts=sum(colliders[o.mesh].exact_parts for o in spec.objects),
         coacd_pieces=sum(p.source == "coacd" for p in pieces), cached_pieces=sum(p.source == "cache" for p in pieces),
         fallback_pieces=sum(p.source == "hull_fallback" for p in pieces),
-        gaussians=0 if per_object is None else sum(g.count for g in per_object.values()),
+        gaussians=0 if per_object is None else sum(g.count for g in per_object.values()), worst=worst,
     )
+
+
+def _measure_objects(scene: LoadedScene, local: dict[str, tuple[np.ndarray, np.ndarray]],
+                     colliders: dict[str, MeshColliders]) -> dict[int, ColliderQuality]:
+    """Quality of the objects whose colliders have decomposed pieces (exact convex pieces are their own collider)."""
+    placed = [(o.instance_id, o.mesh, o.transform.as_matrix() if o.door is None
+               else door_pose(o.door) @ o.transform.as_matrix()) for o in scene.spec.objects if colliders[o.mesh].pieces]
+    return measure_objects(placed, local, {name: mc.parts for name, mc in colliders.items()}, scene.spec.floor_height)
 
 
 def _local_meshes(scene: LoadedScene) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -187,9 +207,11 @@ def _split_gaussians(path: Path, scene: LoadedScene) -> dict[int, Gaussians] | N
     return {int(i): g.take(order[s:e]) for i, s, e in zip(ids, starts, ends)}
 
 
-def _index_entry(instance_id: int, name: str, mesh: str, part_files: list[str], mc: MeshColliders) -> dict:
+def _index_entry(instance_id: int, name: str, mesh: str, part_files: list[str], mc: MeshColliders,
+                 quality: ColliderQuality | None) -> dict:
     return {
         "instance_id": instance_id, "name": name, "mesh": mesh, "parts": part_files, "exact_parts": mc.exact_parts,
         "concave_pieces": [{"cache_key": p.key, "method": "hull_fallback" if p.source == "hull_fallback" else "coacd",
                             "parts": len(p.parts)} for p in mc.pieces],
+        "quality": None if quality is None else quality.as_dict(),
     }

@@ -1,0 +1,76 @@
+"""The collider quality measure on shapes whose answers are known by hand."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from sagebench.collider_export.convex import hull_part
+from sagebench.collider_export.quality import band_in_mesh_frame, measure, measure_placed
+
+# an L: [0,2]x[0,1] plus [0,1]x[1,2], 1 m tall; its hull adds the triangle (1,1) (2,1) (1,2), 0.5 m^2 x 1 m
+L_SHAPE = trimesh.creation.extrude_triangulation(
+    np.array([(0, 0), (2, 0), (2, 1), (1, 1), (1, 2), (0, 2)], float), np.array([(0, 1, 2), (0, 2, 3), (0, 3, 5), (3, 4, 5)]), 1.0)
+LEG_A = trimesh.creation.box(bounds=[[0, 0, 0], [2, 1, 1]])
+LEG_B = trimesh.creation.box(bounds=[[0, 1, 0], [1, 2, 1]])
+
+
+def test_a_box_is_its_own_hull():
+    box = trimesh.creation.box((1.0, 2.0, 0.8)).apply_translation((0.3, 0.1, 0.4))
+    q = measure(box.vertices, box.faces, [hull_part(box.vertices)])
+    assert q.to_source_max_cm < 1e-9 and q.from_source_max_cm == 0.0
+    assert q.outside_volume_l == 0.0 and q.band_over_cm == 0.0 and q.band_under_cm == 0.0
+
+
+def test_the_hull_of_an_l_bridges_its_notch():
+    q = measure(L_SHAPE.vertices, L_SHAPE.faces, [hull_part(L_SHAPE.vertices)])
+    # the farthest hull point from the L is the middle of the bridging face, (1.5, 1.5): 0.5 m from x = 1 and y = 1
+    assert 45.0 <= q.to_source_max_cm <= 50.0 + 1e-9
+    assert q.band_over_cm == pytest.approx(50.0, abs=1.0) and q.band_under_cm == 0.0
+    assert q.from_source_max_cm == 0.0
+    # the notch is 500 l; voxels the L's surface touches (2 cm thick, 2.5 m^2 facing the notch) count as the L's
+    assert 500.0 - 2.5 * 0.02 * 1000 <= q.outside_volume_l <= 500.0
+
+
+def test_two_touching_boxes_are_the_l_exactly():
+    q = measure(L_SHAPE.vertices, L_SHAPE.faces, [hull_part(LEG_A.vertices), hull_part(LEG_B.vertices)])
+    # the face the two boxes share is inside the collider, not its surface
+    assert q.to_source_max_cm < 1e-9 and q.from_source_max_cm == 0.0
+    assert q.outside_volume_l == 0.0 and q.band_over_cm == 0.0 and q.band_under_cm == 0.0
+
+
+def test_a_missing_leg_is_under_coverage():
+    q = measure(L_SHAPE.vertices, L_SHAPE.faces, [hull_part(LEG_A.vertices)])
+    assert 90.0 <= q.from_source_max_cm <= 100.0 + 1e-9  # the far end of leg B, y = 2, is 1 m from leg A
+    assert q.band_under_cm == pytest.approx(100.0, abs=1.0) and q.band_over_cm == 0.0
+    # leg A's face y = 1 under where leg B should be lies inside the L: 0.5 m from its surface at (0.5, 1, 0.5)
+    assert 45.0 <= q.to_source_max_cm <= 50.0 + 1e-9 and q.outside_volume_l == 0.0
+
+
+def test_only_the_agent_band_counts_for_navigation():
+    lamp = L_SHAPE.copy().apply_translation((0, 0, 1.3))  # hangs above 1.2 m: its bad hull blocks nobody
+    q = measure(lamp.vertices, lamp.faces, [hull_part(lamp.vertices)])
+    assert q.band_over_cm == 0.0 and q.band_under_cm == 0.0 and q.to_source_max_cm > 45.0
+    # 1.15 m up, only its bottom 5 cm is in the band, and there the hull still bridges the notch
+    low = L_SHAPE.copy().apply_translation((0, 0, 1.15))
+    assert measure(low.vertices, low.faces, [hull_part(low.vertices)]).band_over_cm == pytest.approx(50.0, abs=1.0)
+
+
+def test_band_in_mesh_frame_and_placed_measures_agree():
+    yaw = trimesh.transformations.rotation_matrix(0.7, (0, 0, 1))
+    yaw[:3, 3] = (1.0, -2.0, 0.5)
+    assert band_in_mesh_frame(yaw, 0.1) == pytest.approx((0.1 + 0.05 - 0.5, 0.1 + 1.2 - 0.5))
+    tilt = trimesh.transformations.rotation_matrix(math.pi / 2, (1, 0, 0))
+    assert band_in_mesh_frame(tilt, 0.0) is None
+    parts = [hull_part(L_SHAPE.vertices)]
+    placed = measure_placed(L_SHAPE.vertices, L_SHAPE.faces, parts, yaw, 0.1)
+    world = measure(trimesh.transform_points(L_SHAPE.vertices, yaw), L_SHAPE.faces,
+                    [hull_part(trimesh.transform_points(L_SHAPE.vertices, yaw))], band=(0.15, 1.3))
+    assert placed.to_source_max_cm == pytest.approx(world.to_source_max_cm, abs=0.5)
+    assert placed.band_over_cm == pytest.approx(world.band_over_cm, abs=1.5)
+    # tilted onto its side: measured in world coordinates, where the L is 2 m tall and 1 m deep
+    on_side = measure_placed(L_SHAPE.vertices, L_SHAPE.faces, parts, tilt, 0.0)
+    assert on_side.band_over_cm == pytest.approx(0.0, abs=1.0)  # its shadow in the band is a full rectangle
