@@ -182,23 +182,49 @@ def gen_trajectories_cmd(
     llm_cache_dir: Annotated[Path | None, typer.Option(
         help="Answer cache, keyed by sha256 of (model, prompt) (default: the user cache directory).")] = None,
     llm_concurrency: Annotated[int | None, typer.Option(help="LLM requests in flight at once.")] = None,
+    llm_timeout: Annotated[float | None, typer.Option(
+        help="Deadline of one whole LLM request (connect to last byte), s.")] = None,
+    llm_attempts: Annotated[int | None, typer.Option(help="HTTP attempts per LLM request (429, 5xx, timeouts).")] = None,
+    llm_temperature: Annotated[float | None, typer.Option(help="Sampling temperature of the LLM.")] = None,
+    llm_max_tokens: Annotated[int | None, typer.Option(help="Longest LLM answer, tokens.")] = None,
+    llm_min_share: Annotated[float | None, typer.Option(
+        help="Exit 1 (writing nothing) when a scene gets a smaller share of high-level rows from the LLM; with no "
+             "LLM row it always does.")] = None,
+    llm_api_key_env: Annotated[str | None, typer.Option(
+        help="Environment variable holding the LLM API key (default: SAGEBENCH_LLM_API_KEY).")] = None,
 ) -> None:
     """Sample A* trajectories between objects and rooms and write them with low- and high-level instructions.
 
     Reads RUN_DIR/scenes/<id>/topdown.npz, semantic_map.json and scene.json. Writes
     RUN_DIR/episodes/<id>/part-NNNNN.parquet (one row per trajectory-instruction pair) and
     RUN_DIR/episodes/<id>/_preview/paths.png. With --instructions llm it also reads and writes the
-    answer cache; the API key comes from the environment variable SAGEBENCH_LLM_API_KEY.
+    answer cache; the API key comes from the environment variable SAGEBENCH_LLM_API_KEY (or the one
+    --llm-api-key-env names). Exit status 1 when the LLM gave no usable answer for a scene.
     """
+    import os
+
+    from sagebench.errors import ConfigError, Interrupted
     from sagebench.stages.gen_trajectories import gen_trajectories, make_config
 
     llm = {k: v for k, v in {"base_url": llm_base_url, "model": llm_model, "cache_dir": llm_cache_dir,
-                             "concurrency": llm_concurrency}.items() if v is not None}
+                             "concurrency": llm_concurrency, "timeout_s": llm_timeout, "max_attempts": llm_attempts,
+                             "temperature": llm_temperature, "max_tokens": llm_max_tokens,
+                             "min_share": llm_min_share}.items() if v is not None}
     config = make_config(per_scene=per_scene, seed=seed, shard_size=shard_size, instructions=instructions,
                          min_geodesic_m=min_geodesic, max_geodesic_m=max_geodesic, goal_radius_m=goal_radius,
                          llm=llm or None)
-    for result in gen_trajectories(run_dir, config, scene_id=scene):
-        typer.echo(result.summary())
+    api_key = None
+    if llm_api_key_env is not None:
+        if config.instructions != "llm":
+            raise ConfigError("used only with --instructions llm", field="--llm-api-key-env")
+        if llm_api_key_env not in os.environ:
+            raise ConfigError(f"the environment variable {llm_api_key_env} is not set", field="--llm-api-key-env")
+        api_key = os.environ[llm_api_key_env]
+    try:
+        for result in gen_trajectories(run_dir, config, scene_id=scene, api_key=api_key):
+            typer.echo(result.summary())
+    except KeyboardInterrupt:  # click would print "Aborted!" and exit 1
+        raise Interrupted("interrupted: the scene in progress was not written") from None
 
 
 @app.command("render", cls=_defaults_from("sagebench.stages.render:RenderConfig"))

@@ -38,6 +38,18 @@ class DataError(SagebenchError):
     """A file sagebench wrote earlier (map, shard, PLY) is missing or malformed."""
 
 
+class ServiceError(SagebenchError):
+    """A service the command relies on (the LLM server) did not deliver; exit status 1, nothing written."""
+
+    exit_code = 1
+
+
+class Interrupted(SagebenchError):
+    """Ctrl-C: the work in progress was dropped, not written; exit status 130 as for SIGINT."""
+
+    exit_code = 130
+
+
 def first_error(err: ValidationError) -> tuple[str | None, str, dict[str, Any]]:
     """The first problem pydantic found: (field path such as 'objects[3].kind' or None, message, raw entry)."""
     e = err.errors(include_url=False)[0]

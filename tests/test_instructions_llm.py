@@ -1,75 +1,33 @@
-"""LLM mode against a fake chat-completions server on 127.0.0.1 (started here; no other network is used).
-
-Covers a good answer, malformed JSON, a hallucinated object (template fallback), a timeout, 429 then
-success, 5xx until the attempts run out, and the cache (a second run sends no request, same bytes).
+"""LLM mode: the prompt, the instructor (grounding, retry, fallback, breaker) and gen-trajectories
+--instructions llm, against the fake server of tests/fake_llm.py on 127.0.0.1 (no other network is used).
 """
 
 import json
+import os
 import re
 import shutil
-import threading
+import signal
+import subprocess
+import sys
 import time
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+import zlib
 
 import numpy as np
 import pytest
+from fake_llm import FakeLLM, Reply, answer, bounded
 
 from sagebench.instructions.base import TrajectoryText, make_context
-from sagebench.instructions.llm import ChatClient, LLMConfig, LLMError, LLMInstructor, build_prompt, parse_answer
+from sagebench.instructions.llm import LLMInstructor
+from sagebench.instructions.llm_client import ChatClient, LLMConfig
 from sagebench.instructions.naming import ObjectInfo, RoomInfo
+from sagebench.instructions.prompt import build_prompt, estimate_tokens, parse_answer
 
-MAX_REQUESTS = 200  # a runaway client gets 500s past this, and the test that caused it fails
-
-
-class FakeLLM:
-    """POST /v1/chat/completions; `respond(prompt, n)` -> (status, body dict or str, delay s, headers)."""
-
-    def __init__(self, respond):
-        self.respond = respond
-        self.prompts: list[str] = []
-        self.lock = threading.Lock()
-        fake = self
-
-        class Handler(BaseHTTPRequestHandler):
-            def do_POST(self):  # noqa: N802 (http.server's name)
-                body = json.loads(self.rfile.read(int(self.headers["Content-Length"])))
-                assert self.path == "/v1/chat/completions" and body["model"] == "fake"
-                with fake.lock:
-                    fake.prompts.append(body["messages"][0]["content"])
-                    n = len(fake.prompts)
-                status, payload, delay, headers = (500, "too many requests in a test", 0, {}) if n > MAX_REQUESTS \
-                    else fake.respond(fake.prompts[-1], n)
-                time.sleep(delay)
-                if isinstance(payload, dict):
-                    payload = {"choices": [{"message": {"role": "assistant", "content": json.dumps(payload)}}]}
-                data = (json.dumps(payload) if not isinstance(payload, str) else payload).encode()
-                try:
-                    self.send_response(status)
-                    for k, v in headers.items():
-                        self.send_header(k, v)
-                    self.send_header("Content-Length", str(len(data)))
-                    self.end_headers()
-                    self.wfile.write(data)
-                except (BrokenPipeError, ConnectionResetError):
-                    pass  # the client timed out and left
-
-            def log_message(self, *args):
-                pass
-
-        self.server = ThreadingHTTPServer(("127.0.0.1", 0), Handler)
-        self.server.daemon_threads = True
-        self.url = f"http://127.0.0.1:{self.server.server_address[1]}/v1"
-        self.thread = threading.Thread(target=self.server.serve_forever, daemon=True)
-        self.thread.start()
-
-    def close(self):
-        self.server.shutdown()
-        self.server.server_close()
+BOUND_S = 20.0  # far above what any call here takes
 
 
 @pytest.fixture
 def fake_llm():
-    servers = []
+    servers: list[FakeLLM] = []
 
     def start(respond):
         servers.append(FakeLLM(respond))
@@ -78,67 +36,21 @@ def fake_llm():
     yield start
     for s in servers:
         s.close()
-    assert all(len(s.prompts) <= MAX_REQUESTS for s in servers)
 
 
-def goal_answer(prompt: str) -> dict:
+def goal_answer(prompt: str) -> Reply:
     """A grounded answer: go to the goal by the unique name the prompt gives."""
     goal = re.search(r"^- goal: (.*?)(?:, in .*)?$", prompt, re.M).group(1)
-    return {"instruction": f"Please go to {goal} and wait there."}
+    return answer(f"Please go to {goal} and wait there.")
 
 
 def _config(tmp_path, url, **kw):
     return LLMConfig(base_url=url, model="fake", cache_dir=tmp_path / "cache", backoff_s=0.01, **kw)
 
 
-# ---------------------------------------------------------------- the client
-
-
-def test_good_answer_is_returned_and_cached_by_model_and_prompt(fake_llm, tmp_path):
-    server = fake_llm(lambda p, n: (200, {"instruction": f"echo {p}"}, 0, {}))
-    client = ChatClient(_config(tmp_path, server.url))
-    assert json.loads(client.complete("hello"))["instruction"] == "echo hello"
-    assert json.loads(client.complete("hello"))["instruction"] == "echo hello"
-    assert len(server.prompts) == 1 and client.stats["cache_hits"] == 1
-    assert client.cache_path("hello").is_file() and client.cache_path("hello") != client.cache_path("hello!")
-    other = ChatClient(LLMConfig(base_url=server.url, model="other", cache_dir=tmp_path / "cache"))
-    assert other.cache_path("hello") != client.cache_path("hello")  # the model is part of the key
-
-
-def test_429_is_retried_after_the_servers_delay(fake_llm, tmp_path):
-    server = fake_llm(lambda p, n: (429, {"error": "slow down"}, 0, {"Retry-After": "0"}) if n == 1
-                      else (200, {"instruction": "ok"}, 0, {}))
-    client = ChatClient(_config(tmp_path, server.url))
-    assert json.loads(client.complete("x")) == {"instruction": "ok"}
-    assert len(server.prompts) == 2 and client.stats["retries"] == 1
-
-
-def test_a_timeout_is_retried(fake_llm, tmp_path):
-    server = fake_llm(lambda p, n: (200, {"instruction": "late"}, 1.5 if n == 1 else 0, {}))
-    client = ChatClient(_config(tmp_path, server.url, timeout_s=0.3))
-    assert json.loads(client.complete("x")) == {"instruction": "late"}
-    assert len(server.prompts) == 2
-
-
-def test_5xx_until_the_attempts_run_out_raises_and_caches_nothing(fake_llm, tmp_path):
-    server = fake_llm(lambda p, n: (503, {"error": "down"}, 0, {}))
-    client = ChatClient(_config(tmp_path, server.url, max_attempts=3))
-    t0 = time.perf_counter()
-    with pytest.raises(LLMError, match=r"HTTP 503 .* \(after 3 attempts\)"):
-        client.complete("x")
-    assert len(server.prompts) == 3 and time.perf_counter() - t0 >= 0.03  # backoff 0.01 + 0.02
-    assert not client.cache_path("x").exists()
-
-
-def test_a_client_error_is_not_retried(fake_llm, tmp_path):
-    server = fake_llm(lambda p, n: (400, {"error": "bad model"}, 0, {}))
-    with pytest.raises(LLMError, match="HTTP 400"):
-        ChatClient(_config(tmp_path, server.url)).complete("x")
-    assert len(server.prompts) == 1
-
-
-def test_parse_answer_tolerates_fences_and_rejects_non_json():
+def test_parse_answer_tolerates_fences_and_the_stop_brace_and_rejects_non_json():
     assert parse_answer('```json\n{"instruction": "Go to  the sofa."}\n```') == "Go to the sofa."
+    assert parse_answer('{"instruction": "Go to the sofa."') == "Go to the sofa."  # cut at the stop "}"
     assert parse_answer("Go to the sofa.") is None
     assert parse_answer('{"instruction": 3}') is None
     assert parse_answer('{"instruction": "unterminated}') is None
@@ -170,9 +82,33 @@ def test_prompt_holds_the_scene_map_and_the_trajectory(scene):
     assert "Attribute Based" in prompt and '{"instruction"' in prompt
 
 
+def test_a_prompt_over_its_budget_leaves_out_the_farthest_objects_first(fake_llm, tmp_path, scene):
+    ctx0, text0 = scene
+    extra = [ObjectInfo(4, "armchair", "l", {"colour": "green"}), ObjectInfo(5, "plant", "k", {"colour": "green"})]
+    boxes = {1: (1, 1, 3, 2), 2: (8, 3, 8.7, 3.8), 3: (6, 1, 7, 2), 4: (0.2, 0.2, 0.6, 0.6), 5: (8.5, 0.1, 8.9, 0.5)}
+    feet = {i: [np.array([(a, b), (c, b), (c, d), (a, d)], float)] for i, (a, b, c, d) in boxes.items()}
+    ctx = make_context([*ctx0.objects, *extra], ctx0.rooms, ctx0.room_polygons, feet, type_mix=ctx0.type_mix)
+    text = TrajectoryText(text0.waypoints, "the sofa", "the fridge", "object", "object", 1, 2, "l", "k", ctx)
+    full = build_prompt("Attribute_Based", text)
+    assert build_prompt("Attribute_Based", text, estimate_tokens(full)) == full
+    short = build_prompt("Attribute_Based", text, estimate_tokens(full) - 1)  # the plant is 2.7 m off, the armchair 2.4
+    assert estimate_tokens(short) < estimate_tokens(full) and "(1 more objects, farther from the path, are left out)" in short
+    assert "- the plant: plant" not in short and "- the armchair: armchair" in short
+    shortest = build_prompt("Attribute_Based", text, estimate_tokens(full) - 25)
+    assert "- the armchair" not in shortest and "(2 more objects" in shortest and "- the fridge: fridge" in shortest
+    assert "- the sofa: sofa" in shortest and "- the dining table: dining table" in shortest  # start, passed
+
+    server = fake_llm(lambda b, n: answer("unused"))  # over budget even without them: the template, no request
+    inst = LLMInstructor(ChatClient(_config(tmp_path, server.url, prompt_tokens=500)), ctx)
+    assert estimate_tokens(shortest) > 500
+    (out,) = inst.high_level(text, np.random.default_rng(0))
+    assert out.source == "template" and server.bodies == [] and inst.stats["over budget"] == 1
+    assert "1 prompts over the budget of 500 tokens" in inst.summary()
+
+
 def test_a_grounded_answer_is_used_with_the_model_as_source(fake_llm, tmp_path, scene):
     ctx, text = scene
-    server = fake_llm(lambda p, n: (200, {"instruction": "Go to the black fridge in the kitchen."}, 0, {}))
+    server = fake_llm(lambda b, n: answer("Go to the black fridge in the kitchen."))
     inst = LLMInstructor(ChatClient(_config(tmp_path, server.url)), ctx)
     (out,) = inst.high_level(text, np.random.default_rng(0))
     assert (out.level, out.type, out.text, out.source) == ("high", "Attribute_Based",
@@ -181,8 +117,8 @@ def test_a_grounded_answer_is_used_with_the_model_as_source(fake_llm, tmp_path, 
 
 def test_malformed_json_is_asked_again_quoting_the_problem(fake_llm, tmp_path, scene):
     ctx, text = scene
-    server = fake_llm(lambda p, n: (200, {"choices": [{"message": {"content": "Sure! The fridge."}}]}, 0, {}) if n == 1
-                      else (200, {"instruction": "Find the black fridge and stop."}, 0, {}))
+    server = fake_llm(lambda b, n: Reply(body={"choices": [{"message": {"content": "Sure! The fridge."}}]}) if n == 1
+                      else answer("Find the black fridge and stop."))
     inst = LLMInstructor(ChatClient(_config(tmp_path, server.url)), ctx)
     (out,) = inst.high_level(text, np.random.default_rng(0))
     assert out.source == "llm:fake" and out.text == "Find the black fridge and stop."
@@ -191,7 +127,7 @@ def test_malformed_json_is_asked_again_quoting_the_problem(fake_llm, tmp_path, s
 
 def test_a_hallucinated_object_is_retried_then_replaced_by_the_template(fake_llm, tmp_path, scene):
     ctx, text = scene
-    server = fake_llm(lambda p, n: (200, {"instruction": "Go to the piano next to the black fridge."}, 0, {}))
+    server = fake_llm(lambda b, n: answer("Go to the piano next to the black fridge."))
     inst = LLMInstructor(ChatClient(_config(tmp_path, server.url, answer_attempts=2)), ctx)
     (out,) = inst.high_level(text, np.random.default_rng(0))
     assert out.source == "template" and out.type == "Attribute_Based" and "black" in out.text and "fridge" in out.text
@@ -201,13 +137,27 @@ def test_a_hallucinated_object_is_retried_then_replaced_by_the_template(fake_llm
 
 def test_an_unreachable_server_falls_back_without_hammering(tmp_path, scene):
     ctx, text = scene
-    probe = ThreadingHTTPServer(("127.0.0.1", 0), BaseHTTPRequestHandler)
-    url = f"http://127.0.0.1:{probe.server_address[1]}/v1"
-    probe.server_close()  # nothing listens there now: connection refused
-    inst = LLMInstructor(ChatClient(_config(tmp_path, url, max_attempts=2)), ctx)
-    outs = [inst.high_level(text, np.random.default_rng(s))[0] for s in range(5)]
+    server = FakeLLM(lambda b, n: answer("unused"))
+    server.close()  # nothing listens there now: connection refused
+    inst = LLMInstructor(ChatClient(_config(tmp_path, server.url, max_attempts=2, breaker_failures=3)), ctx)
+    outs = [bounded(BOUND_S, inst.high_level, text, np.random.default_rng(s))[0] for s in range(5)]
     assert {o.source for o in outs} == {"template"}
-    assert inst.stats["request failed"] == 3 and "after 2 attempts" in inst.summary()
+    assert inst.stats["request failed"] == 1 and inst.stats["not asked"] == 4  # 2 + 1 attempts opened the breaker
+    assert "stopped asking after 3 consecutive failed requests (last: URLError" in inst.summary()
+    assert not inst.share().enough and inst.share().line() == "0 of 5 high-level rows from the model (0 %), 5 template"
+
+
+def test_a_server_dying_mid_run_stops_the_asking_at_once(fake_llm, tmp_path, scene):
+    ctx, text = scene
+    server = fake_llm(lambda b, n: answer("Go to the black fridge in the kitchen."))
+    inst = LLMInstructor(ChatClient(_config(tmp_path, server.url, breaker_failures=2, max_attempts=2)), ctx)
+    first = [inst.high_level(text, np.random.default_rng(s))[0] for s in range(2)]  # same prompt: one request
+    server.close()
+    inst.client.cache_dir = tmp_path / "empty-cache"  # make every later trajectory ask
+    later = [bounded(BOUND_S, inst.high_level, text, np.random.default_rng(s))[0] for s in range(6)]
+    assert [o.source for o in first] == ["llm:fake"] * 2 and {o.source for o in later} == {"template"}
+    assert inst.stats["request failed"] == 1 and inst.stats["not asked"] == 5
+    assert inst.share().line() == "2 of 8 high-level rows from the model (25 %), 6 template"
 
 
 # ---------------------------------------------------------------- gen-trajectories --instructions llm
@@ -217,17 +167,26 @@ def _files(root):
     return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
 
-def test_cli_llm_mode_writes_llm_rows_and_a_second_run_sends_no_request(fake_llm, run_cli, demo_built_run, tmp_path):
+@pytest.fixture
+def run(demo_built_run, tmp_path):
+    out = tmp_path / "run"
+    shutil.copytree(demo_built_run / "scenes", out / "scenes")
+    return out
+
+
+def _llm_args(run, url, tmp_path, *more):
+    return ["gen-trajectories", run, "--per-scene", "8", "--instructions", "llm", "--llm-base-url", url,
+            "--llm-model", "fake", "--llm-cache-dir", tmp_path / "cache", *more]
+
+
+def test_cli_llm_mode_writes_llm_rows_and_a_second_run_sends_no_request(fake_llm, run_cli, run, tmp_path):
     from sagebench.episodes.shards import read_episodes
 
-    server = fake_llm(lambda p, n: (200, goal_answer(p), 0, {}))
-    run = tmp_path / "run"
-    shutil.copytree(demo_built_run / "scenes", run / "scenes")
-    args = ["gen-trajectories", run, "--per-scene", "8", "--instructions", "llm", "--llm-base-url", server.url,
-            "--llm-model", "fake", "--llm-cache-dir", tmp_path / "cache", "--llm-concurrency", "2"]
+    server = fake_llm(lambda b, n: goal_answer(b["messages"][0]["content"]))
+    args = _llm_args(run, server.url, tmp_path, "--llm-concurrency", "4")
     code, out, err = run_cli(*args)
     assert code == 0, err
-    assert "8 trajectories, 24 episode rows" in out and "8 LLM answers used, 0 template fallbacks" in out
+    assert "8 trajectories, 24 episode rows" in out and "8 of 8 high-level rows from the model (100 %), 0 template" in out
     episodes = run / "episodes" / "demo_apartment_0"
     rows = read_episodes(episodes).to_pylist()
     high = [r for r in rows if r["instruction_level"] == "high"]
@@ -235,7 +194,7 @@ def test_cli_llm_mode_writes_llm_rows_and_a_second_run_sends_no_request(fake_llm
     assert {r["instruction_source"] for r in rows if r["instruction_level"] == "low"} == {"template"}
     assert all(r["instruction_text"].startswith("Please go to the ") for r in high)
     first, sent = _files(episodes), len(server.prompts)
-    assert sent == 8
+    assert sent == 8 and server.most_in_flight <= 4
 
     code, out, _ = run_cli(*args)
     assert code == 0 and len(server.prompts) == sent  # every answer came from the cache
@@ -243,12 +202,66 @@ def test_cli_llm_mode_writes_llm_rows_and_a_second_run_sends_no_request(fake_llm
     assert _files(episodes) == first
 
 
-def test_cli_llm_mode_needs_a_url_and_a_model(run_cli, demo_built_run, tmp_path):
-    code, _, err = run_cli("gen-trajectories", demo_built_run, "--instructions", "llm", "--llm-model", "x")
-    assert code == 2 and "error: --instructions llm needs --llm-base-url and --llm-model" in err
-    code, _, err = run_cli("gen-trajectories", demo_built_run, "--instructions", "llm", "--llm-base-url", "http://127.0.0.1:9/v1",
-                           "--llm-model", "x", "--llm-concurrency", "0")
-    assert code == 2 and "error: --llm-concurrency: Input should be greater than or equal to 1" in err
-    code, _, err = run_cli("gen-trajectories", demo_built_run, "--instructions", "llm", "--llm-base-url", "localhost:8000",
-                           "--llm-model", "x")
-    assert code == 2 and "error: --llm-base-url: must be an http(s) URL such as http://localhost:8000/v1" in err
+@pytest.mark.parametrize("reply", [Reply(404, {"error": "model not found"}), Reply(200, "<html>not json</html>")])
+def test_cli_exits_1_and_writes_nothing_when_no_answer_comes(fake_llm, run_cli, run, tmp_path, reply):
+    server = fake_llm(lambda b, n: reply)
+    code, out, err = bounded(BOUND_S, run_cli, *_llm_args(run, server.url, tmp_path))
+    assert code == 1 and not (run / "episodes").exists()
+    (line,) = err.strip().splitlines()
+    assert line.startswith(f"error: {run / 'scenes' / 'demo_apartment_0'}: --instructions llm: no high-level row "
+                           "came from the model (0 of 8 high-level rows from the model (0 %), 8 template;")
+    assert "stopped asking after 6 consecutive failed requests" in line and len(server.bodies) <= 6 + 4 - 1
+
+
+def test_cli_min_share_fails_a_run_with_too_few_llm_rows(fake_llm, run_cli, run, tmp_path):
+    def respond(body, n):  # a good answer for about half the trajectories (by a hash of the prompt), else none
+        prompt = body["messages"][0]["content"]
+        good = "Your previous answer" not in prompt and zlib.crc32(prompt.encode()) % 2 == 0
+        return goal_answer(prompt) if good else answer("Go to it.")
+
+    server = fake_llm(respond)
+    code, _, err = run_cli(*_llm_args(run, server.url, tmp_path, "--llm-min-share", "0.99"))
+    assert code == 1 and "fewer high-level rows from the model than --llm-min-share 0.99" in err
+    assert re.search(r"\b[1-7] of 8 high-level rows from the model", err)
+    assert not (run / "episodes").exists()
+
+
+def test_cli_llm_options_need_llm_mode_a_url_and_a_model_and_a_writable_cache(run_cli, run, tmp_path):
+    def fails(*args):
+        code, out, err = run_cli("gen-trajectories", run, *args)
+        assert code == 2 and out == "" and not (run / "episodes").exists()
+        return err.strip()
+
+    assert fails("--instructions", "llm", "--llm-model", "x") == \
+        "error: --instructions llm needs --llm-base-url and --llm-model"
+    url = ["--instructions", "llm", "--llm-base-url", "http://127.0.0.1:9/v1", "--llm-model", "x"]
+    assert fails(*url, "--llm-concurrency", "0") == "error: --llm-concurrency: Input should be greater than or equal to 1"
+    assert fails(*url, "--llm-timeout", "0") == "error: --llm-timeout: Input should be greater than 0"
+    assert fails(*url, "--llm-min-share", "1.5") == "error: --llm-min-share: Input should be less than or equal to 1"
+    assert fails("--instructions", "llm", "--llm-base-url", "localhost:8000", "--llm-model", "x") == \
+        "error: --llm-base-url: must be an http(s) URL such as http://localhost:8000/v1, got 'localhost:8000'"
+    assert fails("--llm-model", "x") == \
+        "error: --llm-* options (the llm table) are used only with --instructions llm"
+    assert fails("--llm-api-key-env", "HOME") == "error: --llm-api-key-env: used only with --instructions llm"
+    assert fails(*url, "--llm-api-key-env", "SAGEBENCH_NO_SUCH_VARIABLE") == \
+        "error: --llm-api-key-env: the environment variable SAGEBENCH_NO_SUCH_VARIABLE is not set"
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    assert fails(*url, "--llm-cache-dir", blocker / "cache") == \
+        f"error: {blocker / 'cache'}: --llm-cache-dir: cannot write the answer cache: Not a directory"
+
+
+def test_ctrl_c_stops_promptly_and_writes_nothing(fake_llm, run, tmp_path):
+    server = fake_llm(lambda b, n: Reply(mode="hang"))
+    proc = subprocess.Popen([sys.executable, "-m", "sagebench", *map(str, _llm_args(run, server.url, tmp_path,
+                             "--llm-timeout", "60"))], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    try:
+        bounded(BOUND_S * 3, lambda: [time.sleep(0.05) for _ in iter(lambda: len(server.bodies) >= 4, True)])
+        proc.send_signal(signal.SIGINT)
+        _, err = bounded(BOUND_S, proc.communicate)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130 and err.strip().splitlines()[-1] == \
+        "error: interrupted: the scene in progress was not written"
+    assert len(server.bodies) == 4 and not (run / "episodes").exists()

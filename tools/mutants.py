@@ -81,6 +81,11 @@ MUTANTS = (
     Mutant("inflation measured to cell centres", "sagebench/topdown/occupancy.py",
            "disk = _square_distance(dr, dc) * resolution < radius - 1e-9",
            "disk = np.hypot(dr, dc) * resolution < radius - 1e-9", ("tests/test_topdown_occupancy.py",)),
+    Mutant("LLM: no whole-request deadline (per-read timeouts only)", "sagebench/instructions/llm_client.py",
+           "            for s in self._socks:\n                _shut(s)", "            pass",
+           ("tests/test_instructions_llm_client.py",)),
+    Mutant("LLM: the breaker never opens", "sagebench/instructions/llm_client.py",
+           "self.reason is None and self._run >= self.limit", "False", ("tests/test_instructions_llm_client.py",)),
 )
 
 

@@ -8,6 +8,7 @@ preview sits in a "_" folder so that the directory reads as one Parquet dataset 
 from __future__ import annotations
 
 import hashlib
+import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,11 +23,11 @@ from sagebench.episodes.preview import render_paths
 from sagebench.episodes.shards import write_shards
 from sagebench.episodes.splits import SplitConfig, assign_splits
 from sagebench.config import from_options
-from sagebench.errors import ConfigError, DataError, first_error
+from sagebench.errors import ConfigError, DataError, ServiceError, first_error
 from sagebench.fileio import staged_dir, write_bytes
 from sagebench.instructions import instructions_for
 from sagebench.instructions.base import HIGH_LEVEL_TYPES, SceneContext, TrajectoryText, make_context
-from sagebench.instructions.llm import LLMConfig
+from sagebench.instructions.llm_client import API_KEY_ENV, LLMConfig, check_cache_dir, default_cache_dir
 from sagebench.instructions.naming import ObjectInfo, RoomInfo
 from sagebench.run_layout import CONTRACT, PREVIEW, SCENE_FILE, SCENES, SEMANTIC_MAP, TOPDOWN, require, run_episodes_dir
 from sagebench.scene.loader import parse_spec
@@ -62,6 +63,8 @@ class GenTrajectoriesConfig(SamplingConfig):
             raise ValueError("high_level_mix needs non-negative shares, at least one positive")
         if self.instructions == "llm" and not (self.llm.base_url and self.llm.model):
             raise ValueError("--instructions llm needs --llm-base-url and --llm-model")
+        if self.instructions != "llm" and self.llm != LLMConfig():
+            raise ValueError("--llm-* options (the llm table) are used only with --instructions llm")
         return self
 
 
@@ -74,7 +77,9 @@ def make_config(**fields: object) -> GenTrajectoriesConfig:
 OPTIONS = {"--per-scene": "per_scene", "--seed": "seed", "--shard-size": "shard_size", "--instructions": "instructions",
            "--min-geodesic": "min_geodesic_m", "--max-geodesic": "max_geodesic_m", "--goal-radius": "goal_radius_m",
            "--llm-base-url": "llm.base_url", "--llm-model": "llm.model", "--llm-cache-dir": "llm.cache_dir",
-           "--llm-concurrency": "llm.concurrency"}
+           "--llm-concurrency": "llm.concurrency", "--llm-timeout": "llm.timeout_s", "--llm-attempts": "llm.max_attempts",
+           "--llm-temperature": "llm.temperature", "--llm-max-tokens": "llm.max_tokens",
+           "--llm-min-share": "llm.min_share"}
 
 
 @dataclass(frozen=True)
@@ -94,8 +99,12 @@ class SceneEpisodes:
         return line if self.llm_summary is None else f"{line}\n  llm: {self.llm_summary}"
 
 
-def gen_trajectories(run_dir: Path, config: GenTrajectoriesConfig, *, scene_id: str | None = None) -> list[SceneEpisodes]:
-    """Sample, instruct and write the episodes of every scene in RUN_DIR/scenes (or only `scene_id`)."""
+def gen_trajectories(run_dir: Path, config: GenTrajectoriesConfig, *, scene_id: str | None = None,
+                     api_key: str | None = None) -> list[SceneEpisodes]:
+    """Sample, instruct and write the episodes of every scene in RUN_DIR/scenes (or only `scene_id`).
+
+    api_key: the LLM bearer token (default: the environment variable SAGEBENCH_LLM_API_KEY, never another).
+    """
     scenes_root = Path(run_dir) / SCENES
     if not scenes_root.is_dir():
         raise DataError("no scenes/ directory: run build-scene on this run directory first", path=run_dir)
@@ -108,12 +117,23 @@ def gen_trajectories(run_dir: Path, config: GenTrajectoriesConfig, *, scene_id: 
         scene_dirs = sorted(p for p in scenes_root.iterdir() if p.is_dir() and not p.name.startswith("."))
         if not scene_dirs:
             raise DataError("no scene directories: run build-scene first", path=scenes_root)
-    return [generate_scene(d, run_episodes_dir(run_dir, d.name), config)
+    if config.instructions == "llm":
+        cache_dir = config.llm.cache_dir or default_cache_dir()
+        problem = check_cache_dir(Path(cache_dir))
+        if problem is not None:
+            raise ConfigError(problem, path=cache_dir, field="--llm-cache-dir")
+    key = os.environ.get(API_KEY_ENV) if api_key is None else api_key
+    return [generate_scene(d, run_episodes_dir(run_dir, d.name), config, api_key=key)
             for d in ui.track(scene_dirs, "gen-trajectories")]
 
 
-def generate_scene(scene_dir: Path, out_dir: Path, config: GenTrajectoriesConfig) -> SceneEpisodes:
-    """One scene: read its maps, sample trajectories, write shards and the paths preview into `out_dir` (replaced)."""
+def generate_scene(scene_dir: Path, out_dir: Path, config: GenTrajectoriesConfig, *,
+                   api_key: str | None = None) -> SceneEpisodes:
+    """One scene: read its maps, sample trajectories, write shards and the paths preview into `out_dir` (replaced).
+
+    In llm mode, a scene whose high-level rows come from the model less often than `llm.min_share`
+    (or never) is a ServiceError and nothing is written.
+    """
     spec, smap, grid, occupancy = read_scene_inputs(scene_dir)
     ctx = scene_context(spec, smap, config.high_level_mix)
     targets, names = scene_targets(spec, smap, ctx)
@@ -123,10 +143,16 @@ def generate_scene(scene_dir: Path, out_dir: Path, config: GenTrajectoriesConfig
     if config.instructions == "llm":
         from sagebench.instructions.llm import with_instructor
 
-        ctx, instructor = with_instructor(ctx, config.llm)
+        ctx, instructor = with_instructor(ctx, config.llm, api_key=api_key)
     rows = episode_rows(spec.scene_id, result.trajectories, names, config, ctx)
-    if instructor is not None and instructor.stats["fallback"]:
-        ui.warn(f"{spec.scene_id}: {instructor.summary()}")
+    if instructor is not None:
+        share = instructor.share()
+        if not share.enough:
+            why = "no high-level row came from the model" if share.llm == 0 else \
+                f"fewer high-level rows from the model than --llm-min-share {config.llm.min_share:g}"
+            raise ServiceError(f"--instructions llm: {why} ({instructor.summary()}); nothing written", path=scene_dir)
+        if instructor.stats["fallback"]:
+            ui.warn(f"{spec.scene_id}: {instructor.summary()}")
     with staged_dir(out_dir) as tmp:
         shards = write_shards(rows, tmp, config.shard_size)
         png = render_paths(grid.navigable, occupancy, [t.waypoints for t in result.trajectories[:config.preview_paths]],
@@ -216,8 +242,15 @@ def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str,
         return instructions_for(text, config.instructions, rng)
 
     if config.instructions == "llm":
-        with ThreadPoolExecutor(config.llm.concurrency) as pool:
+        pool = ThreadPoolExecutor(config.llm.concurrency)
+        try:
             instructed = list(ui.track(pool.map(instruct, trajectories), "instructions (llm)", len(trajectories)))
+        except BaseException:  # Ctrl-C: cut the requests in flight and leave without waiting for the queue
+            if ctx is not None and ctx.llm is not None:
+                ctx.llm.client.cancel()
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+        pool.shutdown()
     else:
         instructed = [instruct(t) for t in trajectories]
     split_of = assign_splits(scene_id, [t.trajectory_id for t in trajectories], config.splits)
