@@ -189,7 +189,7 @@ def test_a_success_resets_the_breaker(fake_llm, tmp_path):
 
 
 def test_at_most_concurrency_requests_are_in_flight(fake_llm, tmp_path):
-    server = fake_llm(lambda b, n: Reply(body={"instruction": "slow"}, mode="drip", drip_s=0.002))
+    server = fake_llm(lambda b, n: Reply(body={"instruction": "slow"}, mode="drip", drip_s=0.005))
     client = ChatClient(config(tmp_path, server.url, concurrency=4, timeout_s=5))
     threads = [threading.Thread(target=client.complete, args=(f"p{k}",)) for k in range(12)]
     bounded(BOUND_S, lambda: [t.start() for t in threads] and [t.join() for t in threads])

@@ -20,6 +20,7 @@ import ipaddress
 import json
 import socket
 import threading
+import time
 import urllib.error
 import urllib.parse
 import urllib.request
@@ -131,6 +132,7 @@ class _Watch:
     """One attempt's deadline: at expiry (or on cancel) every socket it saw is shut down, waking blocked reads."""
 
     def __init__(self, seconds: float):
+        self.deadline = time.monotonic() + seconds
         self.expired = False
         self._socks: list[socket.socket] = []
         self._lock = threading.Lock()
@@ -152,6 +154,10 @@ class _Watch:
 
     def stop(self) -> None:
         self._timer.cancel()
+
+    def past(self) -> bool:
+        """Cut, or past the deadline (a per-read timeout may fire just before the watchdog does)."""
+        return self.expired or time.monotonic() >= self.deadline
 
 
 def _shut(sock: socket.socket) -> None:
@@ -324,7 +330,7 @@ class ChatClient:
                 except TRANSPORT_ERRORS:
                     if self._cancelled.is_set():
                         raise LLMUnavailable(self._why_stopped()) from None
-                    if watch.expired:
+                    if watch.past():
                         raise _Expired(f"no complete reply within {self.config.timeout_s:g} s") from None
                     raise
             finally:
