@@ -137,11 +137,8 @@ def test_demo_high_level_texts_are_grounded_and_free_of_ids(demo):
         text = r["instruction_text"]
         assert not re.search(r"\d|_|#|room_|object:", text), text
         assert 4 <= len(text.split()) <= 25, text
-        need_goal = r["instruction_type"] != "Scenario_Driven"
-        goal = ctx.object(r["goal_instance_id"]).category if r["goal_instance_id"] is not None else None
-        room_type = next(x.type for x in ctx.rooms if x.id == r["goal_room"]) if goal is None else None
-        assert grounder.problems(text, goal_category=goal if need_goal else None,
-                                 goal_room_type=room_type if need_goal else None) == [], text
+        assert grounder.problems(text, goal_id=r["goal_instance_id"], goal_room=r["goal_room"],
+                                 kind=r["instruction_type"], start_xy=np.asarray(r["start_position"][:2])) == [], text
 
 
 def test_demo_names_are_unique_and_attribute_descriptions_fit_one_object(demo):

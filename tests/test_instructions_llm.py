@@ -17,6 +17,7 @@ import pytest
 from fake_llm import FakeLLM, Reply, answer, bounded
 
 from sagebench.instructions.base import TrajectoryText, make_context
+from sagebench.instructions.high_level import scenario_data
 from sagebench.instructions.llm import LLMInstructor
 from sagebench.instructions.llm_client import ChatClient, LLMConfig
 from sagebench.instructions.naming import ObjectInfo, RoomInfo
@@ -39,9 +40,15 @@ def fake_llm():
 
 
 def goal_answer(prompt: str) -> Reply:
-    """A grounded answer: go to the goal by the unique name the prompt gives."""
+    """A grounded answer: go to the goal by the unique name the prompt gives, voicing a need it serves when
+    the type asks for one (the need from scenarios.toml, found by the goal's category or room type in the map)."""
     goal = re.search(r"^- goal: (.*?)(?:, in .*)?$", prompt, re.M).group(1)
-    return answer(f"Please go to {goal} and wait there.")
+    say = ""
+    if "type Scenario Driven" in prompt:
+        kind = re.search(rf"^- {re.escape(goal)}(?:: | \(type: )([a-z ]+)", prompt, re.M).group(1).replace(" ", "_")
+        needs, _ = scenario_data()
+        say = next((n.say[0] + " " for n in needs if kind in n.categories or kind in n.rooms), "")
+    return answer(f"{say}Please go to {goal} and wait there.")
 
 
 def _config(tmp_path, url, **kw):
@@ -192,7 +199,7 @@ def test_cli_llm_mode_writes_llm_rows_and_a_second_run_sends_no_request(fake_llm
     high = [r for r in rows if r["instruction_level"] == "high"]
     assert len(high) == 8 and {r["instruction_source"] for r in high} == {"llm:fake"}
     assert {r["instruction_source"] for r in rows if r["instruction_level"] == "low"} == {"template"}
-    assert all(r["instruction_text"].startswith("Please go to the ") for r in high)
+    assert all("Please go to the " in r["instruction_text"] for r in high)
     first, sent = _files(episodes), len(server.prompts)
     assert sent == 8 and server.most_in_flight <= 4
 

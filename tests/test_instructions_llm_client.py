@@ -169,7 +169,7 @@ def test_the_breaker_stops_all_threads_after_n_consecutive_failures(fake_llm, tm
     threads = [threading.Thread(target=ask, args=(k,)) for k in range(16)]
     bounded(BOUND_S, lambda: [t.start() for t in threads] and [t.join() for t in threads])
     assert len(errors) == 16
-    assert len(server.bodies) <= 3 + 4 - 1  # the failures that opened it, plus what was already in flight
+    assert len(server.bodies) <= 3 + 4 - 1  # the failures that opened it, plus the attempts already in flight
     assert client.breaker.reason.startswith("stopped asking after 3 consecutive failed requests (last: HTTP 503")
     sent = len(server.bodies)
     with pytest.raises(LLMUnavailable):
@@ -189,11 +189,17 @@ def test_a_success_resets_the_breaker(fake_llm, tmp_path):
 
 
 def test_at_most_concurrency_requests_are_in_flight(fake_llm, tmp_path):
-    server = fake_llm(lambda b, n: Reply(body={"instruction": "slow"}, mode="drip", drip_s=0.005))
-    client = ChatClient(config(tmp_path, server.url, concurrency=4, timeout_s=5))
-    threads = [threading.Thread(target=client.complete, args=(f"p{k}",)) for k in range(12)]
+    together = threading.Barrier(4, timeout=5)  # replies go out 4 at a time: a 5th in flight would show
+
+    def respond(body, n):
+        together.wait()
+        return answer("ok")
+
+    server = fake_llm(respond)
+    client = ChatClient(config(tmp_path, server.url, concurrency=4, timeout_s=8))
+    threads = [threading.Thread(target=client.complete, args=(f"p{k}",)) for k in range(8)]
     bounded(BOUND_S, lambda: [t.start() for t in threads] and [t.join() for t in threads])
-    assert len(server.bodies) == 12 and server.most_in_flight == 4
+    assert len(server.bodies) == 8 and server.most_in_flight == 4 and not together.broken
 
 
 def test_cancel_cuts_a_request_in_flight(fake_llm, tmp_path):

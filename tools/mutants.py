@@ -86,6 +86,12 @@ MUTANTS = (
            ("tests/test_instructions_llm_client.py",)),
     Mutant("LLM: the breaker never opens", "sagebench/instructions/llm_client.py",
            "self.reason is None and self._run >= self.limit", "False", ("tests/test_instructions_llm_client.py",)),
+    Mutant("grounding: a phrase that fits the goal and others is accepted", "sagebench/instructions/grounding.py",
+           "if cands == {want}:", "if want in cands:", ("tests/test_instructions_grounding.py",)),
+    Mutant("grounding: room placement unchecked", "sagebench/instructions/grounding.py",
+           "cands = [o for o in cands if o.room_id in rooms]", "pass", ("tests/test_instructions_grounding.py",)),
+    Mutant("sight: walls do not block the view", "sagebench/instructions/sight.py",
+           "if self.walls[row, col]:", "if False:", ("tests/test_instructions_sight.py",)),
 )
 
 

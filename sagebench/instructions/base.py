@@ -10,6 +10,7 @@ import numpy as np
 
 from sagebench.instructions.naming import ObjectInfo, RoomInfo, object_names, room_names
 from sagebench.instructions.relations import Layout, layout
+from sagebench.instructions.sight import SightMap
 
 Level = Literal["high", "low"]
 HIGH_LEVEL_TYPES = ("Add_Object", "Scenario_Driven", "Relative_Relationship", "Attribute_Based", "Area_Based")
@@ -39,6 +40,7 @@ class SceneContext:
     local_names: Mapping[str, Mapping[int, str]]  # room id -> instance id -> name unique within that room
     layout: Layout  # footprints of the floor-standing objects
     type_mix: Mapping[str, float]  # high-level type -> relative share
+    sight: SightMap | None = field(default=None, compare=False)  # walls that block the view (llm prompts)
     llm: Any = field(default=None, compare=False)  # instructions.llm.LLMInstructor in llm mode
 
     def object(self, instance_id: int) -> ObjectInfo:
@@ -47,17 +49,18 @@ class SceneContext:
 
 def make_context(objects: Sequence[ObjectInfo], rooms: Sequence[RoomInfo], room_polygons: Mapping[str, np.ndarray],
                  footprints: Mapping[int, Sequence[np.ndarray]], *, fixtures: Sequence[ObjectInfo] = (),
-                 type_mix: Mapping[str, float] | None = None) -> SceneContext:
+                 type_mix: Mapping[str, float] | None = None, sight: SightMap | None = None) -> SceneContext:
     """The context of a scene: names unique in the scene and within each room, relations from `footprints`.
 
     footprints: instance id -> exterior rings [K, 2] world metres, for the objects that may serve as
-    landmarks (leave out what hangs above the agent); type_mix: default all five types equally.
+    landmarks (leave out what hangs above the agent); type_mix: default all five types equally; sight:
+    the walls that hide objects from a path (none: every object near a path counts as seen).
     """
     lay = layout(footprints)
     local = {r.id: object_names([o for o in objects if o.room_id == r.id], rooms, lay) for r in rooms}
     mix = {t: 1.0 for t in HIGH_LEVEL_TYPES} if type_mix is None else dict(type_mix)
     return SceneContext(tuple(objects), tuple(fixtures), tuple(rooms), dict(room_polygons),
-                        object_names(objects, rooms, lay), room_names(rooms, objects), local, lay, mix)
+                        object_names(objects, rooms, lay), room_names(rooms, objects), local, lay, mix, sight)
 
 
 @dataclass(frozen=True)

@@ -63,10 +63,6 @@ class LLMInstructor:
         except PromptTooLong as err:
             self._note("over budget", str(err))
             return self._fallback(kind, fallback)
-        ctx = text.scene
-        goal = ctx.object(text.goal_id) if text.goal_id is not None else None
-        room_type = next((r.type for r in ctx.rooms if r.id == text.goal_room), None) if goal is None else None
-        need_goal = kind != "Scenario_Driven"
         ask = prompt
         for _ in range(self.client.config.answer_attempts):
             try:
@@ -79,8 +75,8 @@ class LLMInstructor:
                 break
             sentence = parse_answer(content)
             problems = ["the answer is not JSON with an \"instruction\" string"] if sentence is None else \
-                self.grounder.problems(sentence, goal_category=goal.category if goal and need_goal else None,
-                                       goal_room_type=room_type if need_goal else None)
+                self.grounder.problems(sentence, goal_id=text.goal_id, goal_room=text.goal_room, kind=kind,
+                                       start_xy=text.waypoints[0, :2])
             if not problems:
                 self._note("llm")
                 return [Instruction("high", kind, sentence, self.source)]

@@ -25,6 +25,7 @@ import urllib.error
 import urllib.parse
 import urllib.request
 from collections import Counter
+from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Literal
@@ -273,70 +274,65 @@ class ChatClient:
             self._check_open()
             if attempt:
                 self._count("retries")
-            wait = cfg.backoff_s * 2**attempt
+            out = self._attempt(self._body(prompt))
+            if out.content is not None:
+                return out.content
+            last = out.error
+            if out.refused_schema:
+                continue  # asked again without response_format; not an attempt of its own
             attempt += 1
-            failed = True  # counts towards the breaker
-            try:
-                payload = self._attempt(self._body(prompt))
-            except urllib.error.HTTPError as err:
-                last = f"HTTP {err.code} {err.detail}".strip()  # type: ignore[attr-defined]
-                if err.code == 400 and self._schema:
-                    self._schema = False  # the server does not take response_format: ask again without it
-                    attempt -= 1
-                    continue
-                if err.code not in RETRY_STATUS:
-                    self._fail(last)
-                    raise LLMError(f"{self.url}: {last}") from None
-                failed = err.code != 429  # a rate limit is the server working
-                wait = max(wait, retry_after_s(err.headers.get("Retry-After")))
-            except _Expired as err:
-                last = str(err)
-            except TRANSPORT_ERRORS as err:
-                last = f"{type(err).__name__}: {getattr(err, 'reason', err)}"
-            else:
-                content = _content(payload)
-                if isinstance(content, str):
-                    self.breaker.success()
-                    return content
-                self._fail(content.args[0])
-                raise LLMError(f"{self.url}: {content.args[0]}")
-            if failed:
-                self._fail(last)
+            if not out.retry:
+                raise LLMError(f"{self.url}: {last}")
             if attempt < cfg.max_attempts:
-                self._cancelled.wait(wait)
+                self._cancelled.wait(max(cfg.backoff_s * 2 ** (attempt - 1), out.wait_s))
         raise LLMError(f"{self.url}: {last} (after {cfg.max_attempts} attempts)")
 
-    def _attempt(self, body: bytes) -> bytes:
-        """POST once under one deadline; the reply body, or HTTPError (with `.detail`), _Expired, a transport error."""
+    def _attempt(self, body: bytes) -> _Outcome:
+        """One POST holding a slot; the breaker hears of it before the slot is let go, so at most
+        `breaker_failures` failures plus the attempts already in flight are ever sent to a dead server."""
         with self._slots:
-            watch = _Watch(self.config.timeout_s)  # the deadline starts when the request can go out
-            with self._lock:
-                self._watches.add(watch)
+            self._check_open()
+            out = self._post(body)
+            if out.content is not None:
+                self.breaker.success()
+            elif out.failure and self.breaker.failure(out.error):
+                self.cancel()
+            return out
+
+    def _post(self, body: bytes) -> _Outcome:
+        """POST once under one deadline (the watchdog starts when the request can go out)."""
+        watch = _Watch(self.config.timeout_s)
+        expired = _Outcome(error=f"no complete reply within {self.config.timeout_s:g} s", retry=True)
+        with self._lock:
+            self._watches.add(watch)
+        try:
+            self._count("requests")
+            opener = urllib.request.build_opener(urllib.request.ProxyHandler(self._proxies),
+                                                 _HTTPHandler(watch), _HTTPSHandler(watch))
+            req = urllib.request.Request(self.url, data=body, headers=self._headers, method="POST")
             try:
-                self._check_open()
-                self._count("requests")
-                opener = urllib.request.build_opener(urllib.request.ProxyHandler(self._proxies),
-                                                     _HTTPHandler(watch), _HTTPSHandler(watch))
-                req = urllib.request.Request(self.url, data=body, headers=self._headers, method="POST")
-                try:
-                    with opener.open(req, timeout=self.config.timeout_s) as resp:
-                        payload = resp.read()
-                    if watch.expired:  # a body without Content-Length ends at the cut, looking complete
-                        raise _Expired(f"no complete reply within {self.config.timeout_s:g} s")
-                    return payload
-                except urllib.error.HTTPError as err:
-                    err.detail = err.read()[:200].decode("utf-8", "replace")  # type: ignore[attr-defined]
-                    raise
-                except TRANSPORT_ERRORS:
-                    if self._cancelled.is_set():
-                        raise LLMUnavailable(self._why_stopped()) from None
-                    if watch.past():
-                        raise _Expired(f"no complete reply within {self.config.timeout_s:g} s") from None
-                    raise
-            finally:
-                watch.stop()
-                with self._lock:
-                    self._watches.discard(watch)
+                with opener.open(req, timeout=self.config.timeout_s) as resp:
+                    payload = resp.read()
+            except urllib.error.HTTPError as err:
+                error = f"HTTP {err.code} {err.read()[:200].decode('utf-8', 'replace')}".strip()
+                if err.code == 400 and self._schema:
+                    self._schema = False  # the server does not take response_format: ask without it from now on
+                    return _Outcome(error=error, failure=False, refused_schema=True)
+                return _Outcome(error=error, retry=err.code in RETRY_STATUS, failure=err.code != 429,
+                                wait_s=retry_after_s(err.headers.get("Retry-After")))
+            except TRANSPORT_ERRORS as err:
+                if self._cancelled.is_set():
+                    raise LLMUnavailable(self._why_stopped()) from None
+                if watch.past():
+                    return expired
+                return _Outcome(error=f"{type(err).__name__}: {getattr(err, 'reason', err)}", retry=True)
+            if watch.expired:  # a body without Content-Length ends at the cut, looking complete
+                return expired
+            return _content(payload)
+        finally:
+            watch.stop()
+            with self._lock:
+                self._watches.discard(watch)
 
     def _check_open(self) -> None:
         if self._cancelled.is_set():
@@ -345,29 +341,33 @@ class ChatClient:
     def _why_stopped(self) -> str:
         return self.breaker.reason or "cancelled"
 
-    def _fail(self, why: str) -> None:
-        if self.breaker.failure(why):
-            self.cancel()
-
     def _count(self, key: str) -> None:
         with self._lock:
             self.stats[key] += 1
 
 
-class _Expired(Exception):
-    """An attempt ran past its deadline."""
+@dataclass(frozen=True)
+class _Outcome:
+    """What one attempt got: the answer's text, or why not and what to do about it."""
+
+    content: str | None = None
+    error: str = ""
+    retry: bool = False  # worth another attempt (429, 5xx, timeouts, dropped connections)
+    failure: bool = True  # counts towards the breaker (a 429 or a refused response_format does not)
+    wait_s: float = 0.0  # the server's Retry-After
+    refused_schema: bool = False
 
 
-def _content(payload: bytes) -> str | LLMError:
-    """The reply's text, or the error saying why it has none (not JSON, not chat-completions, content null)."""
+def _content(payload: bytes) -> _Outcome:
+    """The reply's text, or why it has none (not JSON, not chat-completions, content null): not retried."""
     try:
         message = json.loads(payload)["choices"][0]["message"]
     except (ValueError, KeyError, IndexError, TypeError):
-        return LLMError(f"not a chat-completions response: {payload[:200]!r}")
+        return _Outcome(error=f"not a chat-completions response: {payload[:200]!r}")
     content = message.get("content") if isinstance(message, dict) else None
     if not isinstance(content, str):
-        return LLMError(f"the reply has no text (content {json.dumps(content)}; a reasoning or tool-call reply?)")
-    return content
+        return _Outcome(error=f"the reply has no text (content {json.dumps(content)}; a reasoning or tool-call reply?)")
+    return _Outcome(content=content)
 
 
 def _read_cached(path: Path) -> str | None:

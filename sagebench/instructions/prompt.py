@@ -1,7 +1,8 @@
 """The LLM prompt for one trajectory (a text map of the scene and the path), kept within a token budget.
 
 Templates live in sagebench/data/prompts/. The scene map lists every room and object with its unique
-name, attributes, room and centre; when the prompt would exceed the budget, the objects farthest from
+name, attributes, room and centre, and the objects passed are those a person walking the path would see
+(sight.objects_seen: near it, no wall between); when the prompt would exceed the budget, the objects farthest from
 the path are left out (never the start, the goal or what the path passes) and the map says how many.
 Tokens are estimated as characters / CHARS_PER_TOKEN, on the safe side: the 5-room demo's prompts are
 about 7,000 characters, which a real server counted as about 2,100 tokens (3.3 characters a token).
@@ -23,7 +24,8 @@ from shapely.geometry import LineString, Point, Polygon
 from sagebench.instructions import high_level as templates
 from sagebench.instructions.base import SceneContext, TrajectoryText
 from sagebench.instructions.naming import words
-from sagebench.instructions.relations import objects_passed, rooms_along
+from sagebench.instructions.relations import rooms_along
+from sagebench.instructions.sight import objects_seen
 
 CHARS_PER_TOKEN = 3.0
 
@@ -79,7 +81,7 @@ def build_prompt(kind: str, text: TrajectoryText, budget_tokens: int | None = No
     ctx = text.scene
     assert ctx is not None
     xy = text.waypoints[:, :2]
-    passed_ids = [ctx.layout.ids[j] for j in objects_passed(ctx.layout, xy)]
+    passed_ids = [ctx.layout.ids[j] for j in objects_seen(ctx.layout, xy, ctx.sight)]
     passed = [ctx.names[i] for i in passed_ids if i in ctx.names and i not in (text.start_id, text.goal_id)]
     facts = templates.relation_phrases(ctx, text) if text.goal_id is not None else []
     if text.goal_id is not None and text.goal_room in ctx.local_names:

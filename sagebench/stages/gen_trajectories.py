@@ -10,12 +10,13 @@ from __future__ import annotations
 import hashlib
 import os
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 from pydantic import Field, ValidationError, model_validator
+from shapely.geometry import Polygon
 
 from sagebench import ui
 from sagebench.astar.sampling import GridMap, SamplingConfig, SamplingResult, TargetSpec, Trajectory, sample_trajectories
@@ -29,6 +30,7 @@ from sagebench.instructions import instructions_for
 from sagebench.instructions.base import HIGH_LEVEL_TYPES, SceneContext, TrajectoryText, make_context
 from sagebench.instructions.llm_client import API_KEY_ENV, LLMConfig, check_cache_dir, default_cache_dir
 from sagebench.instructions.naming import ObjectInfo, RoomInfo
+from sagebench.instructions.sight import SightMap, sight_map
 from sagebench.run_layout import CONTRACT, PREVIEW, SCENE_FILE, SCENES, SEMANTIC_MAP, TOPDOWN, require, run_episodes_dir
 from sagebench.scene.loader import parse_spec
 from sagebench.scene.model import SceneSpec
@@ -136,6 +138,8 @@ def generate_scene(scene_dir: Path, out_dir: Path, config: GenTrajectoriesConfig
     """
     spec, smap, grid, occupancy = read_scene_inputs(scene_dir)
     ctx = scene_context(spec, smap, config.high_level_mix)
+    if config.instructions == "llm":
+        ctx = replace(ctx, sight=scene_sight(smap, grid, occupancy))
     targets, names = scene_targets(spec, smap, ctx)
     result = sample_trajectories(grid, targets, spec.scene_id, config)
     _warn_if_short(spec.scene_id, result, config, n_targets=len(targets))
@@ -198,6 +202,13 @@ def scene_context(spec: SceneSpec, smap: SemanticMap, type_mix: dict[str, float]
     return make_context(objects, [RoomInfo(r.id, r.type) for r in spec.rooms],
                         {r.id: np.asarray(r.polygon, dtype=np.float64) for r in spec.rooms}, footprints,
                         fixtures=fixtures, type_mix=type_mix)
+
+
+def scene_sight(smap: SemanticMap, grid: GridMap, occupancy: np.ndarray) -> SightMap:
+    """The cells that block the view: blocked cells inside a wall's or a closed door's footprint."""
+    blockers = [Polygon(p[0], p[1:]) for i in smap.instances
+                if i.kind == "wall" or (i.kind == "door" and i.door_state == "closed") for p in i.polygon.coordinates]
+    return sight_map(occupancy, grid.resolution, grid.origin, blockers)
 
 
 def scene_targets(spec: SceneSpec, smap: SemanticMap,
