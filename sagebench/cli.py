@@ -276,19 +276,22 @@ def export_usd_cmd(
     coacd_preprocess: Annotated[
         str | None, typer.Option(help="CoACD manifold preprocessing: auto, on or off.")
     ] = None,
+    usdz: Annotated[
+        bool | None, typer.Option("--usdz", help="Also write scene.usdz (the stage and its layers in one package).")
+    ] = None,
 ) -> None:
     """Decompose colliders and write each scene's USD stage and MuJoCo model.
 
     Reads RUN_DIR/scenes/<id>/scene.json, its meshes and gaussians.ply.
 
     Writes RUN_DIR/scenes/<id>/colliders/ (convex parts as STL + colliders.json), scene.usda
-    (3D Gaussians, invisible colliders, semantics, physics) and scene.xml (MJCF); CoACD results go
-    to the cache.
+    (the stage's text root: semantics, physics) referencing geometry.usdc (binary: the 3D
+    Gaussians and invisible collider meshes), scene.xml (MJCF) and with --usdz scene.usdz; CoACD results go to the cache.
     """
     from sagebench.stages.export_usd import export_usd, make_config
 
     config = make_config(coacd_threshold=coacd_threshold, coacd_max_hulls=coacd_max_hulls,
-                         coacd_preprocess=coacd_preprocess, workers=workers)
+                         coacd_preprocess=coacd_preprocess, workers=workers, usdz=usdz)
     for result in export_usd(run_dir, scene_id=scene, config=config, cache_dir=cache_dir):
         typer.echo(result.line())
 

@@ -33,7 +33,9 @@ TOPDOWN_PNG = "topdown.png"
 GAUSSIANS = "gaussians.ply"
 COLLIDERS = "colliders"  # convex parts per object (STL) and COLLIDERS_INDEX
 COLLIDERS_INDEX = "colliders.json"  # inside COLLIDERS
-USD = "scene.usda"
+USD = "scene.usda"  # the stage's root layer (text): prims, semantics, physics
+USD_GEOMETRY = "geometry.usdc"  # the arrays USD references (crate layer): Gaussians, collider meshes
+USDZ = "scene.usdz"  # export-usd --usdz: USD and what it references in one package
 MJCF = "scene.xml"
 
 # RUN/episodes/<scene_id>/ (gen-trajectories)
@@ -79,7 +81,8 @@ CONTRACT: dict[str, StageFiles] = {
         writes=(Place("episodes"),)),
     "export_usd": StageFiles(
         reads=(*NORMALISED_SCENE, Place("scene", GAUSSIANS)),
-        writes=(Place("scene", COLLIDERS), Place("scene", USD), Place("scene", MJCF))),
+        writes=(Place("scene", COLLIDERS), Place("scene", USD_GEOMETRY), Place("scene", USD), Place("scene", USDZ),
+                Place("scene", MJCF))),
     "validate": StageFiles(
         reads=(*REPLAY_MODEL, Place("scene", GAUSSIANS), Place("episodes")),
         writes=(Place("validation"),)),

@@ -16,6 +16,7 @@ from sagebench.render.gaussians import Gaussians
 from sagebench.scene.loader import door_pose, load_scene, write_normalised_scene
 from sagebench.splats.ply import read_ply, write_ply
 from tests.test_collider_convex import u_prism
+from tests.test_usd_writer import nvidia_failures
 
 FAST = ["--coacd-preprocess", "off", "--coacd-max-hulls", "8"]
 WALL_X = 4.0  # inner face of the east wall
@@ -89,7 +90,7 @@ def tiny(tmp_path_factory):
     hashes = []
     for _ in range(2):
         with pytest.raises(SystemExit) as exc:
-            main(["export-usd", str(run), "--cache-dir", str(cache), *FAST])
+            main(["export-usd", str(run), "--cache-dir", str(cache), "--usdz", *FAST])
         assert exc.value.code in (0, None)
         hashes.append(_hashes(run / "scenes" / "tiny"))
     return run, hashes
@@ -112,7 +113,8 @@ def test_cold_then_warm_cache_and_messages(tmp_path, run_cli):
 def test_outputs_are_byte_identical_on_a_rerun(tiny):
     _, (first, second) = tiny
     assert first == second
-    assert {"scene.usda", "scene.xml", "colliders/colliders.json", "colliders/planter_4/part_000.stl"} <= set(first)
+    assert {"scene.usda", "geometry.usdc", "scene.usdz", "scene.xml", "colliders/colliders.json",
+            "colliders/planter_4/part_000.stl"} <= set(first)
 
 
 def test_usd_objects_semantics_gaussians_and_transforms(tiny):
@@ -146,6 +148,24 @@ def test_usd_objects_semantics_gaussians_and_transforms(tiny):
     ctx = UsdValidation.ValidationContext(UsdValidation.ValidationRegistry().GetOrLoadAllValidators())
     errors = [e.GetMessage() for e in ctx.Validate(stage) if e.GetType() == UsdValidation.ValidationErrorType.Error]
     assert errors == []
+    assert nvidia_failures(stage) == []
+
+
+def test_usdz_package_opens_with_the_same_gaussians(tiny):
+    run, _ = tiny
+    stage = Usd.Stage.Open(str(run / "scenes" / "tiny" / "scene.usdz"))
+    field = UsdVol.ParticleField3DGaussianSplat(stage.GetPrimAtPath("/World/Objects/chair_3/Gaussians"))
+    assert len(field.GetPositionsAttr().Get()) == COUNTS[3]
+    assert nvidia_failures(stage) == []
+
+
+def test_export_without_usdz_removes_a_stale_package(tmp_path, run_cli):
+    run = make_run(tmp_path)
+    scene_dir = run / "scenes" / "tiny"
+    assert run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", "--usdz", *FAST)[0] == 0
+    assert (scene_dir / "scene.usdz").is_file()
+    assert run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", *FAST)[0] == 0
+    assert not (scene_dir / "scene.usdz").exists() and (scene_dir / "geometry.usdc").is_file()
 
 
 def test_mujoco_loads_and_rays_hit_known_surfaces(tiny):
@@ -237,5 +257,9 @@ def test_demo_scene_exports_with_exact_parts_only(demo_scene_dir, tmp_path, run_
         assert n == int((g.instance_id == obj.instance_id).sum())
         total += n
     assert total == int((g.instance_id != 0).sum())
+    assert nvidia_failures(stage) == []
+    masses = {p.GetName(): UsdPhysics.MassAPI(p).GetMassAttr().Get() for p in stage.Traverse()
+              if p.HasAPI(UsdPhysics.MassAPI)}
+    assert len(masses) == 25 and all(1.0 < m < 60.0 for m in masses.values()), masses  # one person can push each
     model = mujoco.MjModel.from_xml_path(str(scene_dir / "scene.xml"))
     assert model.nbody == len(spec.objects) + 1

@@ -1,16 +1,20 @@
-"""The USD stage read back with pxr: semantics, invisible colliders with physics, Gaussians, transforms, joints."""
+"""The USD stage read back with pxr: semantics, invisible colliders with physics, Gaussians in their crate layer,
+transforms, joints; and checked by its consumers' validators (OpenUSD's and NVIDIA's asset validator)."""
 
 from __future__ import annotations
 
 import math
+import os
+from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
-from pxr import Gf, Usd, UsdGeom, UsdPhysics, UsdSemantics, UsdValidation, UsdVol
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics, UsdSemantics, UsdValidation, UsdVol
 
 from sagebench.collider_export.convex import hull_part
-from sagebench.collider_export.usd_writer import DENSITY_KG_M3, StageObject, build_stage, stage_text
+from sagebench.collider_export.bodies import DENSITY_KG_M3
+from sagebench.collider_export.usd_writer import StageObject, build_stage, stage_files, usdz_package
 from sagebench.render.gaussians import Gaussians
 from sagebench.scene.loader import door_pose
 from sagebench.scene.model import Door
@@ -51,11 +55,15 @@ OBJECTS = [
 ]
 
 
+BACKGROUND = gaussians(3, 0, degree=0, seed=3)
+
+
 @pytest.fixture(scope="module")
 def stage(tmp_path_factory):
-    path = tmp_path_factory.mktemp("usd") / "scene.usda"
-    path.write_text(stage_text("tiny", OBJECTS, gaussians(3, 0, degree=0, seed=3)))
-    return Usd.Stage.Open(str(path))
+    out = tmp_path_factory.mktemp("usd")
+    for name, data in stage_files("tiny", OBJECTS, BACKGROUND).items():
+        (out / name).write_bytes(data)
+    return Usd.Stage.Open(str(out / "scene.usda"))
 
 
 def test_stage_metadata_and_physics_scene(stage):
@@ -161,11 +169,115 @@ def test_validation_reports_no_errors(stage):
     assert errors == [], [e.GetMessage() for e in errors]
 
 
-def test_same_inputs_give_the_same_text():
-    assert stage_text("tiny", OBJECTS) == stage_text("tiny", OBJECTS)
-
-
-def test_prim_names_are_valid_identifiers():
+def test_prim_names_are_valid_identifiers(tmp_path):
     odd = StageObject(9, "tv-stand 2", "object", np.eye(4), [box_part((1, 1, 1))])
-    stage = build_stage("odd", [odd])
+    stage = build_stage(tmp_path, "odd", [odd])
     assert stage.GetPrimAtPath("/World/Objects/tv_stand_2_9").IsValid()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["geometry.usdc", "scene.usda"]
+
+
+def nvidia_failures(stage) -> list[str]:
+    """Failures and errors of NVIDIA's omniverse-asset-validator (its default rules plus the Gaussian splat
+    rule VG.035, which it leaves off by default) on `stage`; warnings and infos are allowed."""
+    import omni.asset_validator as av
+
+    engine = av.ValidationEngine()
+    engine.enable_rule(av.GaussianSplatSchemaChecker)
+    issues = engine.validate(stage)
+    bad = [i for i in issues if i.severity in (av.IssueSeverity.FAILURE, av.IssueSeverity.ERROR)]
+    return [f"{i.requirement.code if i.requirement else i.rule} {i.at}: {i.message}" for i in bad]
+
+
+def test_nvidia_asset_validator_finds_no_failure(stage):
+    assert nvidia_failures(stage) == []
+
+
+def test_sh_coefficients_are_a_vertex_primvar_with_display_colour(stage):
+    field = UsdVol.ParticleField3DGaussianSplat(stage.GetPrimAtPath("/World/Objects/chair_2/Gaussians"))
+    sh = UsdGeom.Primvar(field.GetRadianceSphericalHarmonicsCoefficientsAttr())
+    assert (sh.GetInterpolation(), sh.GetElementSize()) == ("vertex", 4)  # degree 1
+    colour = UsdGeom.PrimvarsAPI(field.GetPrim()).GetPrimvar("displayColor")
+    assert colour.GetInterpolation() == "vertex"
+    dc = OBJECTS[1].gaussians.sh[:, 0, :]
+    assert np.allclose(np.array(colour.Get()), np.clip(0.28209479177387814 * dc + 0.5, 0, 1), atol=1e-6)
+
+
+def test_collider_normals_point_out_of_each_part(stage):
+    for obj in OBJECTS:
+        for prim in stage.GetPrimAtPath(f"/World/Objects/{obj.category}_{obj.instance_id}/Colliders").GetChildren():
+            mesh = UsdGeom.Mesh(prim)
+            pts = np.array(mesh.GetPointsAttr().Get(), dtype=np.float64)
+            tri = pts[np.array(mesh.GetFaceVertexIndicesAttr().Get()).reshape(-1, 3)]
+            normals = np.array(mesh.GetNormalsAttr().Get())
+            assert mesh.GetNormalsInterpolation() == "uniform" and len(normals) == len(tri)
+            outward = tri.mean(axis=1) - pts.mean(axis=0)
+            assert np.all(np.einsum("ij,ij->i", normals, outward) > 0)
+            assert np.allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-6)
+
+
+def test_root_is_small_text_and_gaussian_arrays_live_in_the_crate_layer(stage):
+    root = stage.GetRootLayer()
+    assert root.GetFileFormat().formatId == "usda"
+    text = root.ExportToString()
+    assert "positions" not in text and "sphericalHarmonicsCoefficients" not in text and "points" not in text
+    assert "@./geometry.usdc@</Gaussians/chair_2>" in text and "@./geometry.usdc@</Colliders/chair_2/part_001>" in text
+    crate = Sdf.Layer.FindOrOpen(str(Path(root.realPath).with_name("geometry.usdc")))
+    assert crate.GetFileFormat().formatId == "usdc"
+    assert crate.GetPrimAtPath("/Gaussians/chair_2").GetAttributeAtPath(".positions").default is not None
+
+
+def test_crate_layer_round_trips_the_arrays_exactly(tmp_path):
+    """The crate layer alone (no root) gives back every array bit for bit (float32 as written)."""
+    files = stage_files("tiny", OBJECTS, BACKGROUND)
+    (tmp_path / "geometry.usdc").write_bytes(files["geometry.usdc"])
+    crate = Usd.Stage.Open(str(tmp_path / "geometry.usdc"))
+    for name, g in (("chair_2", OBJECTS[1].gaussians), ("door_3", OBJECTS[2].gaussians), ("Background", BACKGROUND)):
+        field = UsdVol.ParticleField3DGaussianSplat(crate.GetPrimAtPath(f"/Gaussians/{name}"))
+        assert np.array_equal(np.array(field.GetPositionsAttr().Get()), g.means)
+        assert np.array_equal(np.array(field.GetRadianceSphericalHarmonicsCoefficientsAttr().Get()), g.sh.reshape(-1, 3))
+        assert np.array_equal(np.array(field.GetScalesAttr().Get()), np.exp(g.log_scales.astype(np.float64)).astype(np.float32))
+    for obj in OBJECTS:
+        for i, part in enumerate(obj.parts):
+            mesh = UsdGeom.Mesh(crate.GetPrimAtPath(f"/Colliders/{obj.category}_{obj.instance_id}/part_{i:03d}"))
+            assert np.array_equal(np.array(mesh.GetPointsAttr().Get()), part.vertices.astype(np.float32))
+            assert np.array_equal(np.array(mesh.GetFaceVertexIndicesAttr().Get()), part.faces.reshape(-1))
+
+
+STAGE_BYTES = """
+import hashlib, sys
+sys.path.insert(0, {tests!r})
+from test_usd_writer import BACKGROUND, OBJECTS
+from sagebench.collider_export.usd_writer import stage_files
+for name, data in sorted(stage_files("tiny", OBJECTS, BACKGROUND).items()):
+    print(name, hashlib.sha256(data).hexdigest())
+"""
+
+
+def test_stage_bytes_are_the_same_in_two_fresh_processes():
+    import subprocess
+    import sys
+
+    script = STAGE_BYTES.format(tests=str(Path(__file__).parent))
+    runs = [subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True,
+                           env={**os.environ, "PYTHONHASHSEED": seed}).stdout for seed in ("1", "2")]
+    assert runs[0] == runs[1]
+    assert [line.split()[0] for line in runs[0].splitlines()] == ["geometry.usdc", "scene.usda"]
+
+
+def test_usdz_package_holds_the_root_first_and_opens(tmp_path):
+    import zipfile
+
+    path = tmp_path / "scene.usdz"
+    path.write_bytes(usdz_package(stage_files("tiny", OBJECTS, BACKGROUND)))
+    assert zipfile.ZipFile(path).namelist() == ["scene.usda", "geometry.usdc"]
+    stage = Usd.Stage.Open(str(path))
+    field = UsdVol.ParticleField3DGaussianSplat(stage.GetPrimAtPath("/World/Objects/chair_2/Gaussians"))
+    assert len(field.GetPositionsAttr().Get()) == 7
+
+
+def test_upholstered_furniture_weighs_a_bulk_density_of_its_parts(tmp_path):
+    """An armchair whose parts hold 0.8 x 0.8 x 0.9 m = 0.576 m^3 weighs 0.576 x 70 = 40.3 kg (not 230 kg)."""
+    chair = StageObject(4, "armchair", "object", np.eye(4), [box_part((0.8, 0.8, 0.9), (0, 0, 0.45))])
+    stage = build_stage(tmp_path, "soft", [chair])
+    mass = UsdPhysics.MassAPI(stage.GetPrimAtPath("/World/Objects/armchair_4")).GetMassAttr().Get()
+    assert mass == pytest.approx(0.576 * 70.0, rel=1e-6)

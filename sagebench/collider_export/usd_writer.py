@@ -1,39 +1,44 @@
 """The USD stage of a scene: per object its semantics, visible 3D Gaussians and invisible convex colliders.
 
-Layout (metres, Z up, defaultPrim /World):
+Two layers: the root (scene.usda, small text: prims, semantics, physics) and the arrays in a crate
+layer (geometry.usdc: Gaussians under /Gaussians, collider meshes under /Colliders) that the root's
+Gaussians and collider prims reference. Root layout (metres, Z up, defaultPrim /World):
 
     /World/PhysicsScene
     /World/Objects/<category>_<instance_id>     Xform, its transform = the object's world pose
-        Gaussians                               ParticleField3DGaussianSplat (world-frame values; its
-                                                xform cancels the object's, so they render in place)
+        Gaussians                               ParticleField3DGaussianSplat referencing
+                                                </Gaussians/<category>_<instance_id>> of the crate layer
+                                                (world-frame values; its xform cancels the object's)
         Colliders                               Xform, purpose guide, invisible
-            part_000, part_001, ...             Mesh, CollisionAPI + MeshCollisionAPI convexHull
+            part_000, part_001, ...             Mesh referencing </Colliders/<name>/part_NNN> (points, face
+                                                normals), CollisionAPI + MeshCollisionAPI convexHull
         Hinge                                   doors only: RevoluteJoint about the hinge
     /World/Background/Gaussians                 Gaussians of no object (instance id 0), if any
 
 Movable categories get RigidBodyAPI + MassAPI on the object Xform; doors too (a joint needs a body);
-everything else is a static collider.
+everything else is a static collider. The Gaussians follow the layout NVIDIA's asset validator checks
+(VG.035): SH coefficients a vertex-interpolated primvar with elementSize (degree + 1)^2, and a
+primvars:displayColor from the DC term.
 """
 
 from __future__ import annotations
 
 import math
+import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
+from sagebench.collider_export.bodies import body_mass, is_movable
 from sagebench.collider_export.convex import ConvexPart
-from sagebench.render.gaussians import Gaussians
+from sagebench.render.gaussians import SH_C0, Gaussians
+from sagebench.run_layout import USD, USD_GEOMETRY
 from sagebench.scene.model import Door
 
-MOVABLE_CATEGORIES: frozenset[str] = frozenset(
-    {
-        "chair", "office_chair", "armchair", "stool", "coffee_table", "side_table", "trash_bin", "plant",
-        "floor_lamp", "rug", "box", "cushion", "pillow", "laptop", "toy", "basket", "vase",
-    }
-)  # furniture a robot may push aside; everything else is static
-DENSITY_KG_M3 = 400.0  # mass of a movable object or door leaf = this x the volume of its parts
+GAUSSIANS_ROOT = "/Gaussians"  # in the crate layer: one ParticleField3DGaussianSplat per object (and Background)
+COLLIDERS_ROOT = "/Colliders"  # in the crate layer: <object>/part_NNN, one Mesh per convex part
 DOOR_DRIVE_STIFFNESS = 1000.0  # holds a door at its state's angle (per degree, USD physics units)
 DOOR_DRIVE_DAMPING = 100.0
 
@@ -60,16 +65,69 @@ def prim_name(obj: StageObject) -> str:
     return Tf.MakeValidIdentifier(f"{obj.category}_{obj.instance_id}")
 
 
-def is_movable(obj: StageObject) -> bool:
-    return obj.kind == "object" and obj.category in MOVABLE_CATEGORIES
+def is_body(obj: StageObject) -> bool:
+    """A rigid body in the exports: movable furniture (free) and doors (on their hinge)."""
+    return is_movable(obj.kind, obj.category) or obj.door is not None
 
 
-def build_stage(scene_id: str, objects: Sequence[StageObject], background: Gaussians | None = None):
-    """An in-memory Usd.Stage of the scene (see the module docstring for its layout); `background` are the
-    Gaussians of no object (instance id 0), written to /World/Background/Gaussians."""
-    from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics
+def object_mass(obj: StageObject) -> float:
+    """kg of a body, from the world volume of its collider parts (the same figure in USD and MJCF)."""
+    volume = sum(p.volume for p in obj.parts) * abs(np.linalg.det(obj.matrix[:3, :3]))
+    return body_mass(obj.category, volume)
 
-    stage = Usd.Stage.CreateInMemory(f"{scene_id}.usda")
+
+def stage_files(scene_id: str, objects: Sequence[StageObject], background: Gaussians | None = None) -> dict[str, bytes]:
+    """The stage's files by name: USD (the text root) and USD_GEOMETRY (the crate layer it references).
+    Same inputs give the same bytes, in any process."""
+    with tempfile.TemporaryDirectory(prefix="sagebench-usd-") as tmp:
+        build_stage(Path(tmp), scene_id, objects, background)
+        return {p.name: p.read_bytes() for p in sorted(Path(tmp).iterdir())}
+
+
+def usdz_package(files: Mapping[str, bytes]) -> bytes:
+    """One .usdz holding the stage's files (as `stage_files` gives them), its root layer first."""
+    from pxr import UsdUtils
+
+    with tempfile.TemporaryDirectory(prefix="sagebench-usdz-") as tmp:
+        for name, data in files.items():
+            (Path(tmp) / name).write_bytes(data)
+        out = Path(tmp) / "package.usdz"
+        if not UsdUtils.CreateNewUsdzPackage(str(Path(tmp) / USD), str(out)):
+            raise RuntimeError(f"UsdUtils could not package {USD} as .usdz")
+        return out.read_bytes()
+
+
+def build_stage(directory: Path, scene_id: str, objects: Sequence[StageObject], background: Gaussians | None = None):
+    """Write the stage into `directory` (USD and USD_GEOMETRY) and return it opened; `background` are the
+    Gaussians of no object (instance id 0), at /World/Background/Gaussians."""
+    from pxr import Sdf, Usd
+
+    splats = [(Sdf.Path("/World/Objects").AppendChild(prim_name(o)), o.gaussians, np.linalg.inv(o.matrix))
+              for o in objects if o.gaussians is not None and o.gaussians.count]
+    if background is not None and background.count:
+        splats.insert(0, (Sdf.Path("/World/Background"), background, np.eye(4)))
+    crate = Usd.Stage.CreateNew(str(Path(directory) / USD_GEOMETRY))
+    for parent, g, _ in splats:
+        _write_gaussian_arrays(crate, _crate_path(parent), g)
+    for obj in objects:
+        for i, part in enumerate(obj.parts):
+            _write_mesh_arrays(crate, Sdf.Path(COLLIDERS_ROOT).AppendChild(prim_name(obj)).AppendChild(_part(i)), part)
+    crate.GetRootLayer().Save()
+    stage = Usd.Stage.CreateNew(str(Path(directory) / USD))
+    _author_root(stage, scene_id, objects, splats)
+    stage.GetRootLayer().Save()
+    return stage
+
+
+def _crate_path(parent):
+    from pxr import Sdf
+
+    return Sdf.Path(GAUSSIANS_ROOT).AppendChild(parent.name)
+
+
+def _author_root(stage, scene_id: str, objects: Sequence[StageObject], splats) -> None:
+    from pxr import Gf, Sdf, UsdGeom, UsdPhysics
+
     UsdGeom.SetStageMetersPerUnit(stage, 1.0)
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
     UsdPhysics.SetStageKilogramsPerUnit(stage, 1.0)
@@ -80,29 +138,22 @@ def build_stage(scene_id: str, objects: Sequence[StageObject], background: Gauss
     physics.CreateGravityDirectionAttr(Gf.Vec3f(0.0, 0.0, -1.0))
     physics.CreateGravityMagnitudeAttr(9.81)
     UsdGeom.Scope.Define(stage, "/World/Objects")
-    if background is not None and background.count:
+    if any(parent.name == "Background" for parent, _, _ in splats):
         UsdGeom.Xform.Define(stage, "/World/Background")
-        _write_gaussians(stage, Sdf.Path("/World/Background/Gaussians"), background, np.eye(4))
     for obj in objects:
         path = Sdf.Path("/World/Objects").AppendChild(prim_name(obj))
         xform = UsdGeom.Xform.Define(stage, path)
         xform.AddTransformOp().Set(_gf_matrix(obj.matrix))
         _write_semantics(xform.GetPrim(), obj)
-        if obj.gaussians is not None:
-            _write_gaussians(stage, path.AppendChild("Gaussians"), obj.gaussians, np.linalg.inv(obj.matrix))
-        volume = _write_colliders(stage, path.AppendChild("Colliders"), obj.parts) * abs(np.linalg.det(obj.matrix[:3, :3]))
-        if is_movable(obj) or obj.door is not None:
+        _write_colliders(stage, path.AppendChild("Colliders"), Sdf.Path(COLLIDERS_ROOT).AppendChild(path.name),
+                         len(obj.parts))
+        if is_body(obj):
             UsdPhysics.RigidBodyAPI.Apply(xform.GetPrim())
-            UsdPhysics.MassAPI.Apply(xform.GetPrim()).CreateMassAttr(float(max(volume, 1e-6) * DENSITY_KG_M3))
+            UsdPhysics.MassAPI.Apply(xform.GetPrim()).CreateMassAttr(object_mass(obj))
         if obj.door is not None:
             _write_hinge(stage, path, obj)
-    return stage
-
-
-def stage_text(scene_id: str, objects: Sequence[StageObject], background: Gaussians | None = None) -> str:
-    """The stage as .usda text (same inputs give the same text)."""
-    stage = build_stage(scene_id, objects, background)  # keep the stage alive: it owns the layer
-    return stage.GetRootLayer().ExportToString()
+    for parent, _, world_to_local in splats:
+        _reference_gaussians(stage, parent.AppendChild("Gaussians"), _crate_path(parent), world_to_local)
 
 
 def _gf_matrix(m: np.ndarray):
@@ -138,14 +189,24 @@ def _identifier(text: str) -> str:
     return Tf.MakeValidIdentifier(text)
 
 
-def _write_gaussians(stage, path, g: Gaussians, world_to_local: np.ndarray) -> None:
-    """Author a ParticleField3DGaussianSplat with activated values: unit quaternions, scales in metres
-    (exp of the PLY's logs), opacities in [0, 1] (sigmoid of its logits) and SH coefficients point-major
-    ([N * K] float3, DC first), positions in world metres (its xform cancels the object's)."""
-    from pxr import Gf, UsdGeom, UsdVol, Vt
+def _reference_gaussians(stage, path, crate_path, world_to_local: np.ndarray) -> None:
+    """The root's Gaussians prim: a reference to its arrays in the crate layer, and the xform that puts
+    their world-frame values back in place under the object's transform."""
+    from pxr import UsdGeom, UsdVol
+
+    prim = UsdVol.ParticleField3DGaussianSplat.Define(stage, path).GetPrim()
+    prim.GetReferences().AddReference(f"./{USD_GEOMETRY}", crate_path)
+    UsdGeom.Xformable(prim).AddTransformOp().Set(_gf_matrix(world_to_local))
+
+
+def _write_gaussian_arrays(stage, path, g: Gaussians) -> None:
+    """Author a ParticleField3DGaussianSplat in the crate `stage` with activated values: unit quaternions, scales in
+    metres (exp of the PLY's logs), opacities in [0, 1] (sigmoid of its logits), SH coefficients
+    point-major ([N * K] float3, DC first; a vertex primvar of elementSize K) and displayColor from the
+    DC term, positions in world metres."""
+    from pxr import Gf, Sdf, UsdGeom, UsdVol, Vt
 
     prim = UsdVol.ParticleField3DGaussianSplat.Define(stage, path)
-    UsdGeom.Xformable(prim.GetPrim()).AddTransformOp().Set(_gf_matrix(world_to_local))
     pos = np.ascontiguousarray(g.means, dtype=np.float32)
     prim.CreatePositionsAttr(Vt.Vec3fArray.FromNumpy(pos))
     q = g.quats_wxyz.astype(np.float64)
@@ -158,35 +219,56 @@ def _write_gaussians(stage, path, g: Gaussians, world_to_local: np.ndarray) -> N
     prim.CreateOpacitiesAttr(Vt.FloatArray.FromNumpy(opacities))
     prim.CreateRadianceSphericalHarmonicsDegreeAttr(g.sh_degree)
     coeffs = np.ascontiguousarray(g.sh, dtype=np.float32).reshape(-1, 3)
-    prim.CreateRadianceSphericalHarmonicsCoefficientsAttr(Vt.Vec3fArray.FromNumpy(coeffs))
-    if g.count:
-        reach = 3.0 * scales.max(axis=1, keepdims=True)  # 3 sigma around each centre
-        lo, hi = (pos - reach).min(axis=0), (pos + reach).max(axis=0)
-    else:
-        lo = hi = np.zeros(3)
+    sh = UsdGeom.Primvar(prim.CreateRadianceSphericalHarmonicsCoefficientsAttr(Vt.Vec3fArray.FromNumpy(coeffs)))
+    sh.SetInterpolation(UsdGeom.Tokens.vertex)
+    sh.SetElementSize(g.sh.shape[1])
+    colour = np.clip(SH_C0 * g.sh[:, 0, :].astype(np.float64) + 0.5, 0.0, 1.0).astype(np.float32)
+    UsdGeom.PrimvarsAPI(prim.GetPrim()).CreatePrimvar(
+        "displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex).Set(Vt.Vec3fArray.FromNumpy(colour))
+    reach = 3.0 * scales.max(axis=1, keepdims=True)  # 3 sigma around each centre
+    lo, hi = (pos - reach).min(axis=0), (pos + reach).max(axis=0)
     prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]))
 
 
-def _write_colliders(stage, path, parts: Sequence[ConvexPart]) -> float:
-    """Author the invisible collider meshes; returns the total volume of the parts (mesh-file units^3)."""
-    from pxr import UsdGeom, UsdPhysics, Vt
+def _part(i: int) -> str:
+    return f"part_{i:03d}"
+
+
+def _write_mesh_arrays(stage, path, part: ConvexPart) -> None:
+    """A collider part's geometry in the crate `stage`: points, triangles, outward face normals (uniform)."""
+    from pxr import UsdGeom, Vt
+
+    mesh = UsdGeom.Mesh.Define(stage, path)
+    points = Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(part.vertices, dtype=np.float32))
+    mesh.CreatePointsAttr(points)
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(part.faces)))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(part.faces.reshape(-1), dtype=np.int32)))
+    mesh.CreateExtentAttr(UsdGeom.PointBased.ComputeExtent(points))
+    mesh.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(face_normals(part.vertices, part.faces)))
+    mesh.SetNormalsInterpolation(UsdGeom.Tokens.uniform)
+
+
+def _write_colliders(stage, path, crate_path, parts: int) -> None:
+    """The invisible collider group: one Mesh per part referencing its geometry in the crate layer, with
+    the physics schemas (convex hull approximation)."""
+    from pxr import UsdGeom, UsdPhysics
 
     group = UsdGeom.Xform.Define(stage, path)
     group.CreatePurposeAttr(UsdGeom.Tokens.guide)
     group.CreateVisibilityAttr(UsdGeom.Tokens.invisible)
-    total = 0.0
-    for i, part in enumerate(parts):
-        mesh = UsdGeom.Mesh.Define(stage, path.AppendChild(f"part_{i:03d}"))
-        points = Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(part.vertices, dtype=np.float32))
-        mesh.CreatePointsAttr(points)
-        mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(part.faces)))
-        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(part.faces.reshape(-1), dtype=np.int32)))
+    for i in range(parts):
+        mesh = UsdGeom.Mesh.Define(stage, path.AppendChild(_part(i)))
+        mesh.GetPrim().GetReferences().AddReference(f"./{USD_GEOMETRY}", crate_path.AppendChild(_part(i)))
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-        mesh.CreateExtentAttr(UsdGeom.PointBased.ComputeExtent(points))
         UsdPhysics.CollisionAPI.Apply(mesh.GetPrim())
         UsdPhysics.MeshCollisionAPI.Apply(mesh.GetPrim()).CreateApproximationAttr(UsdPhysics.Tokens.convexHull)
-        total += part.volume
-    return total
+
+
+def face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """[F, 3] float32 unit normals of triangles [F, 3] over vertices [V, 3], by the right-hand rule."""
+    v = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
+    n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    return np.ascontiguousarray(n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300), dtype=np.float32)
 
 
 def _write_hinge(stage, body_path, obj: StageObject) -> None:

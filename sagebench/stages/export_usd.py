@@ -1,8 +1,10 @@
-"""`export-usd`: RUN/scenes/<id>/ -> colliders/ (convex parts), scene.usda (3DGS + colliders + semantics), scene.xml.
+"""`export-usd`: RUN/scenes/<id>/ -> colliders/ (convex parts), scene.usda + geometry.usdc (3DGS, colliders,
+semantics), scene.xml, and with --usdz scene.usdz.
 
 Reads the normalised scene (scene.json + meshes) and gaussians.ply that build-scene wrote. Writes
 colliders/<category>_<instance_id>/part_NNN.stl (world frame) and colliders/colliders.json, then
-scene.usda and scene.xml; all are computed before the first byte is written.
+geometry.usdc, scene.usda (which references it), scene.usdz and scene.xml; all are computed before the
+first byte is written.
 """
 
 from __future__ import annotations
@@ -20,12 +22,12 @@ from sagebench.collider_export.convex import hull_part
 from sagebench.collider_export.decompose import MeshColliders, decompose_meshes
 from sagebench.collider_export.mjcf_writer import MjcfBody, mjcf_text
 from sagebench.collider_export.quality import ColliderQuality, measure_objects
-from sagebench.collider_export.usd_writer import StageObject, prim_name, stage_text
+from sagebench.collider_export.usd_writer import StageObject, prim_name, stage_files, usdz_package
 from sagebench.config import from_options
 from sagebench.errors import DataError
 from sagebench.fileio import dumps_json, staged_dir, write_bytes, write_text
 from sagebench.render.gaussians import Gaussians
-from sagebench.run_layout import COLLIDERS, COLLIDERS_INDEX, GAUSSIANS, MJCF, SCENES, USD
+from sagebench.run_layout import COLLIDERS, COLLIDERS_INDEX, GAUSSIANS, MJCF, SCENES, USD, USD_GEOMETRY, USDZ
 from sagebench.scene.loader import SCENE_FILE, LoadedScene, door_pose, load_scene, read_mesh, resolve_mesh_path
 
 
@@ -40,21 +42,22 @@ class ExportConfig(BaseModel):
         default=0.002, gt=0, lt=1, description="A closed piece within this relative volume of its hull is convex."
     )
     workers: int = Field(default=1, ge=1, description="Processes running CoACD in parallel.")
+    usdz: bool = Field(default=False, description="Also package the stage and its layers as scene.usdz.")
 
 
 # export-usd's options and the ExportConfig fields they set (their defaults and error names come from here)
 OPTIONS = {"--coacd-threshold": "coacd.threshold", "--coacd-max-hulls": "coacd.max_convex_hull",
-           "--coacd-preprocess": "coacd.preprocess_mode", "--workers": "workers"}
+           "--coacd-preprocess": "coacd.preprocess_mode", "--workers": "workers", "--usdz": "usdz"}
 
 
 def make_config(
     *, coacd_threshold: float | None = None, coacd_max_hulls: int | None = None,
-    coacd_preprocess: str | None = None, workers: int | None = None,
+    coacd_preprocess: str | None = None, workers: int | None = None, usdz: bool | None = None,
 ) -> ExportConfig:
     """An ExportConfig from the options given (None = keep the default); a bad value is a ConfigError."""
     coacd = {k: v for k, v in (("threshold", coacd_threshold), ("max_convex_hull", coacd_max_hulls),
                                ("preprocess_mode", coacd_preprocess)) if v is not None}
-    return from_options(ExportConfig, {"coacd": coacd, "workers": workers}, OPTIONS)
+    return from_options(ExportConfig, {"coacd": coacd, "workers": workers, "usdz": usdz}, OPTIONS)
 
 
 def default_cache_dir() -> Path:
@@ -145,7 +148,8 @@ def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> 
             part_files.append(rel)
         bodies.append(MjcfBody(name, part_files))
         index.append(_index_entry(obj.instance_id, name, obj.mesh, part_files, mc, quality.get(obj.instance_id)))
-    usda = stage_text(spec.scene_id, objects, None if per_object is None else per_object.get(0))
+    usd = stage_files(spec.scene_id, objects, None if per_object is None else per_object.get(0))
+    usdz = usdz_package(usd) if config.usdz else None
     mjcf = mjcf_text(spec.scene_id, bodies, meshdir=COLLIDERS, floor_height=spec.floor_height)
     files[COLLIDERS_INDEX] = dumps_json({
         "scene_id": spec.scene_id, "coacd_version": coacd_version(), "config": config.model_dump(exclude={"workers"}),
@@ -154,7 +158,12 @@ def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> 
     with staged_dir(scene_dir / COLLIDERS) as tmp:
         for rel, data in files.items():
             write_bytes(tmp / rel, data)
-    write_text(scene_dir / USD, usda)
+    for name in (USD_GEOMETRY, USD):  # the root last: it references the crate layer
+        write_bytes(scene_dir / name, usd[name])
+    if usdz is not None:
+        write_bytes(scene_dir / USDZ, usdz)
+    else:
+        (scene_dir / USDZ).unlink(missing_ok=True)  # a previous export's, which this stage no longer matches
     write_text(scene_dir / MJCF, mjcf)
     pieces = [p for mc in colliders.values() for p in mc.pieces]
     names = {o.instance_id: prim_name(o) for o in objects}
