@@ -92,6 +92,12 @@ MUTANTS = (
            "cands = [o for o in cands if o.room_id in rooms]", "pass", ("tests/test_instructions_grounding.py",)),
     Mutant("sight: walls do not block the view", "sagebench/instructions/sight.py",
            "if self.walls[row, col]:", "if False:", ("tests/test_instructions_sight.py",)),
+    Mutant("USD: SH coefficients a constant primvar", "sagebench/collider_export/usd_writer.py",
+           "sh.SetInterpolation(UsdGeom.Tokens.vertex)", "sh.SetInterpolation(UsdGeom.Tokens.constant)",
+           ("tests/test_usd_writer.py",)),
+    Mutant("USD: collider normals inward", "sagebench/collider_export/usd_writer.py",
+           "n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])", "n = np.cross(v[:, 2] - v[:, 0], v[:, 1] - v[:, 0])",
+           ("tests/test_usd_writer.py",)),
 )
 
 
