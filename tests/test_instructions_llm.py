@@ -9,12 +9,13 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 import zlib
 
 import numpy as np
 import pytest
-from fake_llm import FakeLLM, Reply, answer, bounded
+from fake_llm import FakeLLM, Reply, answer, bounded, completion
 
 from sagebench.instructions.base import TrajectoryText, make_context
 from sagebench.instructions.high_level import scenario_data
@@ -209,15 +210,37 @@ def test_cli_llm_mode_writes_llm_rows_and_a_second_run_sends_no_request(fake_llm
     assert _files(episodes) == first
 
 
-@pytest.mark.parametrize("reply", [Reply(404, {"error": "model not found"}), Reply(200, "<html>not json</html>")])
+@pytest.mark.parametrize("reply", [Reply(404, {"error": "model not found"}), Reply(200, "<html>not json</html>"),
+                                   Reply(body=completion(None)), Reply(mode="hang"), Reply(mode="not_http")],
+                         ids=["404", "non-JSON", "content null", "hang", "non-HTTP"])
 def test_cli_exits_1_and_writes_nothing_when_no_answer_comes(fake_llm, run_cli, run, tmp_path, reply):
     server = fake_llm(lambda b, n: reply)
-    code, out, err = bounded(BOUND_S, run_cli, *_llm_args(run, server.url, tmp_path))
+    code, out, err = bounded(BOUND_S, run_cli, *_llm_args(run, server.url, tmp_path, "--llm-timeout", "0.5"))
     assert code == 1 and not (run / "episodes").exists()
     (line,) = err.strip().splitlines()
     assert line.startswith(f"error: {run / 'scenes' / 'demo_apartment_0'}: --instructions llm: no high-level row "
                            "came from the model (0 of 8 high-level rows from the model (0 %), 8 template;")
     assert "stopped asking after 6 consecutive failed requests" in line and len(server.bodies) <= 6 + 4 - 1
+
+
+def test_a_server_dying_mid_run_keeps_the_answers_and_warns_once(fake_llm, run, tmp_path, capsys):
+    from sagebench.episodes.shards import read_episodes
+    from sagebench.stages.gen_trajectories import gen_trajectories, make_config
+
+    def respond(body, n):
+        if n <= 3:
+            return goal_answer(body["messages"][0]["content"])
+        threading.Thread(target=server.close).start()  # from now on: connection refused
+        return Reply(mode="not_http")
+
+    server = fake_llm(respond)
+    config = make_config(per_scene=8, instructions="llm", llm={
+        "base_url": server.url, "model": "fake", "cache_dir": tmp_path / "cache", "concurrency": 1, "backoff_s": 0.01})
+    (result,) = bounded(BOUND_S, gen_trajectories, run, config)
+    assert "3 of 8 high-level rows from the model (38 %), 5 template" in result.summary()
+    assert capsys.readouterr().err.count("stopped asking after 6 consecutive failed requests") == 1
+    high = [r for r in read_episodes(run / "episodes" / "demo_apartment_0").to_pylist() if r["instruction_level"] == "high"]
+    assert sum(r["instruction_source"] == "llm:fake" for r in high) == 3
 
 
 def test_cli_min_share_fails_a_run_with_too_few_llm_rows(fake_llm, run_cli, run, tmp_path):
@@ -272,3 +295,22 @@ def test_ctrl_c_stops_promptly_and_writes_nothing(fake_llm, run, tmp_path):
     assert proc.returncode == 130 and err.strip().splitlines()[-1] == \
         "error: interrupted: the scene in progress was not written"
     assert len(server.bodies) == 4 and not (run / "episodes").exists()
+
+
+def test_run_config_sets_the_llm_settings_but_not_the_key_variable(tmp_path):
+    from sagebench.errors import ConfigError
+    from sagebench.pipeline.config import load_run_config
+
+    path = tmp_path / "run.toml"
+    base = 'scenes = ["s"]\nout = "o"\n[gen_trajectories]\ninstructions = "llm"\n[gen_trajectories.llm]\n' \
+           'base_url = "http://127.0.0.1:8000/v1"\nmodel = "m"\n'
+    path.write_text(base + "timeout_s = 5\nmax_attempts = 2\ntemperature = 0.3\nmax_tokens = 64\nconcurrency = 2\n")
+    llm = load_run_config(path).gen_trajectories.llm
+    assert (llm.timeout_s, llm.max_attempts, llm.temperature, llm.max_tokens, llm.concurrency) == (5, 2, 0.3, 64, 2)
+    path.write_text(base + 'api_key_env = "AWS_SECRET_ACCESS_KEY"\n')
+    with pytest.raises(ConfigError) as err:
+        load_run_config(path)
+    assert str(err.value) == f"{path}: gen_trajectories.llm.api_key_env: Extra inputs are not permitted"
+    path.write_text(base.replace('instructions = "llm"', 'instructions = "template"'))
+    with pytest.raises(ConfigError, match=r"the llm table\) are used only with --instructions llm"):
+        load_run_config(path)

@@ -314,7 +314,7 @@ class ChatClient:
                 with opener.open(req, timeout=self.config.timeout_s) as resp:
                     payload = resp.read()
             except urllib.error.HTTPError as err:
-                error = f"HTTP {err.code} {err.read()[:200].decode('utf-8', 'replace')}".strip()
+                error = _one_line(f"HTTP {err.code} {err.read()[:200].decode('utf-8', 'replace')}")
                 if err.code == 400 and self._schema:
                     self._schema = False  # the server does not take response_format: ask without it from now on
                     return _Outcome(error=error, failure=False, refused_schema=True)
@@ -325,7 +325,7 @@ class ChatClient:
                     raise LLMUnavailable(self._why_stopped()) from None
                 if watch.past():
                     return expired
-                return _Outcome(error=f"{type(err).__name__}: {getattr(err, 'reason', err)}", retry=True)
+                return _Outcome(error=_one_line(f"{type(err).__name__}: {getattr(err, 'reason', err)}"), retry=True)
             if watch.expired:  # a body without Content-Length ends at the cut, looking complete
                 return expired
             return _content(payload)
@@ -356,6 +356,11 @@ class _Outcome:
     failure: bool = True  # counts towards the breaker (a 429 or a refused response_format does not)
     wait_s: float = 0.0  # the server's Retry-After
     refused_schema: bool = False
+
+
+def _one_line(text: str) -> str:
+    """Errors end up in one-line messages: a server's reply may hold newlines."""
+    return " ".join(text.split())
 
 
 def _content(payload: bytes) -> _Outcome:
