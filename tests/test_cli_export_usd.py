@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from pathlib import Path
 
 import mujoco
@@ -186,6 +187,41 @@ def test_mujoco_loads_and_rays_hit_known_surfaces(tiny):
     assert name.startswith("planter_4_") and dist == pytest.approx(0.9, abs=0.02)
 
 
+def mjcf_matches_usd(stage, model) -> tuple[int, int]:
+    """Assert that the MJCF's joints and masses are the USD stage's; returns (free bodies, hinges). MuJoCo's
+    XML writer keeps 6 significant digits, so angles and positions agree to a relative 1e-5."""
+    free = hinges = 0
+    for prim in stage.GetPrimAtPath("/World/Objects").GetChildren():
+        body = model.body(prim.GetName())
+        joints = [model.joint(j) for j in range(model.njnt) if model.jnt_bodyid[j] == body.id]
+        if not prim.HasAPI(UsdPhysics.RigidBodyAPI):
+            assert joints == [], prim.GetName()
+            continue
+        assert body.mass[0] == pytest.approx(UsdPhysics.MassAPI(prim).GetMassAttr().Get(), rel=1e-5)
+        hinge = prim.GetChild("Hinge")
+        (joint,) = joints
+        if not hinge.IsValid():
+            assert joint.type == mujoco.mjtJoint.mjJNT_FREE
+            free += 1
+            continue
+        usd = UsdPhysics.RevoluteJoint(hinge)
+        assert joint.type == mujoco.mjtJoint.mjJNT_HINGE and np.allclose(joint.axis, [0, 0, 1])
+        lo, hi = np.radians([usd.GetLowerLimitAttr().Get(), usd.GetUpperLimitAttr().Get()])
+        assert np.allclose(joint.range, [lo, hi], rtol=1e-5) and joint.limited[0]
+        state = math.radians(hinge.GetAttribute("sagebench:stateAngleDeg").Get())
+        assert model.qpos0[joint.qposadr[0]] == pytest.approx(state, rel=1e-5, abs=1e-9)
+        assert np.allclose(model.jnt_pos[joint.id], usd.GetLocalPos0Attr().Get(), rtol=1e-5)  # the hinge, world frame
+        hinges += 1
+    return free, hinges
+
+
+def test_mjcf_joints_and_masses_match_the_usd_stage(tiny):
+    run, _ = tiny
+    stage = Usd.Stage.Open(str(run / "scenes" / "tiny" / "scene.usda"))
+    model = mujoco.MjModel.from_xml_path(str(run / "scenes" / "tiny" / "scene.xml"))
+    assert mjcf_matches_usd(stage, model) == (1, 1)  # the chair, the door
+
+
 def test_colliders_index_lists_every_part(tiny):
     run, _ = tiny
     index = json.loads((run / "scenes" / "tiny" / "colliders" / "colliders.json").read_text())
@@ -263,3 +299,4 @@ def test_demo_scene_exports_with_exact_parts_only(demo_scene_dir, tmp_path, run_
     assert len(masses) == 25 and all(1.0 < m < 60.0 for m in masses.values()), masses  # one person can push each
     model = mujoco.MjModel.from_xml_path(str(scene_dir / "scene.xml"))
     assert model.nbody == len(spec.objects) + 1
+    assert mjcf_matches_usd(stage, model) == (18, 7)

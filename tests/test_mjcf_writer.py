@@ -1,4 +1,5 @@
-"""The MJCF model: loads in MuJoCo, one mesh geom per convex part placed in world coordinates."""
+"""The MJCF model: compiled by MjSpec, loads in MuJoCo, one mesh geom per convex part placed in world
+coordinates; free and hinge joints where the USD stage has rigid bodies, masses from the densities."""
 
 from __future__ import annotations
 
@@ -7,25 +8,31 @@ import numpy as np
 import pytest
 import trimesh
 
-from sagebench.collider_export.mjcf_writer import MjcfBody, mjcf_text
+from sagebench.collider_export.mjcf_writer import MjcfBody, MjcfHinge, mjcf_text
+
+BOXES = {
+    "wall_1/part_000.stl": ((0.1, 4.0, 2.7), (3.05, 0.0, 1.35)),
+    "sofa_2/part_000.stl": ((1.0, 0.4, 0.5), (0.0, -1.5, 0.25)),
+    "sofa_2/part_001.stl": ((0.4, 1.0, 0.5), (-0.3, -0.8, 0.25)),
+}
+MESHES = {rel: trimesh.creation.box(size).apply_translation(centre).export(file_type="stl")
+          for rel, (size, centre) in BOXES.items()}
+
+
+def write_model(tmp_path, bodies, meshes=MESHES):
+    for rel, data in meshes.items():
+        (tmp_path / "colliders" / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / "colliders" / rel).write_bytes(data)
+    (tmp_path / "scene.xml").write_text(mjcf_text("tiny", bodies, meshes=meshes, floor_height=0.0))
+    m = mujoco.MjModel.from_xml_path(str(tmp_path / "scene.xml"))
+    return m, mujoco.MjData(m)
 
 
 @pytest.fixture
 def model(tmp_path):
     """A wall slab (x in [3, 3.1]) and an L made of two boxes, written as world-frame STL parts."""
-    boxes = {
-        "wall_1/part_000.stl": ((0.1, 4.0, 2.7), (3.05, 0.0, 1.35)),
-        "sofa_2/part_000.stl": ((1.0, 0.4, 0.5), (0.0, -1.5, 0.25)),
-        "sofa_2/part_001.stl": ((0.4, 1.0, 0.5), (-0.3, -0.8, 0.25)),
-    }
-    for rel, (size, centre) in boxes.items():
-        (tmp_path / "colliders" / rel).parent.mkdir(parents=True, exist_ok=True)
-        trimesh.creation.box(size).apply_translation(centre).export(tmp_path / "colliders" / rel)
-    bodies = [MjcfBody("wall_1", ["wall_1/part_000.stl"]),
-              MjcfBody("sofa_2", ["sofa_2/part_000.stl", "sofa_2/part_001.stl"])]
-    (tmp_path / "scene.xml").write_text(mjcf_text("tiny", bodies, floor_height=0.0))
-    m = mujoco.MjModel.from_xml_path(str(tmp_path / "scene.xml"))
-    return m, mujoco.MjData(m)
+    return write_model(tmp_path, [MjcfBody("wall_1", ["wall_1/part_000.stl"]),
+                                  MjcfBody("sofa_2", ["sofa_2/part_000.stl", "sofa_2/part_001.stl"])])
 
 
 def ray(m, d, origin, direction) -> tuple[float, str]:
@@ -61,6 +68,29 @@ def test_ray_hits_each_part_of_a_concave_object_where_it_is(model):
 
 
 def test_same_inputs_give_the_same_text():
-    bodies = [MjcfBody("a_1", ["a_1/part_000.stl"])]
-    assert mjcf_text("x", bodies) == mjcf_text("x", bodies)
-    assert 'meshdir="colliders"' in mjcf_text("x", bodies)
+    bodies = [MjcfBody("wall_1", ["wall_1/part_000.stl"])]
+    assert mjcf_text("x", bodies, meshes=MESHES) == mjcf_text("x", bodies, meshes=MESHES)
+    assert 'meshdir="colliders' in mjcf_text("x", bodies, meshes=MESHES)
+
+
+def test_free_and_hinge_joints_with_masses_from_the_density(tmp_path):
+    """The L sofa free at 70 kg/m^3 (2 x 0.2 m^3 = 0.4 m^3 -> 28 kg); the wall a door leaf on a hinge at
+    x 3, y -2 held at -0.5 rad, range -1.5..0."""
+    hinge = MjcfHinge(pos=(3.0, -2.0, 0.0), angle=-0.5, lower=-1.5, upper=0.0)
+    m, d = write_model(tmp_path, [
+        MjcfBody("door_1", ["wall_1/part_000.stl"], joint="hinge", hinge=hinge, density=400.0),
+        MjcfBody("sofa_2", ["sofa_2/part_000.stl", "sofa_2/part_001.stl"], joint="free", density=70.0)])
+    door, sofa = m.joint("door_1_hinge"), m.joint("sofa_2_free")
+    assert door.type == mujoco.mjtJoint.mjJNT_HINGE and sofa.type == mujoco.mjtJoint.mjJNT_FREE
+    assert m.qpos0[door.qposadr[0]] == pytest.approx(-0.5)  # the pose written is the state's angle
+    assert list(door.range) == [-1.5, 0.0] and door.limited[0]
+    assert np.allclose(door.axis, [0, 0, 1])
+    mujoco.mj_forward(m, d)
+    assert np.allclose(d.xanchor[door.id], [3.0, -2.0, 0.0])
+    assert m.body("sofa_2").mass[0] == pytest.approx(0.4 * 70.0, rel=1e-6)
+    assert m.body("door_1").mass[0] == pytest.approx(0.1 * 4.0 * 2.7 * 400.0, rel=1e-6)
+
+
+def test_a_model_mujoco_refuses_is_never_written():
+    with pytest.raises(ValueError, match="missing.stl"):
+        mjcf_text("x", [MjcfBody("a_1", ["missing.stl"])], meshes=MESHES)

@@ -136,3 +136,13 @@ def test_bad_paths_are_rejected(room, bad, message):
 def test_unknown_floor_body_is_an_error(room_mjcf):
     with pytest.raises(ValueError, match="no body named 'floor_9'"):
         build_replay_model(mujoco.MjSpec.from_string(room_mjcf), floor_bodies=["floor_9"])
+
+
+def test_scene_joints_are_removed_so_a_free_wall_still_blocks(room_mjcf):
+    """The export gives movable furniture free joints and doors hinges; replay walks the world as exported."""
+    jointed = room_mjcf.replace("<body name='wall_1'>", "<body name='wall_1'><freejoint/>").replace(
+        "<body name='table_2'>", "<body name='table_2'><joint type='hinge' axis='0 0 1' pos='1.1 0.1 0'/>")
+    model = build_replay_model(mujoco.MjSpec.from_string(jointed), floor_bodies=["floor_3"])
+    assert model.model.njnt == 3  # the agent's x, y and yaw
+    rec = replay_one(model, _path((0, -1), (4.5, -1)))
+    assert rec.outcome != "reached" and rec.poses[-1, 0] == pytest.approx(2.95 - 0.2, abs=0.02)

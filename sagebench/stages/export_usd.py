@@ -20,7 +20,7 @@ from sagebench import ui
 from sagebench.collider_export.coacd_cache import CoacdParams, PartCache, coacd_version
 from sagebench.collider_export.convex import hull_part
 from sagebench.collider_export.decompose import MeshColliders, decompose_meshes
-from sagebench.collider_export.mjcf_writer import MjcfBody, mjcf_text
+from sagebench.collider_export.mjcf_writer import MjcfBody, mjcf_text, scene_body
 from sagebench.collider_export.quality import ColliderQuality, measure_objects
 from sagebench.collider_export.usd_writer import StageObject, prim_name, stage_files, usdz_package
 from sagebench.config import from_options
@@ -146,11 +146,11 @@ def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> 
             rel = f"{name}/part_{i:03d}.stl"
             files[rel] = trimesh.Trimesh(world.vertices, world.faces, process=False).export(file_type="stl")
             part_files.append(rel)
-        bodies.append(MjcfBody(name, part_files))
+        bodies.append(scene_body(so, part_files))
         index.append(_index_entry(obj.instance_id, name, obj.mesh, part_files, mc, quality.get(obj.instance_id)))
     usd = stage_files(spec.scene_id, objects, None if per_object is None else per_object.get(0))
     usdz = usdz_package(usd) if config.usdz else None
-    mjcf = mjcf_text(spec.scene_id, bodies, meshdir=COLLIDERS, floor_height=spec.floor_height)
+    mjcf = mjcf_text(spec.scene_id, bodies, meshes=files, meshdir=COLLIDERS, floor_height=spec.floor_height)
     files[COLLIDERS_INDEX] = dumps_json({
         "scene_id": spec.scene_id, "coacd_version": coacd_version(), "config": config.model_dump(exclude={"workers"}),
         "frame": "world", "objects": index,
