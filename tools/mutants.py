@@ -98,6 +98,10 @@ MUTANTS = (
     Mutant("USD: collider normals inward", "sagebench/collider_export/usd_writer.py",
            "n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])", "n = np.cross(v[:, 2] - v[:, 0], v[:, 1] - v[:, 0])",
            ("tests/test_usd_writer.py",)),
+    Mutant("MJCF: door hinge without its state angle", "sagebench/collider_export/mjcf_writer.py",
+           "pos=list(h.pos), ref=h.angle,", "pos=list(h.pos),", ("tests/test_mjcf_writer.py",)),
+    Mutant("replay keeps the scene's joints", "sagebench/replay/physics.py",
+           "    for joint in list(spec.joints):\n        spec.delete(joint)\n", "", ("tests/test_replay_physics.py",)),
 )
 
 
