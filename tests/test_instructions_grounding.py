@@ -177,3 +177,15 @@ def test_every_template_passes_with_its_goal_and_fails_with_another(demo):
             other = g.problems(sentence, goal_id=t.start.instance_id, goal_room=t.start.room_id, **args)
             checked, wrong = checked + 1, wrong + bool(other)
     assert checked >= 100 and wrong == checked  # start and goal are never the same thing
+
+
+def test_a_door_is_told_apart_by_the_rooms_it_joins(demo):
+    ctx, g, ids, rooms, _ = demo
+    door = ids["the open door in the bathroom"]  # it stands between the kitchen and the bathroom
+    assert g.problems("Go to the door between the kitchen and the bathroom.", goal_id=door) == []
+    assert g.problems("Go to the door between the bathroom and the kitchen.", goal_id=door) == []
+    assert g.problems("Go to the door between the kitchen and the living room.", goal_id=door) == [
+        "it sends the robot to the door between the kitchen and the living room, but the goal is "
+        "the open door in the bathroom"]
+    assert g.problems("Go to the door between the bedroom and the bathroom.", goal_id=door) == [
+        "there is no door between the bedroom and the bathroom in this scene"]

@@ -20,6 +20,8 @@ import re
 from collections.abc import Iterable
 
 import numpy as np
+import shapely
+from shapely.geometry import Polygon
 
 from sagebench.instructions.base import SceneContext
 from sagebench.instructions.high_level import scenario_data
@@ -28,6 +30,7 @@ from sagebench.instructions.referents import Mention, Phrase, Reader, parse, voc
 from sagebench.instructions.relations import NEXT_TO_M, between, nearest, side_as_seen
 
 MIN_WORDS, MAX_WORDS = 4, 30
+JOINS_M = 0.3  # a door "between the kitchen and the hall" reaches both floors this closely
 _ID = re.compile(r"[A-Za-z]_?\d|\d_|#\s*\d|\b(?:id|instance|object|room)\s*[:#=]?\s*\d", re.IGNORECASE)
 _COORD = re.compile(r"\d+\.\d+|\d+\s*,\s*-?\d+")
 _SNAKE = re.compile(r"\b[a-z]+_[a-z_]+\b", re.IGNORECASE)
@@ -46,6 +49,8 @@ class Grounder:
         self.room_type = {r.id: r.type for r in ctx.rooms}
         self.reader = Reader(ctx)
         self._values = {o.instance_id: self._attr_values(o) for o in self.things}
+        self._rooms_of = {o.instance_id: o.room_id for o in self.things}
+        self._floors = {r: Polygon(p) for r, p in ctx.room_polygons.items()}
         needs, _ = scenario_data()
         self.needs = {n.name: n for n in needs}
         self._need_words = _need_words(needs, self.reader)
@@ -134,6 +139,8 @@ class Grounder:
             elif fitting and len(cands) > 1:
                 cands = cands & self._serving(fitting, goal_id is not None, None)
         want = goal_id if goal_id is not None else goal_room
+        if not cands and dest is not None and not resolver.resolve(dest):
+            return out  # "there is no ..." says it already
         if cands == {want}:
             return out
         if want in cands:
@@ -165,7 +172,7 @@ class Grounder:
         return None if room is None else resolver.resolve(room)
 
     def _room_of(self, instance_id: int) -> str | None:
-        return next((o.room_id for o in self.things if o.instance_id == instance_id), None)
+        return self._rooms_of.get(instance_id)
 
 
 def _scope_phrase(targets: list[tuple[Phrase, str]], dest: Phrase) -> Phrase | None:
@@ -228,14 +235,24 @@ class _Resolver:
             self.problems.append(f"there is no {p.bare} in this scene")
         return ids
 
+    def _reaches(self, instance_id: int, room: str) -> bool:
+        """The object's footprint comes within JOINS_M of the room's floor (without one: it is in that room)."""
+        lay = self.g.ctx.layout
+        if instance_id not in lay or room not in self.g._floors:
+            return self.g._room_of(instance_id) == room
+        return float(shapely.distance(lay.geoms[lay.index(instance_id)], self.g._floors[room])) <= JOINS_M
+
     def _related(self, relation: str, cands: list[int], marks: list[set]) -> set[int]:
         """The candidates in `relation` to the landmarks; a relation the footprints cannot check narrows nothing."""
         lay = self.g.ctx.layout
         located = [c for c in cands if c in lay]
+        idx = {c: lay.index(c) for c in located}
+        if relation == "joins":  # a door between two rooms: its footprint reaches both floors
+            ra, rb = marks
+            return {c for c in cands if any(self._reaches(c, x) and self._reaches(c, y) for x in ra for y in rb if x != y)}
         lms = [[lay.index(i) for i in sorted(ms) if i in lay] for ms in marks]
         if not located or not all(lms):
             return set(cands)
-        idx = {c: lay.index(c) for c in located}
         out = set(c for c in cands if c not in lay)  # unlocated heads stay candidates
         if relation == "next_to":
             out |= {c for c in located if any(lay.gaps[idx[c], j] <= NEXT_TO_M for j in lms[0])}

@@ -314,7 +314,11 @@ class ChatClient:
                 with opener.open(req, timeout=self.config.timeout_s) as resp:
                     payload = resp.read()
             except urllib.error.HTTPError as err:
-                error = _one_line(f"HTTP {err.code} {err.read()[:200].decode('utf-8', 'replace')}")
+                try:
+                    detail = err.read()[:200].decode("utf-8", "replace")
+                except TRANSPORT_ERRORS:  # cut while reading the error body
+                    detail = ""
+                error = _one_line(f"HTTP {err.code} {detail}")
                 if err.code == 400 and self._schema:
                     self._schema = False  # the server does not take response_format: ask without it from now on
                     return _Outcome(error=error, failure=False, refused_schema=True)

@@ -6,7 +6,7 @@ a vocabulary of other furniture and room words (sagebench/data/vocabulary.toml),
 modifiers after it, read left to right:
 
     [the] [bright] red wooden sofa   that is red | made of wood   in the living room
-    ... next to | beside | by | near X      between X and Y      closest to | nearest (to) X
+    ... next to | beside | by | near X      between X and Y (objects, or rooms a door joins)      closest to X
     ... on the left of | to the right of X      (rooms:) with | that has | containing | where X
 
 A phrase that modifies another (a landmark, a room placement) is not a top-level phrase. Each
@@ -37,7 +37,7 @@ POST_ATTR = (("that", "is"), ("which", "is"), ("that's",), ("painted",), ("colou
 IN_ROOM = (("in",), ("inside",), ("within",))
 RELATIONS = (
     ("next_to", (("next", "to"), ("beside",), ("by",), ("near",), ("near", "to"), ("close", "to"), ("alongside",))),
-    ("between", (("between",),)),
+    ("between", (("between",),)),  # two objects, or two rooms ("joins": a door between the kitchen and the hall)
     ("closest_to", (("closest", "to"), ("nearest", "to"), ("nearest",), ("closest",))),
     ("left", (("on", "the", "left", "of"), ("to", "the", "left", "of"), ("left", "of"))),
     ("right", (("on", "the", "right", "of"), ("to", "the", "right", "of"), ("right", "of"))),
@@ -78,7 +78,7 @@ class Phrase:
     mention: Mention
     attrs: tuple[str, ...]  # canonical attribute values before or after the noun
     room: Phrase | None  # "in the kitchen"
-    relation: str | None  # next_to | between | closest_to | left | right
+    relation: str | None  # next_to | between | joins | closest_to | left | right
     landmarks: tuple[Phrase, ...]
     contains: Phrase | None  # a room's "with the desk"
     text: str  # the words as written with their article, for messages ("the sofa in the kitchen")
@@ -256,18 +256,21 @@ def parse(toks: list[str], mentions: list[Mention], reader: Reader) -> list[tupl
 
     def _relation(pos: int):
         for name, options in RELATIONS:
-            a = mention_at(seq_at(pos, options), "object")
-            if a is None:
-                continue
-            first, end = phrase(a)
-            if name != "between":
-                return name, (first,), end
-            b = mention_at(end + 1 if end < len(toks) and toks[end] == "and" else None, "object")
-            if b is None:
-                consumed.discard(a)
-                continue
-            second, end = phrase(b)
-            return name, (first, second), end
+            start = seq_at(pos, options)
+            for kind in ("object", "room") if name == "between" else ("object",):
+                a = mention_at(start, kind)
+                if a is None:
+                    continue
+                before = set(consumed)
+                first, end = phrase(a)
+                if name != "between":
+                    return name, (first,), end
+                b = mention_at(end + 1 if end < len(toks) and toks[end] == "and" else None, kind)
+                if b is None:
+                    consumed.intersection_update(before)
+                    continue
+                second, end = phrase(b)
+                return ("between" if kind == "object" else "joins"), (first, second), end
         return None
 
     out: list[tuple[Phrase, str]] = []
