@@ -264,14 +264,25 @@ def export_usd_cmd(
     run_dir: Annotated[Path, typer.Argument(help="Run directory that build-scene wrote (RUN/scenes/<id>/).")],
     scene: Annotated[str | None, typer.Option("--scene", help="Export only this scene id (default: every scene).")] = None,
     cache_dir: Annotated[
-        Path | None, typer.Option("--cache-dir", help="CoACD result cache (default: the user cache directory).")
+        Path | None, typer.Option("--cache-dir", help="Collider piece cache (default: the user cache directory).")
     ] = None,
-    workers: Annotated[int | None, typer.Option(help="Processes running CoACD in parallel.")] = None,
+    workers: Annotated[int | None, typer.Option(help="Processes decomposing pieces in parallel.")] = None,
+    colliders: Annotated[
+        str | None, typer.Option(help="quality (CoACD), balanced (hull, voxel or CoACD, whichever first fits the "
+                                      "agent band) or fast (hull or voxel).")
+    ] = None,
+    max_parts: Annotated[int | None, typer.Option(help="Part budget per object; parts are merged to stay within it.")] = None,
+    piece_budget: Annotated[
+        float | None, typer.Option(help="Seconds one method may spend on one piece before the next is used.")
+    ] = None,
+    band_tolerance: Annotated[
+        float | None, typer.Option(help="A method is good enough within this many cm of the piece's band footprint.")
+    ] = None,
     coacd_threshold: Annotated[
         float | None, typer.Option(help="CoACD concavity threshold; smaller gives more parts.")
     ] = None,
     coacd_max_hulls: Annotated[
-        int | None, typer.Option(help="Most CoACD parts per concave piece, -1 for no cap.")
+        int | None, typer.Option(help="Most CoACD parts per concave piece, -1 for the part budget.")
     ] = None,
     coacd_preprocess: Annotated[
         str | None, typer.Option(help="CoACD manifold preprocessing: auto, on or off.")
@@ -284,14 +295,17 @@ def export_usd_cmd(
 
     Reads RUN_DIR/scenes/<id>/scene.json, its meshes and gaussians.ply.
 
-    Writes RUN_DIR/scenes/<id>/colliders/ (convex parts as STL + colliders.json), scene.usda
-    (the stage's text root: semantics, physics) referencing geometry.usdc (binary: the 3D
-    Gaussians and invisible collider meshes), scene.xml (MJCF) and with --usdz scene.usdz; CoACD results go to the cache.
+    Writes RUN_DIR/scenes/<id>/colliders/ (convex parts as STL + colliders.json with each object's
+    collider quality), scene.usda (the stage's text root: semantics, physics) referencing geometry.usdc
+    (binary: the 3D Gaussians and invisible collider meshes), scene.xml (MJCF) and with --usdz scene.usdz;
+    each finished piece goes to the cache at once, so an interrupted export resumes there.
     """
     from sagebench.stages.export_usd import export_usd, make_config
 
-    config = make_config(coacd_threshold=coacd_threshold, coacd_max_hulls=coacd_max_hulls,
-                         coacd_preprocess=coacd_preprocess, workers=workers, usdz=usdz)
+    config = make_config(colliders=colliders, max_parts=max_parts, piece_budget=piece_budget,
+                         band_tolerance=band_tolerance, coacd_threshold=coacd_threshold,
+                         coacd_max_hulls=coacd_max_hulls, coacd_preprocess=coacd_preprocess, workers=workers,
+                         usdz=usdz)
     for result in export_usd(run_dir, scene_id=scene, config=config, cache_dir=cache_dir):
         typer.echo(result.line())
 

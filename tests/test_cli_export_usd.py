@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import time
 from pathlib import Path
 
 import mujoco
@@ -19,7 +20,7 @@ from sagebench.splats.ply import read_ply, write_ply
 from tests.test_collider_convex import u_prism
 from tests.test_usd_writer import nvidia_failures
 
-FAST = ["--coacd-preprocess", "off", "--coacd-max-hulls", "8"]
+FAST = ["--colliders", "quality", "--coacd-preprocess", "off", "--coacd-max-hulls", "8"]
 WALL_X = 4.0  # inner face of the east wall
 
 
@@ -106,9 +107,9 @@ def test_cold_then_warm_cache_and_messages(tmp_path, run_cli):
     run = make_run(tmp_path)
     code, out, _ = run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", *FAST)
     assert code == 0
-    assert "tiny: 5 objects" in out and "CoACD 1 run / 0 cached / 0 failed" in out and "64 Gaussians" in out
+    assert "tiny: 5 objects" in out and "pieces: coacd 1; 0 cached" in out and "64 Gaussians" in out
     code, out, _ = run_cli("export-usd", run, "--scene", "tiny", "--cache-dir", tmp_path / "cache", *FAST)
-    assert code == 0 and "CoACD 0 run / 1 cached / 0 failed" in out
+    assert code == 0 and "pieces: coacd 1; 1 cached" in out
 
 
 def test_outputs_are_byte_identical_on_a_rerun(tiny):
@@ -228,6 +229,9 @@ def test_colliders_index_lists_every_part(tiny):
     by_id = {o["instance_id"]: o for o in index["objects"]}
     assert by_id[3]["exact_parts"] == 2 and by_id[3]["concave_pieces"] == []
     assert [p["method"] for p in by_id[4]["concave_pieces"]] == ["coacd"] and len(by_id[4]["parts"]) >= 3
+    assert by_id[3]["quality"] is None  # exact pieces only: the collider is the mesh
+    q = by_id[4]["quality"]
+    assert q["band_over_cm"] <= 2.0 and q["band_under_cm"] <= 2.0 and q["from_source_max_cm"] <= 1.0
     for obj in index["objects"]:
         for rel in obj["parts"]:
             assert trimesh.load(run / "scenes" / "tiny" / "colliders" / rel).is_watertight
@@ -279,7 +283,7 @@ def test_demo_scene_exports_with_exact_parts_only(demo_scene_dir, tmp_path, run_
 
     built = build_scene(demo_scene_dir, tmp_path / "run")
     code, out, _ = run_cli("export-usd", tmp_path / "run", "--cache-dir", tmp_path / "cache")
-    assert code == 0 and "CoACD 0 run / 0 cached / 0 failed" in out
+    assert code == 0 and "(201 exact; pieces: none; 0 cached)" in out
     scene_dir = built.out_dir
     g = read_ply(scene_dir / "gaussians.ply")
     stage = Usd.Stage.Open(str(scene_dir / "scene.usda"))
@@ -300,3 +304,43 @@ def test_demo_scene_exports_with_exact_parts_only(demo_scene_dir, tmp_path, run_
     model = mujoco.MjModel.from_xml_path(str(scene_dir / "scene.xml"))
     assert model.nbody == len(spec.objects) + 1
     assert mjcf_matches_usd(stage, model) == (18, 7)
+
+
+def test_ctrl_c_stops_a_cold_export_and_a_rerun_reuses_every_finished_piece(tmp_path, run_cli):
+    """Six different U planters, a CoACD run each: SIGINT once the first is cached; the export stops within
+    10 s writing no stage, and the rerun reads every piece that was cached back instead of decomposing it."""
+    import signal
+    import subprocess
+    import sys
+
+    src, run, cache = tmp_path / "src", tmp_path / "run", tmp_path / "cache"
+    objects = []
+    for i in range(6):
+        rel = f"meshes/planter_{i}.obj"
+        (src / rel).parent.mkdir(parents=True, exist_ok=True)
+        u_prism(0.6 + 0.05 * i).export(src / rel)
+        objects.append({"instance_id": i + 1, "category": "planter", "mesh": rel, "room_id": "room_0",
+                        "transform": {"translation": [1.0 * i, 0.5, 0.0]}})
+    (src / "scene.json").write_text(json.dumps({
+        "scene_id": "six", "units": "m", "up_axis": "Z",
+        "rooms": [{"id": "room_0", "type": "kitchen", "polygon": [[0, 0], [7, 0], [7, 2], [0, 2]]}],
+        "objects": objects}))
+    write_normalised_scene(load_scene(src), run / "scenes" / "six")
+    args = ["export-usd", str(run), "--cache-dir", str(cache), "--colliders", "quality", "--coacd-max-hulls", "8"]
+    proc = subprocess.Popen([sys.executable, "-m", "sagebench", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        for _ in range(2400):  # up to 2 minutes for the first piece on a busy machine
+            if any(cache.rglob("*.npz")) or proc.poll() is not None:
+                break
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=10)
+    finally:
+        proc.kill()
+    finished = {p.stem for p in cache.rglob("*.npz")}
+    assert proc.returncode != 0 and 1 <= len(finished) < 6
+    assert not (run / "scenes" / "six" / "scene.usda").exists()
+    code, out, _ = run_cli(*args)
+    assert code == 0 and f"pieces: coacd 6; {len(finished)} cached" in out
+    index = json.loads((run / "scenes" / "six" / "colliders" / "colliders.json").read_text())
+    assert finished <= {p["cache_key"] for o in index["objects"] for p in o["concave_pieces"]}

@@ -1,35 +1,58 @@
-"""decompose_meshes: exact parts where the mesh is convex pieces, one CoACD batch for the rest."""
+"""decompose_meshes: exact parts where the mesh is convex pieces, the mode's methods for the rest, a part budget."""
 
 from __future__ import annotations
 
 import numpy as np
 import trimesh
 
-from sagebench.collider_export import coacd_cache
-from sagebench.collider_export.coacd_cache import CoacdParams, PartCache
-from sagebench.collider_export.decompose import decompose_meshes
+from sagebench.collider_export.coacd_cache import PartCache
+from sagebench.collider_export.decompose import WHOLE_MESH_FACTOR, decompose_meshes
+from sagebench.collider_export.methods import ColliderSettings
 from tests.test_collider_convex import u_prism
+from tests.test_collider_pieces import inside_parts
 
 
-def test_mixed_mesh_gets_exact_parts_and_coacd_parts(monkeypatch, tmp_path):
-    seen: list[str] = []
+def _table() -> trimesh.Trimesh:
+    return trimesh.util.concatenate([trimesh.creation.box((1, 1, 0.05)).apply_translation((0, 0, 0.7)),
+                                     trimesh.creation.box((0.05, 0.05, 0.7)).apply_translation((0, 0, 0.35))])
 
-    def fake(vertices, faces, params):
-        seen.append(f"{len(faces)} faces")
-        return [(trimesh.convex.convex_hull(vertices).vertices, np.zeros((0, 3)))]
 
-    monkeypatch.setattr(coacd_cache, "run_coacd", fake)
-    table = trimesh.util.concatenate([trimesh.creation.box((1, 1, 0.05)).apply_translation((0, 0, 0.7)),
-                                      trimesh.creation.box((0.05, 0.05, 0.7)).apply_translation((0, 0, 0.35))])
-    u = u_prism()
+def test_mixed_mesh_gets_exact_parts_and_decomposed_pieces(tmp_path):
+    table, u = _table(), u_prism()
     mixed = trimesh.util.concatenate([table, u.copy().apply_translation((3, 0, 0))])
     meshes = {name: (m.vertices, m.faces) for name, m in
               {"meshes/table.ply": table, "meshes/mixed.glb": mixed, "meshes/u.obj": u}.items()}
-    out = decompose_meshes(meshes, CoacdParams(), cache=PartCache(tmp_path))
+    out = decompose_meshes(meshes, ColliderSettings(mode="fast"), cache=PartCache(tmp_path))
     assert (out["meshes/table.ply"].exact_parts, len(out["meshes/table.ply"].parts)) == (2, 2)
     assert out["meshes/table.ply"].pieces == []
-    assert (out["meshes/mixed.glb"].exact_parts, len(out["meshes/mixed.glb"].parts)) == (2, 3)
-    assert (out["meshes/u.obj"].exact_parts, len(out["meshes/u.obj"].parts)) == (0, 1)
-    # the U inside `mixed` is moved, so it is a different piece from meshes/u.obj: two runs
-    assert len(seen) == 2
-    assert [p.source for p in out["meshes/mixed.glb"].pieces] == ["coacd"]
+    assert out["meshes/mixed.glb"].exact_parts == 2
+    assert [p.method for p in out["meshes/mixed.glb"].pieces] == ["voxel"]  # the U's hull misses the band by 15 cm
+    # the U inside `mixed` is moved, so it is a different piece from meshes/u.obj
+    assert out["meshes/mixed.glb"].pieces[0].key != out["meshes/u.obj"].pieces[0].key
+
+
+def _boxes(n: int) -> trimesh.Trimesh:
+    """n separate 0.1 m boxes in a row, 0.3 m apart."""
+    return trimesh.util.concatenate([trimesh.creation.box((0.1, 0.1, 0.1)).apply_translation((0.3 * i, 0, 0.05))
+                                     for i in range(n)])
+
+
+def test_parts_over_the_budget_are_merged_and_still_cover_the_mesh(tmp_path):
+    m = _boxes(10)
+    (mc,) = decompose_meshes({"m": (m.vertices, m.faces)}, ColliderSettings(max_parts=4), cache=PartCache(tmp_path)).values()
+    assert len(mc.parts) == 4 and mc.merged == 6 and mc.exact_parts == 0
+    assert inside_parts(m.vertices, mc.parts).all()
+
+
+def test_exactly_at_the_budget_nothing_is_merged(tmp_path):
+    m = _boxes(4)
+    (mc,) = decompose_meshes({"m": (m.vertices, m.faces)}, ColliderSettings(max_parts=4), cache=PartCache(tmp_path)).values()
+    assert (len(mc.parts), mc.merged, mc.exact_parts) == (4, 0, 4)
+
+
+def test_far_too_many_pieces_make_one_voxel_collider_of_the_whole_mesh(tmp_path):
+    n = WHOLE_MESH_FACTOR * 2 + 1
+    m = trimesh.util.concatenate([u_prism(0.2, 0.2, 0.05, 0.1).apply_translation((0.3 * i, 0, 0)) for i in range(n)])
+    (mc,) = decompose_meshes({"m": (m.vertices, m.faces)}, ColliderSettings(max_parts=2), cache=PartCache(tmp_path)).values()
+    assert mc.whole and [p.method for p in mc.pieces] == ["voxel"] and len(mc.parts) <= 2
+    assert inside_parts(m.vertices, mc.parts, eps=1e-6).all()

@@ -16,7 +16,8 @@ def test_readme_run_config_example_is_valid(tmp_path):
     path.write_text(block)
     config = load_run_config(path)
     assert config.workers == 2 and config.gen_trajectories.per_scene == 200
-    assert config.export_usd.coacd.threshold == 0.05 and config.validate_.frames_per_scene == 3
+    assert config.export_usd.colliders.coacd.threshold == 0.05 and config.validate_.frames_per_scene == 3
+    assert (config.export_usd.colliders.mode, config.export_usd.colliders.max_parts) == ("balanced", 32)
 
 
 def test_every_documented_command_exists(run_cli):

@@ -31,6 +31,11 @@ class Mutant:
 
 
 MUTANTS = (
+    Mutant("collider pieces cached only in memory", "sagebench/collider_export/pieces.py",
+           "        self.cache.put(result)\n", "", ("tests/test_collider_pieces.py",)),
+    Mutant("balanced keeps the first method whatever its band error", "sagebench/collider_export/methods.py",
+           'return mode == "quality" or error_cm <= settings.band_tolerance_cm', "return True",
+           ("tests/test_collider_pieces.py",)),
     Mutant("collider quality: faces between touching parts counted as surface", "sagebench/collider_export/quality.py",
            "keep = ~_inside_other(coll_pts + 1e-6 * collider.face_normals[coll_face], owner, planes)",
            "keep = np.ones(len(coll_pts), dtype=bool)", ("tests/test_collider_quality.py",)),

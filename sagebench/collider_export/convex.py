@@ -134,11 +134,12 @@ def split_convex(vertices: np.ndarray, faces: np.ndarray, *, tolerance: float = 
     parts: list[ConvexPart] = []
     concave: list[tuple[np.ndarray, np.ndarray]] = []
     for idx in face_components(f, len(v)):
-        piece_v, piece_f = weld(v, f[idx])
+        piece_v, piece_f = weld(*_compact(v, f[idx]))
         if is_convex_solid(piece_v, piece_f, tolerance=tolerance) or _is_flat(piece_v):
             parts.append(hull_part(piece_v))
             continue
-        sub = [weld(raw_v, raw_f[idx][s]) for s in face_components(raw_f[idx], len(raw_v))]
+        sub_v, sub_f = _compact(raw_v, raw_f[idx])
+        sub = [weld(*_compact(sub_v, sub_f[s])) for s in face_components(sub_f, len(sub_v))]
         if len(sub) > 1 and all(is_convex_solid(sv, sf, tolerance=tolerance) for sv, sf in sub):
             parts.extend(hull_part(sv) for sv, _ in sub)
         else:
@@ -146,6 +147,33 @@ def split_convex(vertices: np.ndarray, faces: np.ndarray, *, tolerance: float = 
     return ConvexSplit(parts, concave)
 
 
+def _compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Only the vertices the faces use, in their original order (so weld() of the result equals weld() of the
+    whole array with these faces, at the cost of the piece instead of the mesh)."""
+    used, inverse = np.unique(faces, return_inverse=True)
+    return vertices[used], inverse.reshape(-1, 3)
+
+
 def _is_flat(points: np.ndarray) -> bool:
     """Thinner than MIN_THICKNESS along some direction (a sheet, a line or a point)."""
     return bool(_principal_extents(points)[1][-1] < MIN_THICKNESS)
+
+
+def merge_parts(parts: list[ConvexPart], budget: int) -> list[ConvexPart]:
+    """At most `budget` parts: repeatedly replace the two parts whose bounding boxes together enclose the least
+    extra space by the hull of both (small neighbours first: two legs of a chair before a leg and the seat)."""
+    out = list(parts)
+    lo = np.array([p.vertices.min(axis=0) for p in out]).reshape(-1, 3)
+    hi = np.array([p.vertices.max(axis=0) for p in out]).reshape(-1, 3)
+    while len(out) > budget:
+        ulo, uhi = np.minimum(lo[:, None], lo[None]), np.maximum(hi[:, None], hi[None])
+        vol = np.prod(hi - lo, axis=1)
+        cost = np.prod(uhi - ulo, axis=2) - vol[:, None] - vol[None, :]
+        np.fill_diagonal(cost, np.inf)
+        i, j = sorted(np.unravel_index(np.argmin(cost), cost.shape))
+        merged = hull_part(np.concatenate([out[i].vertices, out[j].vertices]))
+        del out[j], out[i]
+        out.append(merged)
+        lo = np.vstack([np.delete(lo, [i, j], axis=0), merged.vertices.min(axis=0)])
+        hi = np.vstack([np.delete(hi, [i, j], axis=0), merged.vertices.max(axis=0)])
+    return out

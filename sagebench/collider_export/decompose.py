@@ -1,4 +1,4 @@
-"""Convex collider parts for a set of meshes: exact convex pieces directly, concave pieces through CoACD."""
+"""Convex collider parts for a set of meshes: exact convex pieces directly, concave pieces by their mode's methods."""
 
 from __future__ import annotations
 
@@ -7,8 +7,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sagebench.collider_export.coacd_cache import CoacdParams, PartCache, PieceResult, decompose_pieces
-from sagebench.collider_export.convex import ConvexPart, split_convex
+from sagebench.collider_export.coacd_cache import PartCache, PieceResult
+from sagebench.collider_export.convex import ConvexPart, merge_parts, split_convex, weld
+from sagebench.collider_export.methods import LADDERS, ColliderSettings
+from sagebench.collider_export.pieces import Piece, decompose_pieces
+
+
+WHOLE_MESH_FACTOR = 4
 
 
 @dataclass(frozen=True)
@@ -17,28 +22,45 @@ class MeshColliders:
 
     parts: list[ConvexPart]
     exact_parts: int  # parts that are convex pieces of the mesh itself
-    pieces: list[PieceResult]  # one per concave piece, in mesh order
+    pieces: list[PieceResult]  # one per concave piece, in mesh order (or one for the whole mesh, see `whole`)
+    whole: bool = False  # the mesh had far too many pieces: one voxel collider for all of it
+    merged: int = 0  # parts merged away to keep within the part budget
 
 
 def decompose_meshes(
     meshes: Mapping[str, tuple[np.ndarray, np.ndarray]],
-    params: CoacdParams,
+    settings: ColliderSettings,
     *,
     cache: PartCache,
     workers: int = 1,
     convex_tolerance: float = 0.002,
+    floor_height: float = 0.0,
 ) -> dict[str, MeshColliders]:
-    """Parts for each named mesh (vertices [V, 3], faces [F, 3]); all concave pieces share one CoACD batch."""
+    """Parts for each named mesh (vertices [V, 3], faces [F, 3]); all concave pieces share one batch of workers.
+
+    A mesh with more parts than `settings.max_parts` gets its closest parts merged (convex.merge_parts); one
+    with more than WHOLE_MESH_FACTOR times that many pieces (a plant of a thousand leaves) becomes one voxel
+    collider of the whole mesh within the budget instead.
+    """
     splits = {name: split_convex(v, f, tolerance=convex_tolerance) for name, (v, f) in meshes.items()}
-    jobs = [
-        (f"{name} (concave piece {k})", pv, pf)
-        for name, split in splits.items()
-        for k, (pv, pf) in enumerate(split.concave)
-    ]
-    results = iter(decompose_pieces(jobs, params, cache=cache, workers=workers))
+    over = {name for name, s in splits.items()
+            if len(s.parts) + len(s.concave) > WHOLE_MESH_FACTOR * settings.max_parts}
+    jobs = [Piece(f"{name} (concave piece {k})", pv, pf, LADDERS[settings.mode])
+            for name, split in splits.items() if name not in over for k, (pv, pf) in enumerate(split.concave)]
+    results = iter(decompose_pieces(jobs, settings, cache=cache, workers=workers, floor_height=floor_height))
     out: dict[str, MeshColliders] = {}
     for name, split in splits.items():
+        if name in over:
+            continue
         pieces = [next(results) for _ in split.concave]
         parts = list(split.parts) + [p for r in pieces for p in r.parts]
-        out[name] = MeshColliders(parts, len(split.parts), pieces)
-    return out
+        kept = merge_parts(parts, settings.max_parts) if len(parts) > settings.max_parts else parts
+        exact = len(split.parts) if kept is parts else 0
+        out[name] = MeshColliders(kept, exact, pieces, merged=len(parts) - len(kept))
+    whole = [Piece(f"{name} (whole mesh: {len(splits[name].parts) + len(splits[name].concave)} pieces)",
+                   *weld(*meshes[name]), ("voxel",))
+             for name in sorted(over)]
+    for name, result in zip(sorted(over), decompose_pieces(whole, settings, cache=cache, workers=workers,
+                                                           floor_height=floor_height)):
+        out[name] = MeshColliders(list(result.parts), 0, [result], whole=True)
+    return {name: out[name] for name in meshes}

@@ -9,6 +9,7 @@ first byte is written.
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,9 +18,10 @@ import trimesh
 from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench import ui
-from sagebench.collider_export.coacd_cache import CoacdParams, PartCache, coacd_version
+from sagebench.collider_export.coacd_cache import PartCache, coacd_version
 from sagebench.collider_export.convex import hull_part
 from sagebench.collider_export.decompose import MeshColliders, decompose_meshes
+from sagebench.collider_export.methods import ColliderSettings
 from sagebench.collider_export.mjcf_writer import MjcfBody, mjcf_text, scene_body
 from sagebench.collider_export.quality import ColliderQuality, measure_objects
 from sagebench.collider_export.usd_writer import StageObject, prim_name, stage_files, usdz_package
@@ -37,27 +39,31 @@ class ExportConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    coacd: CoacdParams = CoacdParams()
+    colliders: ColliderSettings = ColliderSettings()
     convex_tolerance: float = Field(
         default=0.002, gt=0, lt=1, description="A closed piece within this relative volume of its hull is convex."
     )
-    workers: int = Field(default=1, ge=1, description="Processes running CoACD in parallel.")
+    workers: int = Field(default=1, ge=1, description="Processes decomposing pieces in parallel.")
     usdz: bool = Field(default=False, description="Also package the stage and its layers as scene.usdz.")
 
 
 # export-usd's options and the ExportConfig fields they set (their defaults and error names come from here)
-OPTIONS = {"--coacd-threshold": "coacd.threshold", "--coacd-max-hulls": "coacd.max_convex_hull",
-           "--coacd-preprocess": "coacd.preprocess_mode", "--workers": "workers", "--usdz": "usdz"}
+OPTIONS = {"--colliders": "colliders.mode", "--max-parts": "colliders.max_parts",
+           "--piece-budget": "colliders.piece_budget_s", "--band-tolerance": "colliders.band_tolerance_cm",
+           "--coacd-threshold": "colliders.coacd.threshold", "--coacd-max-hulls": "colliders.coacd.max_convex_hull",
+           "--coacd-preprocess": "colliders.coacd.preprocess_mode", "--workers": "workers", "--usdz": "usdz"}
 
 
 def make_config(
-    *, coacd_threshold: float | None = None, coacd_max_hulls: int | None = None,
+    *, colliders: str | None = None, max_parts: int | None = None, piece_budget: float | None = None,
+    band_tolerance: float | None = None, coacd_threshold: float | None = None, coacd_max_hulls: int | None = None,
     coacd_preprocess: str | None = None, workers: int | None = None, usdz: bool | None = None,
 ) -> ExportConfig:
     """An ExportConfig from the options given (None = keep the default); a bad value is a ConfigError."""
-    coacd = {k: v for k, v in (("threshold", coacd_threshold), ("max_convex_hull", coacd_max_hulls),
-                               ("preprocess_mode", coacd_preprocess)) if v is not None}
-    return from_options(ExportConfig, {"coacd": coacd, "workers": workers, "usdz": usdz}, OPTIONS)
+    coacd = {"threshold": coacd_threshold, "max_convex_hull": coacd_max_hulls, "preprocess_mode": coacd_preprocess}
+    given = {"mode": colliders, "max_parts": max_parts, "piece_budget_s": piece_budget,
+             "band_tolerance_cm": band_tolerance, "coacd": coacd}
+    return from_options(ExportConfig, {"colliders": given, "workers": workers, "usdz": usdz}, OPTIONS)
 
 
 def default_cache_dir() -> Path:
@@ -73,15 +79,15 @@ class ExportResult:
     objects: int
     parts: int
     exact_parts: int  # parts that are convex pieces of the meshes themselves
-    coacd_pieces: int  # concave pieces decomposed by CoACD in this run
-    cached_pieces: int  # concave pieces read back from the cache
-    fallback_pieces: int  # concave pieces CoACD failed on (now their convex hull)
+    methods: dict[str, int]  # concave pieces (or whole meshes over the part budget) per method that made them
+    cached_pieces: int  # of those, read back from the cache
     gaussians: int  # Gaussians written into the stage
     worst: tuple[str, ColliderQuality] | None = None  # the measured object with the largest band error
 
     def line(self) -> str:
-        return (f"{self.scene_id}: {self.objects} objects, {self.parts} collider parts ({self.exact_parts} exact, "
-                f"CoACD {self.coacd_pieces} run / {self.cached_pieces} cached / {self.fallback_pieces} failed), "
+        made = ", ".join(f"{m} {n}" for m, n in sorted(self.methods.items())) or "none"
+        return (f"{self.scene_id}: {self.objects} objects, {self.parts} collider parts ({self.exact_parts} exact; "
+                f"pieces: {made}; {self.cached_pieces} cached), "
                 f"{self.gaussians} Gaussians{self.quality_text()} -> {self.out_dir / USD}, {self.out_dir / MJCF}")
 
     def quality_text(self) -> str:
@@ -119,8 +125,8 @@ def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> 
     scene = load_scene(scene_dir)
     spec = scene.spec
     local = _local_meshes(scene)
-    colliders = decompose_meshes(local, config.coacd, cache=cache, workers=config.workers,
-                                 convex_tolerance=config.convex_tolerance)
+    colliders = decompose_meshes(local, config.colliders, cache=cache, workers=config.workers,
+                                 convex_tolerance=config.convex_tolerance, floor_height=spec.floor_height)
     quality = _measure_objects(scene, local, colliders)
     per_object = _split_gaussians(scene_dir / GAUSSIANS, scene)
     rooms = {r.id: r.type for r in spec.rooms}
@@ -172,8 +178,7 @@ def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> 
         scene_id=spec.scene_id, out_dir=scene_dir, objects=len(objects),
         parts=sum(len(colliders[o.mesh].parts) for o in spec.objects),
         exact_parts=sum(colliders[o.mesh].exact_parts for o in spec.objects),
-        coacd_pieces=sum(p.source == "coacd" for p in pieces), cached_pieces=sum(p.source == "cache" for p in pieces),
-        fallback_pieces=sum(p.source == "hull_fallback" for p in pieces),
+        methods=dict(Counter(p.method for p in pieces)), cached_pieces=sum(p.cached for p in pieces),
         gaussians=0 if per_object is None else sum(g.count for g in per_object.values()), worst=worst,
     )
 
@@ -220,7 +225,8 @@ def _index_entry(instance_id: int, name: str, mesh: str, part_files: list[str], 
                  quality: ColliderQuality | None) -> dict:
     return {
         "instance_id": instance_id, "name": name, "mesh": mesh, "parts": part_files, "exact_parts": mc.exact_parts,
-        "concave_pieces": [{"cache_key": p.key, "method": "hull_fallback" if p.source == "hull_fallback" else "coacd",
-                            "parts": len(p.parts)} for p in mc.pieces],
+        "concave_pieces": [{"cache_key": p.key, "method": p.method, "parts": len(p.parts),
+                            "band_error_cm": round(p.band_error_cm, 3)} for p in mc.pieces],
+        "whole_mesh": mc.whole, "merged_parts": mc.merged,
         "quality": None if quality is None else quality.as_dict(),
     }

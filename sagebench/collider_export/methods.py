@@ -1,0 +1,79 @@
+"""The ways to turn one concave piece into convex parts, and which of them each `--colliders` mode tries.
+
+- `hull`: the piece's convex hull (one part; right for handles, cushions, anything whose notches the agent
+  cannot reach);
+- `voxel`: boxes covering a voxelisation (collider_export/voxel.py; any mesh, about a second);
+- `coacd`: CoACD on the piece with its holes closed first (repair.py), so its remeshing preprocess is
+  skipped, capped at the part budget.
+
+`fast` and `balanced` try their methods cheapest first and keep the first whose agent-band footprint is
+within the tolerance of the piece's (quality.band_errors); `quality` takes CoACD unless it fails or runs
+over its time budget.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from sagebench.collider_export.coacd_cache import CoacdParams, run_coacd
+from sagebench.collider_export.convex import ConvexPart, hull_part
+from sagebench.collider_export.quality import AGENT_BAND, band_errors
+from sagebench.collider_export.repair import close_holes
+from sagebench.collider_export.voxel import voxel_parts
+
+Mode = Literal["quality", "balanced", "fast"]
+Method = Literal["hull", "voxel", "coacd"]
+
+LADDERS: dict[str, tuple[Method, ...]] = {
+    "fast": ("hull", "voxel"),
+    "balanced": ("hull", "voxel", "coacd"),
+    "quality": ("coacd", "voxel", "hull"),
+}
+
+
+class ColliderSettings(BaseModel):
+    """How concave pieces become colliders; every field but the time budget shapes the parts (cache key)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    mode: Mode = Field(default="balanced", description="quality: CoACD; balanced: hull, voxel or CoACD by measured "
+                                                        "quality; fast: hull or voxel.")
+    coacd: CoacdParams = CoacdParams()
+    max_parts: int = Field(default=32, ge=1, description="Part budget per object; parts are merged to stay within it.")
+    piece_budget_s: float = Field(default=20.0, gt=0, description="Seconds one method may spend on one piece "
+                                                                  "before the next method is used.")
+    band_tolerance_cm: float = Field(default=2.0, gt=0, description="A method is good enough when its agent-band "
+                                                                    "footprint is within this of the piece's, cm.")
+    voxel_pitch: float = Field(default=0.02, ge=0.01, le=0.1, description="Voxel size of the voxel method, m.")
+
+
+def run_method(method: Method, vertices: np.ndarray, faces: np.ndarray, settings: ColliderSettings) -> list[ConvexPart]:
+    """Convex parts of one piece (vertices [V, 3] m, faces [F, 3]) by `method`; raises when the method fails."""
+    if method == "hull":
+        return [hull_part(vertices)]
+    if method == "voxel":
+        return voxel_parts(vertices, faces, pitch=settings.voxel_pitch, max_parts=settings.max_parts)
+    closed = close_holes(vertices, faces)
+    if closed is None:
+        raise RuntimeError("its holes could not be closed")
+    cap = settings.max_parts if settings.coacd.max_convex_hull < 0 else min(settings.coacd.max_convex_hull,
+                                                                            settings.max_parts)
+    params = settings.coacd.model_copy(update={"max_convex_hull": cap})
+    return [hull_part(v) for v, _ in run_coacd(*closed, params)]
+
+
+def band_error_cm(vertices: np.ndarray, faces: np.ndarray, parts: list[ConvexPart], floor_height: float) -> float:
+    """The worse of the band over/under figures (cm) of `parts` against the piece, band measured from floor_height."""
+    import trimesh
+
+    band = (floor_height + AGENT_BAND[0], floor_height + AGENT_BAND[1])
+    source = trimesh.Trimesh(np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64), process=False)
+    return 100.0 * max(band_errors(source, parts, band, 0.01))
+
+
+def good_enough(mode: Mode, error_cm: float, settings: ColliderSettings) -> bool:
+    """Stop the ladder here: any success in quality mode, a band error within tolerance otherwise."""
+    return mode == "quality" or error_cm <= settings.band_tolerance_cm

@@ -1,0 +1,255 @@
+"""Colliders for many concave pieces: each in a worker process that can be killed, biggest first, cached as done.
+
+A piece runs its mode's methods (methods.LADDERS) in one process that reports each result as it has it.
+A method that runs past the time budget is killed: a warning names the piece and the method, and the piece
+goes on with the next method in a fresh process (keeping what it already had). Ctrl-C kills the workers at
+once; every finished piece is already in the cache, so a rerun starts where this one stopped. Progress
+(pieces done / total, the slowest piece, time left) goes to stderr every few seconds, terminal or not.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from multiprocessing.connection import Connection, wait
+
+import numpy as np
+
+from sagebench import ui
+from sagebench.collider_export.coacd_cache import PartCache, PieceResult, cache_key
+from sagebench.collider_export.convex import ConvexPart, hull_part
+from sagebench.collider_export.methods import LADDERS, ColliderSettings, Method, band_error_cm, good_enough, run_method
+
+PROGRESS_EVERY_S = 5.0
+
+
+@dataclass(frozen=True)
+class Piece:
+    """One job: a name for messages, the mesh [V, 3] / [F, 3], and the methods to try in order."""
+
+    name: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    methods: tuple[Method, ...]
+
+
+@dataclass
+class _Run:
+    """A piece being worked on: its process, the method running now and what the earlier ones gave."""
+
+    index: int
+    key: str
+    process: multiprocessing.process.BaseProcess | None
+    methods: list[Method]  # still to start, in order (the first is running)
+    started: float  # when the running method started (time.monotonic)
+    piece_started: float
+    results: list[tuple[Method, list[ConvexPart], float]] = field(default_factory=list)  # (method, parts, band cm)
+    accepted: bool = False
+
+
+def piece_key(piece: Piece, settings: ColliderSettings, floor_height: float) -> str:
+    return cache_key(piece.vertices, piece.faces, settings, methods=list(piece.methods), floor_height=floor_height)
+
+
+def decompose_pieces(
+    pieces: Sequence[Piece],
+    settings: ColliderSettings,
+    *,
+    cache: PartCache,
+    workers: int = 1,
+    floor_height: float = 0.0,
+) -> list[PieceResult]:
+    """A result per piece, in input order; equal pieces run once, cached ones are read back."""
+    keys = [piece_key(p, settings, floor_height) for p in pieces]
+    done: dict[str, PieceResult] = {}
+    todo: dict[str, int] = {}
+    for i, key in enumerate(keys):
+        if key in done or key in todo:
+            continue
+        hit = cache.get(key)
+        if hit is not None:
+            done[key] = hit
+        else:
+            todo[key] = i
+    order = sorted(todo.values(), key=lambda i: -len(pieces[i].faces))  # the biggest set the pace: start them first
+    if order:
+        _Scheduler(pieces, keys, settings, cache, workers, floor_height).run(order, done)
+    return [done[k] for k in keys]
+
+
+class _Scheduler:
+    def __init__(self, pieces, keys, settings: ColliderSettings, cache: PartCache, workers: int, floor_height: float):
+        self.pieces, self.keys, self.settings, self.cache = pieces, keys, settings, cache
+        self.workers, self.floor_height = max(1, workers), floor_height
+        self.ctx = multiprocessing.get_context("forkserver")
+        self.ctx.set_forkserver_preload(["sagebench.collider_export.pieces"])
+        self.running: dict[Connection, _Run] = {}
+        self.progress = _Progress()
+
+    def run(self, todo: list[int], done: dict[str, PieceResult]) -> None:
+        queue = list(todo)
+        self.progress.total = len(queue)
+        try:
+            while queue or self.running:
+                while queue and len(self.running) < self.workers:
+                    i = queue.pop(0)
+                    now = time.monotonic()
+                    self._start(_Run(i, self.keys[i], None, list(self.pieces[i].methods), now, now))
+                ready = wait(list(self.running), timeout=self._next_deadline())
+                for conn in ready:
+                    self._receive(conn, done)
+                for conn, run in list(self.running.items()):
+                    if run.methods and time.monotonic() - run.started > self.settings.piece_budget_s:
+                        self._over_budget(conn, run, done)
+                self.progress.tick(self._elapsed())
+        except BaseException:
+            for conn, run in self.running.items():
+                run.process.kill()
+            for conn, run in self.running.items():
+                run.process.join()
+                conn.close()
+            self.running.clear()
+            raise
+        self.progress.finish()
+
+    def _start(self, run: _Run) -> None:
+        piece = self.pieces[run.index]
+        parent, child = self.ctx.Pipe(duplex=False)
+        run.process = self.ctx.Process(target=_work, args=(child, piece.vertices, piece.faces, tuple(run.methods),
+                                                           self.settings, self.floor_height), daemon=True)
+        run.process.start()
+        child.close()
+        run.started = time.monotonic()
+        self.running[parent] = run
+
+    def _next_deadline(self) -> float:
+        now = time.monotonic()
+        left = [self.settings.piece_budget_s - (now - r.started) for r in self.running.values()]
+        return float(np.clip(min(left, default=1.0), 0.05, 1.0))
+
+    def _elapsed(self) -> dict[str, float]:
+        now = time.monotonic()
+        return {self.pieces[r.index].name: now - r.piece_started for r in self.running.values()}
+
+    def _receive(self, conn: Connection, done: dict[str, PieceResult]) -> None:
+        run = self.running[conn]
+        while True:
+            try:
+                if not conn.poll():
+                    return
+                msg = conn.recv()
+            except (EOFError, OSError):  # the worker died (a crash inside a native library)
+                method = run.methods[0] if run.methods else "?"
+                ui.warn(f"{self.pieces[run.index].name}: {method} crashed; trying the next method")
+                self._retire(conn)
+                self._continue(run, done, skip=1)
+                return
+            if msg[0] == "start":
+                run.started = time.monotonic()
+            elif msg[0] == "result":
+                _, method, parts, error_cm, failure = msg
+                run.methods.pop(0)
+                if failure is not None:
+                    ui.warn(f"{self.pieces[run.index].name}: {method} failed ({failure}); trying the next method")
+                else:
+                    run.results.append((method, parts, error_cm))
+                    run.accepted = good_enough(self.settings.mode, error_cm, self.settings)
+            elif msg[0] == "end":
+                self._retire(conn)
+                self._finish(run, done)
+                return
+
+    def _over_budget(self, conn: Connection, run: _Run, done: dict[str, PieceResult]) -> None:
+        method = run.methods[0]
+        self._retire(conn)
+        nxt = run.methods[1] if len(run.methods) > 1 else None
+        best = min(run.results, key=lambda r: (r[2], len(r[1])), default=None)
+        instead = nxt or (best[0] if best else "hull")
+        ui.warn(f"{self.pieces[run.index].name}: {method} ran over its {self.settings.piece_budget_s:g} s budget; "
+                f"using {instead} instead")
+        self._continue(run, done, skip=1)
+
+    def _retire(self, conn: Connection) -> None:
+        run = self.running.pop(conn)
+        if run.process.is_alive():
+            run.process.kill()
+        run.process.join()
+        conn.close()
+
+    def _continue(self, run: _Run, done: dict[str, PieceResult], *, skip: int) -> None:
+        """Drop the method that did not finish; start the rest of the ladder, or finish with what there is."""
+        del run.methods[:skip]
+        if run.methods and not run.accepted:
+            self._start(run)
+        else:
+            self._finish(run, done)
+
+    def _finish(self, run: _Run, done: dict[str, PieceResult]) -> None:
+        piece = self.pieces[run.index]
+        if run.accepted:
+            method, parts, error = run.results[-1]
+        elif run.results:
+            method, parts, error = min(run.results, key=lambda r: (r[2], len(r[1])))
+        else:  # every method failed: the hull always exists
+            parts = [hull_part(piece.vertices)]
+            method, error = "hull", band_error_cm(piece.vertices, piece.faces, parts, self.floor_height)
+        result = PieceResult(parts, method, run.key, error)
+        self.cache.put(result)
+        done[run.key] = result
+        self.progress.done(piece.name, time.monotonic() - run.piece_started)
+
+
+def _work(conn: Connection, vertices: np.ndarray, faces: np.ndarray, methods: tuple[Method, ...],
+          settings: ColliderSettings, floor_height: float) -> None:
+    """Worker body: run the methods in order, report each (start, result), stop at the first good enough."""
+    for method in methods:
+        conn.send(("start", method))
+        try:
+            parts = run_method(method, vertices, faces, settings)
+        except Exception as err:  # CoACD and the repair raise many kinds; the next method handles all of them
+            conn.send(("result", method, None, float("inf"), str(err) or type(err).__name__))
+            continue
+        error = band_error_cm(vertices, faces, parts, floor_height)
+        conn.send(("result", method, parts, error, None))
+        if good_enough(settings.mode, error, settings):
+            break
+    conn.send(("end",))
+    conn.close()
+
+
+class _Progress:
+    """`colliders: 12/40 pieces, slowest sofa (concave piece 2) 31 s, about 40 s left` on stderr every few seconds."""
+
+    def __init__(self):
+        self.total = 0
+        self.finished: list[float] = []
+        self.slowest: tuple[str, float] = ("", 0.0)
+        self.start = time.monotonic()
+        self.last = self.start
+
+    def done(self, name: str, seconds: float) -> None:
+        self.finished.append(seconds)
+        if seconds >= self.slowest[1]:
+            self.slowest = (name, seconds)
+
+    def tick(self, running: dict[str, float]) -> None:
+        now = time.monotonic()
+        if now - self.last >= PROGRESS_EVERY_S:
+            self.last = now
+            ui.info(self.line(running))
+
+    def finish(self) -> None:
+        ui.info(self.line({}))
+
+    def line(self, running: dict[str, float]) -> str:
+        n = len(self.finished)
+        slow = max([self.slowest, *running.items()], key=lambda kv: kv[1])
+        text = f"colliders: {n}/{self.total} pieces in {time.monotonic() - self.start:.0f} s"
+        if slow[0]:
+            text += f", slowest {slow[0]} {slow[1]:.1f} s"
+        if 0 < n < self.total:
+            rate = (time.monotonic() - self.start) / n
+            text += f", about {rate * (self.total - n):.0f} s left"
+        return text
