@@ -350,6 +350,25 @@ def validate_cmd(
         raise typer.Exit(code=1)
 
 
+@app.command("export-vlnce")
+def export_vlnce_cmd(
+    run_dir: Annotated[Path, typer.Argument(help="Run directory with episodes/<id>/ and scenes/<id>/.")],
+    out: Annotated[Path, typer.Option("--out", help="Dataset directory to write (habitat's data_path root).")],
+    split: Annotated[str | None, typer.Option("--split", help="Export only this split (default: every split).")] = None,
+) -> None:
+    """Export the episodes as a VLN-CE / habitat R2R dataset, in habitat's Y-up frame.
+
+    Reads RUN_DIR/episodes/<id>/part-*.parquet and RUN_DIR/scenes/<id>/scene.json + meshes/.
+
+    Writes OUT/<split>/<split>.json.gz per split (episodes and instruction_vocab), OUT/vocab.txt and
+    OUT/scenes/<id>/<id>.glb (the scene's visual meshes, Y up) for habitat-sim.
+    """
+    from sagebench.stages.export_vlnce import export_vlnce
+
+    for line in export_vlnce(run_dir, out, split=split).lines():
+        typer.echo(line)
+
+
 @app.command("run")
 def run_cmd(
     config: Annotated[Path, typer.Argument(help="TOML run config (scenes, out, per-stage settings).")],

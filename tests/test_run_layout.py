@@ -108,7 +108,14 @@ def _render(run: Path, out: Path) -> bytes:
     return frame.rgb.tobytes() + frame.depth.tobytes()
 
 
-@pytest.mark.parametrize("command, call", [("baseline", _baseline), ("evaluate", _evaluate), ("render", _render)])
+def _export_vlnce(run: Path, out: Path) -> bytes:
+    from sagebench.stages.export_vlnce import export_vlnce
+
+    return b"".join(p.read_bytes() for p in export_vlnce(run, out).files)
+
+
+@pytest.mark.parametrize("command, call", [("baseline", _baseline), ("evaluate", _evaluate), ("render", _render),
+                                           ("export_vlnce", _export_vlnce)])
 def test_commands_outside_the_pipeline_need_only_the_files_they_declare(command, call, full_run, tmp_path):
     run, _ = full_run
     alone = tmp_path / "run"

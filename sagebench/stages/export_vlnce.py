@@ -1,0 +1,85 @@
+"""`export-vlnce`: a run's episodes as a VLN-CE / habitat dataset, in habitat's Y-up frame.
+
+Reads RUN/episodes/<id>/part-*.parquet and RUN/scenes/<id>/scene.json + meshes/. Writes into OUT:
+{split}/{split}.json.gz per split (R2R-CE episodes with the vocabulary), vocab.txt (one word a line) and
+scenes/<id>/<id>.glb (every visual mesh of the scene). Everything is computed before the first byte is
+written; rows without an instruction (gen-trajectories --instructions none) are left out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pyarrow as pa
+
+from sagebench.episodes.load import scene_ids
+from sagebench.episodes.shards import read_episodes
+from sagebench.episodes.splits import SPLITS
+from sagebench.errors import ConfigError, DataError
+from sagebench.fileio import write_bytes, write_text
+from sagebench.run_layout import CONTRACT, require, run_episodes_dir, run_scene_dir
+from sagebench.scene.loader import load_scene
+from sagebench.vlnce.episodes import dataset_bytes, scene_glb_path
+from sagebench.vlnce.glb import scene_glb
+from sagebench.vlnce.vocab import Vocabulary
+
+VOCAB_FILE = "vocab.txt"
+SCENES_DIR = "scenes"
+
+
+def split_file(split: str) -> str:
+    return f"{split}/{split}.json.gz"
+
+
+@dataclass(frozen=True)
+class VlnceExport:
+    out_dir: Path
+    episodes: dict[str, int]  # split -> episodes written
+    scenes: list[str]
+    vocabulary: int  # words, special tokens included
+    skipped: int = 0  # rows without an instruction
+    files: list[Path] = field(default_factory=list)
+
+    def lines(self) -> list[str]:
+        counts = ", ".join(f"{s} {n}" for s, n in self.episodes.items())
+        out = [f"export-vlnce: {sum(self.episodes.values())} episodes ({counts}), {len(self.scenes)} scene GLB(s), "
+               f"{self.vocabulary} words -> {self.out_dir}"]
+        if self.skipped:
+            out.append(f"left out {self.skipped} rows without an instruction")
+        return out
+
+
+def export_vlnce(run_dir: Path, out_dir: Path, *, split: str | None = None) -> VlnceExport:
+    """Write the dataset of every split of the run (or of `split`) into `out_dir`."""
+    if split is not None and split not in SPLITS:
+        raise ConfigError(f"{split!r} is not a split (one of {', '.join(SPLITS)})", field="--split")
+    rows, skipped = [], 0
+    for sid in scene_ids(Path(run_dir), None):
+        require(CONTRACT["export_vlnce"].reads, run_dir, sid)
+        try:
+            table = read_episodes(run_episodes_dir(run_dir, sid))
+        except (OSError, pa.ArrowException) as err:
+            raise DataError(f"cannot read episode shards: {err}", path=run_episodes_dir(run_dir, sid)) from None
+        for row in table.to_pylist():
+            if row["instruction_text"] is None:
+                skipped += 1
+            else:
+                rows.append(row)
+    vocab = Vocabulary.from_texts(r["instruction_text"] for r in rows)  # every split's words: one vocabulary
+    by_split = {s: [r for r in rows if r["split"] == s] for s in SPLITS if split in (None, s)}
+    by_split = {s: v for s, v in by_split.items() if v}
+    if not by_split:
+        what = f"split {split!r}" if split is not None else "any split"
+        raise DataError(f"no episodes with an instruction in {what}", path=Path(run_dir))
+    scenes = sorted({r["scene_id"] for v in by_split.values() for r in v})
+    files = {split_file(s): dataset_bytes(v, vocab) for s, v in by_split.items()}
+    for sid in scenes:
+        files[f"{SCENES_DIR}/{scene_glb_path(sid)}"] = scene_glb(load_scene(run_scene_dir(run_dir, sid)))
+    written = []
+    for rel, data in files.items():
+        write_bytes(Path(out_dir) / rel, data)
+        written.append(Path(out_dir) / rel)
+    write_text(Path(out_dir) / VOCAB_FILE, vocab.to_text())
+    return VlnceExport(Path(out_dir), {s: len(v) for s, v in by_split.items()}, scenes, len(vocab.word_list),
+                       skipped, [*written, Path(out_dir) / VOCAB_FILE])
