@@ -107,6 +107,10 @@ MUTANTS = (
            "pos=list(h.pos), ref=h.angle,", "pos=list(h.pos),", ("tests/test_mjcf_writer.py",)),
     Mutant("replay keeps the scene's joints", "sagebench/replay/physics.py",
            "    for joint in list(spec.joints):\n        spec.delete(joint)\n", "", ("tests/test_replay_physics.py",)),
+    Mutant("habitat rotation a quarter turn off", "sagebench/vlnce/frame.py",
+           "half = (yaw - math.pi / 2) / 2", "half = yaw / 2", ("tests/test_vlnce.py",)),
+    Mutant("habitat frame mirrored", "sagebench/vlnce/frame.py",
+           "[0.0, -1.0, 0.0]])", "[0.0, 1.0, 0.0]])", ("tests/test_vlnce.py",)),
 )
 
 
