@@ -79,14 +79,18 @@ def synth_scene(
 def check_scene(
     scene_dir: Annotated[Path, typer.Argument(help="Artist scene directory (scene.json + meshes).")],
 ) -> None:
-    """Load and validate a scene directory and print a summary.
+    """Check a scene directory as build-scene would (same checks, default settings) and print a summary.
 
-    Reads SCENE_DIR/scene.json and every mesh it names. Writes nothing.
+    Reads SCENE_DIR/scene.json, every mesh it names and its trained gaussians.ply if any. Writes nothing.
     """
-    from sagebench.scene.loader import load_scene
     from sagebench.scene.summary import summarise
+    from sagebench.stages.build_scene import check_scene
 
-    typer.echo(summarise(load_scene(scene_dir)))
+    checked = check_scene(scene_dir)
+    h, w = checked.grid.shape
+    trained = "none" if checked.trained is None else f"{checked.trained.count} Gaussians"
+    typer.echo(summarise(checked.scene) + f"\nmap: at most {w}x{h} cells at {checked.grid.resolution:g} m; "
+               f"trained gaussians.ply: {trained}")
 
 
 @app.command("schemas")

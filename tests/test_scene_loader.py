@@ -73,12 +73,12 @@ def test_cm_y_up_twin_loads_to_the_same_world(demo_scene_dir, tmp_path):
 
 
 def test_y_up_turns_up_into_z(tmp_path, box_mesh):
-    spec = _one_box_spec(transform={"translation": [0, 300, 0]}) | {"units": "cm", "up_axis": "Y"}
+    spec = _one_box_spec(transform={"translation": [0, 150, 0], "scale": [100, 100, 100]}) | {"units": "cm", "up_axis": "Y"}
     scene = load_scene(_write(tmp_path, spec, {"meshes/box.ply": box_mesh}))
     lo, hi = scene.meshes[1].bounds
-    # the box's 2 cm along Y now stands along Z around 3 m; its 0.5 cm along Z lies along -Y
-    np.testing.assert_allclose(lo, [-0.005, -0.0025, 3 - 0.01], atol=1e-9)
-    np.testing.assert_allclose(hi, [0.005, 0.0025, 3 + 0.01], atol=1e-9)
+    # the box's 200 cm along Y now stands along Z around 1.5 m; its 50 cm along Z lies along -Y
+    np.testing.assert_allclose(lo, [-0.5, -0.25, 1.5 - 1.0], atol=1e-9)
+    np.testing.assert_allclose(hi, [0.5, 0.25, 1.5 + 1.0], atol=1e-9)
 
 
 def test_normalised_directory_reloads_identically(demo_scene_dir, tmp_path):

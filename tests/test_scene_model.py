@@ -23,7 +23,7 @@ def test_matrix_form_is_used_verbatim():
 
 def test_matrix_and_trs_together_is_an_error():
     with pytest.raises(ValidationError, match="give either matrix or translation"):
-        Transform(translation=(1, 0, 0), matrix=((1, 0, 0, 0),) * 4)
+        Transform(translation=(1, 0, 0), matrix=((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1)))
 
 
 def test_rotation_is_normalised():

@@ -11,7 +11,14 @@ import trimesh
 from sagebench.render.gaussians import Gaussians, logit
 from sagebench.scene.loader import load_scene
 from sagebench.splats.ply import write_ply
-from sagebench.splats.scene import SplatConfig, quat_multiply, room_views, sampled_gaussians, scene_gaussians
+from sagebench.splats.scene import (
+    SplatConfig,
+    quat_multiply,
+    room_views,
+    sampled_gaussians,
+    scene_gaussians,
+    trained_gaussians,
+)
 
 
 @pytest.fixture(scope="module")
@@ -60,7 +67,8 @@ def test_trained_gaussians_are_turned_to_world_and_get_nearest_surface_ids(tmp_p
     trained = Gaussians(means, np.tile(rot_x, (3, 1)).astype(np.float32), np.log(np.full((3, 3), 2.0, np.float32)),
                         np.full(3, logit(0.5), np.float32), np.zeros((3, 4, 3), np.float32), np.zeros(3, np.int32))
     write_ply(scene_dir / "gaussians.ply", trained)
-    g, _ = scene_gaussians(load_scene(scene_dir), SplatConfig(assign_tolerance=0.05))
+    scene = load_scene(scene_dir)
+    g, _ = scene_gaussians(scene, SplatConfig(assign_tolerance=0.05), trained=trained_gaussians(scene))
     # metres, Z up: file (x, y, z) -> world (x, -z, y) / 100
     assert np.allclose(g.means, [[0, 0, 1.0], [0.51, -0.1, 0.5], [3.0, 0, 0.5]], atol=1e-6)
     assert g.instance_id.tolist() == [4, 4, 0]

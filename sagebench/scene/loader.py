@@ -8,12 +8,14 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
+from urllib.parse import unquote
 
 import numpy as np
 from pydantic import ValidationError
 
 from sagebench.errors import MeshError, SceneError, first_error
 from sagebench.run_layout import SCENE_FILE  # an artist's scene directory and a run's scenes/<id>/ alike
+from sagebench.scene.checks import check_hinge, check_inside_rooms, check_rooms, check_world_bounds
 from sagebench.scene.model import UNIT_SCALE, Door, Room, SceneObject, SceneSpec, Transform
 
 if TYPE_CHECKING:  # trimesh costs a third of a second to import: only what reads meshes pays it
@@ -53,6 +55,8 @@ def parse_spec(text: str, where: Path | str) -> SceneSpec:
         raw = json.loads(text)
     except json.JSONDecodeError as err:
         raise SceneError(f"malformed JSON at line {err.lineno}, column {err.colno}: {err.msg}", path=where) from None
+    except RecursionError:
+        raise SceneError("JSON nested too deeply", path=where) from None
     try:
         return SceneSpec.model_validate(raw)
     except ValidationError as err:
@@ -89,12 +93,14 @@ def load_scene(scene_dir: Path | str) -> LoadedScene:
         mesh_path = resolve_mesh_path(scene_dir, obj.mesh, spec_path, field)
         if mesh_path not in cache:
             cache[mesh_path] = read_mesh(mesh_path, spec_path, field)
-            hasher.update(obj.mesh.encode() + b"\0" + mesh_path.read_bytes())
+            for name in mesh_files(scene_dir, obj.mesh, spec_path, field):
+                hasher.update(name.encode() + b"\0" + (scene_dir / name).read_bytes())
         to_world = frame @ obj.transform.as_matrix()
         world = cache[mesh_path].copy()
         world.apply_transform(to_world)
         door = _normalise_door(obj.door, frame) if obj.door else None
         if door is not None:
+            check_hinge(door, world.bounds, spec_path, f"objects[{i}].door.hinge")
             world.apply_transform(door_pose(door))
         meshes[obj.instance_id] = world
         objects.append(
@@ -109,6 +115,10 @@ def load_scene(scene_dir: Path | str) -> LoadedScene:
             "objects": objects,
         }
     )
+    bounds = {k: np.asarray(m.bounds) for k, m in meshes.items()}
+    check_world_bounds(bounds, normalised, spec.units, spec_path)
+    check_rooms(normalised.rooms, spec_path)
+    check_inside_rooms(normalised, bounds, spec_path)
     return LoadedScene(spec=normalised, meshes=meshes, source_dir=scene_dir, source_sha256=hasher.hexdigest())
 
 
@@ -120,7 +130,9 @@ def write_normalised_scene(scene: LoadedScene, dest: Path) -> None:
     """
     from sagebench.fileio import dumps_json, write_bytes
 
-    for name in sorted({o.mesh for o in scene.spec.objects}):
+    names = {n for o in scene.spec.objects for n in mesh_files(scene.source_dir, o.mesh, scene.source_dir / SCENE_FILE,
+                                                               "objects.mesh")}
+    for name in sorted(names):
         write_bytes(dest / name, (scene.source_dir / name).read_bytes())
     write_bytes(dest / SCENE_FILE, dumps_json(scene.spec.model_dump(mode="json", exclude_defaults=True)).encode())
 
@@ -137,6 +149,28 @@ def resolve_mesh_path(scene_dir: Path, mesh: str, spec_path: Path, field: str) -
     return path
 
 
+def mesh_files(scene_dir: Path, mesh: str, spec_path: Path, field: str) -> list[str]:
+    """The files a mesh is made of, relative to the scene directory: the mesh itself and, for a .gltf, the
+    buffers and images it names by relative URI (copied and hashed with it; one leaving the scene is refused)."""
+    files = [mesh]
+    if Path(mesh).suffix.lower() != ".gltf":
+        return files
+    try:
+        doc = json.loads((scene_dir / mesh).read_text(encoding="utf-8"))
+        uris = [e["uri"] for key in ("buffers", "images") for e in doc.get(key, []) if "uri" in e]
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError, TypeError, AttributeError, KeyError):
+        raise MeshError(f"cannot read glTF {mesh!r} as JSON with buffers and images", path=spec_path, field=field) from None
+    for uri in uris:
+        if not isinstance(uri, str):
+            raise MeshError(f"glTF {mesh!r} has a non-string URI", path=spec_path, field=field)
+        if uri.startswith("data:"):
+            continue
+        name = (Path(mesh).parent / unquote(uri)).as_posix()
+        resolve_mesh_path(scene_dir, name, spec_path, field)
+        files.append(name)
+    return files
+
+
 def read_mesh(path: Path, spec_path: Path, field: str) -> trimesh.Trimesh:
     """One triangle mesh from a GLB/GLTF/OBJ/PLY file, in the file's own coordinates."""
     import trimesh
@@ -149,6 +183,8 @@ def read_mesh(path: Path, spec_path: Path, field: str) -> trimesh.Trimesh:
         raise MeshError(f"mesh {path.name!r} has no triangles", path=spec_path, field=field)
     if not np.isfinite(mesh.vertices).all():
         raise MeshError(f"mesh {path.name!r} has non-finite vertex coordinates", path=spec_path, field=field)
+    if not np.ptp(mesh.vertices, axis=0).any():
+        raise MeshError(f"mesh {path.name!r} has all its vertices at one point", path=spec_path, field=field)
     return mesh
 
 

@@ -15,8 +15,11 @@ UpAxis = Literal["Z", "Y"]
 
 UNIT_SCALE: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 
+MIN_DETERMINANT = 1e-12  # |det| of a transform's 3x3 part below this flattens a mesh (a 1e-4 scale on each axis)
 Vec3 = tuple[float, float, float]
-FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False, strict=True)]  # strict: "1.5" (a string) is refused
+INT32_MAX = 2**31 - 1  # instance ids are stored as int32 in maps, PLYs and episode rows
+SCENE_ID_MAX = 128  # scene ids name directories and files
 
 
 class _Model(BaseModel):
@@ -46,6 +49,8 @@ class Transform(_Model):
     def _four_by_four(cls, m: tuple[tuple[float, ...], ...] | None) -> tuple[tuple[float, ...], ...] | None:
         if m is not None and (len(m) != 4 or any(len(r) != 4 for r in m)):
             raise ValueError("matrix must be 4 rows of 4 numbers")
+        if m is not None and tuple(m[3]) != (0.0, 0.0, 0.0, 1.0):
+            raise ValueError(f"matrix's last row must be 0 0 0 1, got {' '.join(f'{v:g}' for v in m[3])}")
         return m
 
     @model_validator(mode="after")
@@ -53,6 +58,10 @@ class Transform(_Model):
         trs_set = {"translation", "rotation_wxyz", "scale"} & self.model_fields_set
         if self.matrix is not None and trs_set:
             raise ValueError(f"give either matrix or {', '.join(sorted(trs_set))}, not both")
+        det = float(np.linalg.det(self.as_matrix()[:3, :3]))
+        if not abs(det) > MIN_DETERMINANT:
+            raise ValueError(f"singular transform (determinant {det:.3g}): a zero scale or a flat matrix squashes "
+                             f"the mesh into a plane")
         return self
 
     def as_matrix(self) -> np.ndarray:
@@ -81,8 +90,8 @@ class Door(_Model):
         description="A point on the hinge axis, in scene units and frame."
     )
     swing: Literal[1, -1] = Field(default=1, description="+1 opens counter-clockwise seen from above, -1 clockwise.")
-    open_deg: Annotated[float, Field(gt=0, le=180)] = 90.0
-    ajar_deg: Annotated[float, Field(gt=0, le=180)] = 45.0
+    open_deg: Annotated[float, Field(gt=0, le=180, strict=True)] = 90.0
+    ajar_deg: Annotated[float, Field(gt=0, le=180, strict=True)] = 45.0
 
     def angle_rad(self) -> float:
         """Signed rotation of the leaf from its closed pose about the up axis."""
@@ -108,10 +117,11 @@ class Room(_Model):
 
 
 class SceneObject(_Model):
-    instance_id: Annotated[int, Field(ge=1, description="Unique per scene; 0 is reserved for background.")]
+    instance_id: Annotated[int, Field(ge=1, le=INT32_MAX, strict=True,
+                                      description="Unique per scene; 0 is reserved for background.")]
     category: Annotated[str, Field(min_length=1)]
     kind: Kind = "object"
-    mesh: Annotated[str, Field(min_length=1, description="Path relative to the scene directory.")]
+    mesh: Annotated[str, Field(min_length=1, pattern=r"^[^\x00]*$", description="Path relative to the scene directory.")]
     transform: Transform = Transform()
     room_id: str | None = None
     attributes: dict[str, str] = Field(default_factory=dict, description="colour, material, state, ...")
@@ -129,7 +139,7 @@ class SceneObject(_Model):
 class SceneSpec(_Model):
     """scene.json: everything sagebench needs to know about an artist scene besides its meshes."""
 
-    scene_id: Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")]
+    scene_id: Annotated[str, Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$", max_length=SCENE_ID_MAX)]
     units: Units = "m"
     up_axis: UpAxis = "Z"
     floor_height: FiniteFloat = Field(default=0.0, description="Height of the walkable floor along up_axis, scene units.")

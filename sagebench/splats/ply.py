@@ -49,10 +49,25 @@ def read_ply(path: Path | str) -> Gaussians:
     tables = _read_elements(data, body, elements, path)
     names = [e.name for e in elements]
     if "chunk" in names:
-        return _decode_compressed(tables, path)
+        return _checked(_decode_compressed(tables, path), path)
     if "vertex" not in names:
         raise DataError("no 'vertex' element", path=path)
-    return _decode_inria(tables["vertex"], path)
+    return _checked(_decode_inria(tables["vertex"], path), path)
+
+
+def _checked(g: Gaussians, path: Path) -> Gaussians:
+    """Refuse NaN or infinite values and zero rotations: one would turn a whole rendered frame into NaN."""
+    for name, values in (("position", g.means), ("rotation", g.quats_wxyz), ("scale", g.log_scales),
+                         ("opacity", g.opacity_logits), ("colour", g.sh)):
+        bad = ~np.isfinite(values.reshape(g.count, -1)).all(axis=1)
+        if bad.any():
+            raise DataError(f"Gaussian {int(np.argmax(bad))} has a non-finite {name} "
+                            f"({int(bad.sum())} of {g.count} do)", path=path, field="vertex")
+    zero = ~(np.abs(g.quats_wxyz) > 0).any(axis=1)
+    if zero.any():
+        raise DataError(f"Gaussian {int(np.argmax(zero))} has a zero rotation quaternion "
+                        f"({int(zero.sum())} of {g.count} do)", path=path, field="vertex")
+    return g
 
 
 def write_ply(path: Path | str, gaussians: Gaussians) -> None:

@@ -15,7 +15,7 @@ from shapely.geometry import Polygon
 
 from sagebench import ui
 from sagebench.config import AgentConfig
-from sagebench.errors import SceneError
+from sagebench.errors import DataError, SceneError
 from sagebench.render.camera import Camera, agent_camera
 from sagebench.render.gaussians import Gaussians, concat
 from sagebench.scene.loader import SCENE_FILE, LoadedScene, frame_matrix, parse_spec
@@ -29,12 +29,31 @@ TRAINED_FILES = ("gaussians.ply", "3dgs_compressed.ply")  # looked for in the sc
 STRUCTURE_KINDS = frozenset({"wall", "floor", "ceiling"})
 
 
+def trained_gaussians(scene: LoadedScene) -> Gaussians | None:
+    """The scene directory's trained Gaussians in world space (m, Z up), or None when it has none.
+
+    A file that is a link leaving the scene directory, unreadable, malformed, non-finite or empty is a DataError.
+    """
+    path = next((scene.source_dir / name for name in TRAINED_FILES if (scene.source_dir / name).is_file()), None)
+    if path is None:
+        return None
+    if not path.resolve().is_relative_to(scene.source_dir.resolve()):
+        raise DataError("a link that leaves the scene directory", path=path)
+    g = read_ply(path)
+    if g.count == 0:
+        raise DataError("holds no Gaussians", path=path, field="vertex")
+    return _to_world(g, scene)
+
+
 def scene_gaussians(scene: LoadedScene, config: SplatConfig = SplatConfig(), *, seed: int = 0,
-                    agent: AgentConfig = AgentConfig()) -> tuple[Gaussians, PruneReport | None]:
-    """The scene's Gaussians in world space (m, Z up) with instance ids, and the pruning report if pruned."""
-    trained = next((scene.source_dir / name for name in TRAINED_FILES if (scene.source_dir / name).is_file()), None)
+                    agent: AgentConfig = AgentConfig(),
+                    trained: Gaussians | None = None) -> tuple[Gaussians, PruneReport | None]:
+    """The scene's Gaussians in world space (m, Z up) with instance ids, and the pruning report if pruned.
+
+    `trained` is trained_gaussians(scene), read by the caller when it checks the scene; None samples the meshes.
+    """
     if trained is not None:
-        g = _to_world(read_ply(trained), scene)
+        g = trained
         ids = assign_instances(g.means, scene.meshes, tolerance=config.assign_tolerance)
         g = Gaussians(g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh, ids)
     else:

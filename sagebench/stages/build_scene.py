@@ -21,7 +21,9 @@ from sagebench.scene.loader import LoadedScene, load_scene, write_normalised_sce
 from sagebench.topdown.config import TopdownConfig
 
 if TYPE_CHECKING:
+    from sagebench.render.gaussians import Gaussians
     from sagebench.splats.prune import PruneReport
+    from sagebench.topdown.raster import Grid
 
 # build-scene's options and the TopdownConfig fields they set (their defaults and error names come from here)
 OPTIONS = {"--resolution": "resolution", "--band-min": "band_min", "--band-max": "band_max",
@@ -64,21 +66,42 @@ class BuildSceneResult:
         )
 
 
+@dataclass(frozen=True)
+class CheckedScene:
+    """A scene that build-scene would accept: loaded, its map within the cell budget, its trained Gaussians read."""
+
+    scene: LoadedScene
+    trained: Gaussians | None  # world space; None when the scene directory has no trained gaussians.ply
+    grid: Grid  # covering every mesh and room at the configured resolution
+
+
+def check_scene(scene_dir: Path, config: TopdownConfig | None = None) -> CheckedScene:
+    """Everything build-scene refuses, without building: `check-scene` and `build-scene` both call this."""
+    from sagebench.splats.scene import trained_gaussians
+    from sagebench.topdown.builder import scene_grid
+
+    scene = load_scene(scene_dir)
+    grid = scene_grid(scene, (config or TopdownConfig()).resolution)
+    return CheckedScene(scene=scene, trained=trained_gaussians(scene), grid=grid)
+
+
 def build_scene(scene_dir: Path, run_dir: Path, config: TopdownConfig | None = None) -> BuildSceneResult:
-    """Load `scene_dir`, compute its top-down maps and Gaussians and write RUN/scenes/<scene_id>/ atomically."""
-    scene = load_scene(scene_dir)  # a bad scene is refused before the map and splat code is even imported
-    return _build(scene, run_dir, config or TopdownConfig())
+    """Check `scene_dir`, compute its top-down maps and Gaussians and write RUN/scenes/<scene_id>/ atomically."""
+    config = config or TopdownConfig()
+    return _build(check_scene(scene_dir, config), run_dir, config)
 
 
-def _build(scene: LoadedScene, run_dir: Path, config: TopdownConfig) -> BuildSceneResult:
+def _build(checked: CheckedScene, run_dir: Path, config: TopdownConfig) -> BuildSceneResult:
     from sagebench.splats.ply import write_ply
     from sagebench.splats.scene import scene_gaussians
     from sagebench.topdown.builder import compute_topdown
     from sagebench.topdown.render_png import render_topdown
 
+    scene = checked.scene
     td = compute_topdown(scene, config)
     png = render_topdown(td)
-    gaussians, pruned = scene_gaussians(scene, config.splats, seed=config.seed, agent=config.agent)
+    gaussians, pruned = scene_gaussians(scene, config.splats, seed=config.seed, agent=config.agent,
+                                        trained=checked.trained)
     out = run_scene_dir(run_dir, scene.spec.scene_id)
     with staged_dir(out) as tmp:
         write_normalised_scene(scene, tmp)

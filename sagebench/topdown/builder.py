@@ -10,7 +10,7 @@ import numpy as np
 import shapely
 from shapely.geometry.base import BaseGeometry
 
-from sagebench.errors import SceneError
+from sagebench.errors import ConfigError, SceneError
 from sagebench.scene.loader import SCENE_FILE, LoadedScene
 from sagebench.topdown.config import TopdownConfig
 from sagebench.topdown.footprints import footprint, mesh_parts
@@ -41,6 +41,7 @@ class Topdown:
 
 def compute_topdown(scene: LoadedScene, config: TopdownConfig) -> Topdown:
     """The maps and the semantic report of a loaded scene (no I/O)."""
+    scene_grid(scene, config.resolution)  # refuses a map over the cell budget before any work
     spec = scene.spec
     res = config.resolution
     z_lo, z_hi = spec.floor_height + config.band_min, spec.floor_height + config.band_max
@@ -131,6 +132,17 @@ def compute_topdown(scene: LoadedScene, config: TopdownConfig) -> Topdown:
         semantic=semantic,
         footprints=footprints,
     )
+
+
+def scene_grid(scene: LoadedScene, resolution: float) -> Grid:
+    """A grid covering every mesh and room of the scene: at least the map's (ConfigError over the cell budget)."""
+    boxes = [m.bounds[:, :2] for m in scene.meshes.values()]
+    boxes += [np.array([np.min(r.polygon, axis=0), np.max(r.polygon, axis=0)]) for r in scene.spec.rooms]
+    lo, hi = np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+    try:
+        return Grid.covering(lo, hi, resolution, margin=2 * resolution)
+    except ConfigError as err:
+        raise ConfigError(err.detail, path=scene.source_dir, field=err.field) from None
 
 
 def floor_plan(scene: LoadedScene, footprints: dict[int, BaseGeometry], wall_gap: float) -> BaseGeometry:

@@ -13,7 +13,10 @@ import numpy as np
 import shapely
 from shapely.geometry.base import BaseGeometry
 
+from sagebench.errors import ConfigError
+
 _EPS = 1e-9  # metres: closed tests count a shape that only touches a cell's border as touching it
+MAX_GRID_CELLS = 25_000_000  # cells of one map (5000 x 5000: 250 m square at 0.05 m); ~30 bytes each while built
 _CHUNK = 1 << 18  # (shape, cell) pairs tested per numpy batch, bounds memory on big scenes
 
 
@@ -25,11 +28,17 @@ class Grid:
 
     @classmethod
     def covering(cls, lo: np.ndarray, hi: np.ndarray, resolution: float, margin: float) -> Grid:
-        """The grid with origin on a multiple of `resolution` that covers [lo, hi] (xy, m) plus `margin`."""
+        """The grid with origin on a multiple of `resolution` that covers [lo, hi] (xy, m) plus `margin`.
+
+        A grid of more than MAX_GRID_CELLS cells is a ConfigError naming the count, raised before any allocation.
+        """
         ox = math.floor((float(lo[0]) - margin) / resolution) * resolution
         oy = math.floor((float(lo[1]) - margin) / resolution) * resolution
         w = math.ceil((float(hi[0]) + margin - ox) / resolution)
         h = math.ceil((float(hi[1]) + margin - oy) / resolution)
+        if w * h > MAX_GRID_CELLS:
+            raise ConfigError(f"a {w} x {h} map at {resolution:g} m is {w * h:,} cells, over the budget of "
+                              f"{MAX_GRID_CELLS:,}: choose a coarser resolution", field="resolution")
         return cls((round(ox, 9), round(oy, 9)), resolution, (h, w))
 
     def centres(self) -> tuple[np.ndarray, np.ndarray]:
