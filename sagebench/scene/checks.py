@@ -10,7 +10,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import shapely
 
 from sagebench.errors import SceneError
 from sagebench.scene.model import Door, Room, SceneSpec
@@ -46,6 +45,8 @@ def check_world_bounds(bounds: dict[int, np.ndarray], spec: SceneSpec, units: st
 
 def check_rooms(rooms: list[Room], spec_path: Path) -> None:
     """Each normalised floor polygon ([x, y], m) is simple and encloses some area."""
+    import shapely  # here, not at the top: refusing a bad scene.json imports no geometry library
+
     for j, room in enumerate(rooms):
         poly = shapely.Polygon(room.polygon)
         if not shapely.is_valid(poly):
@@ -68,6 +69,8 @@ def check_inside_rooms(spec: SceneSpec, bounds: dict[int, np.ndarray], spec_path
     """Every object's footprint box (world, m) lies within OUTSIDE_ROOMS_M of some room (scenes with rooms)."""
     if not spec.rooms:
         return
+    import shapely
+
     area = shapely.union_all([shapely.Polygon(r.polygon) for r in spec.rooms])
     for i, obj in enumerate(spec.objects):
         (x0, y0, _), (x1, y1, _) = bounds[obj.instance_id]

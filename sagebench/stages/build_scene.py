@@ -77,10 +77,10 @@ class CheckedScene:
 
 def check_scene(scene_dir: Path, config: TopdownConfig | None = None) -> CheckedScene:
     """Everything build-scene refuses, without building: `check-scene` and `build-scene` both call this."""
+    scene = load_scene(scene_dir)  # a bad scene.json is refused before the map and splat code is even imported
     from sagebench.splats.scene import trained_gaussians
     from sagebench.topdown.builder import scene_grid
 
-    scene = load_scene(scene_dir)
     grid = scene_grid(scene, (config or TopdownConfig()).resolution)
     return CheckedScene(scene=scene, trained=trained_gaussians(scene), grid=grid)
 
