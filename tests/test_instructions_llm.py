@@ -270,8 +270,9 @@ def test_cli_llm_options_need_llm_mode_a_url_and_a_model_and_a_writable_cache(ru
     assert fails(*url, "--llm-min-share", "1.5") == "error: --llm-min-share: Input should be less than or equal to 1"
     assert fails("--instructions", "llm", "--llm-base-url", "localhost:8000", "--llm-model", "x") == \
         "error: --llm-base-url: must be an http(s) URL such as http://localhost:8000/v1, got 'localhost:8000'"
-    assert fails("--llm-model", "x") == \
-        "error: --llm-* options (the llm table) are used only with --instructions llm"
+    assert fails("--llm-model", "x") == "error: --llm-model: used only with --instructions llm"
+    assert fails("--instructions", "template", "--llm-concurrency", "4") == \
+        "error: --llm-concurrency: used only with --instructions llm"  # even at its default
     assert fails("--llm-api-key-env", "HOME") == "error: --llm-api-key-env: used only with --instructions llm"
     assert fails(*url, "--llm-api-key-env", "SAGEBENCH_NO_SUCH_VARIABLE") == \
         "error: --llm-api-key-env: the environment variable SAGEBENCH_NO_SUCH_VARIABLE is not set"

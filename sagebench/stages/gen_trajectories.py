@@ -71,7 +71,14 @@ class GenTrajectoriesConfig(SamplingConfig):
 
 
 def make_config(**fields: object) -> GenTrajectoriesConfig:
-    """A config from the options given (None = keep the default); a bad value is a ConfigError naming the option."""
+    """A config from the options given (None = keep the default); a bad value is a ConfigError naming the option.
+
+    An --llm-* option without --instructions llm is an error even when it repeats the default.
+    """
+    llm = fields.get("llm") or {}
+    if isinstance(llm, dict) and llm and fields.get("instructions") != "llm":
+        option = {path: opt for opt, path in OPTIONS.items()}[f"llm.{next(iter(llm))}"]
+        raise ConfigError("used only with --instructions llm", field=option)
     return from_options(GenTrajectoriesConfig, fields, OPTIONS)
 
 
