@@ -17,6 +17,8 @@ class SagebenchError(Exception):
     def __init__(self, message: str, *, path: Path | str | None = None, field: str | None = None):
         self.path = None if path is None else str(path)
         self.field = field
+        # one line, whatever a library put in its message (MuJoCo and GEOS write several)
+        message = "; ".join(line.strip() for line in str(message).splitlines() if line.strip())
         self.detail = message
         parts = [p for p in (self.path, field) if p]
         super().__init__(": ".join([*parts, message]))
@@ -32,6 +34,10 @@ class MeshError(SceneError):
 
 class ConfigError(SagebenchError):
     """A command option or config file value is out of range."""
+
+
+class OutputError(SagebenchError):
+    """An output cannot be written there: a file where a directory goes (or the reverse), no permission, a full disk."""
 
 
 class DataError(SagebenchError):

@@ -11,6 +11,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from sagebench.episodes.schema import EPISODE_SCHEMA
+from sagebench.errors import DataError
 from sagebench.fileio import write_bytes
 
 
@@ -45,4 +46,22 @@ def write_shards(rows: Sequence[dict[str, Any]], out_dir: Path, shard_size: int)
 def read_episodes(path: Path) -> pa.Table:
     """All shards of one episodes/<scene_id>/ directory (or one shard file) as one table."""
     files = sorted(path.glob("part-*.parquet")) if path.is_dir() else [path]
+    for f in files:
+        check_shard_schema(pq.read_schema(f), f)
     return pa.concat_tables([pq.read_table(f, schema=EPISODE_SCHEMA) for f in files])
+
+
+OPTIONAL_COLUMNS = frozenset({"split"})  # shards written before the split column lack it
+
+
+def check_shard_schema(schema: pa.Schema, path: Path) -> None:
+    """Every column of EPISODE_SCHEMA (but the optional ones) with its type: a shard of another table is a DataError."""
+    for field in EPISODE_SCHEMA:
+        if field.name not in schema.names:
+            if field.name in OPTIONAL_COLUMNS:
+                continue
+            raise DataError(f"not an episode shard: column missing (has {', '.join(schema.names[:5])}"
+                            f"{', ...' if len(schema.names) > 5 else ''})", path=path, field=field.name)
+        got = schema.field(field.name).type
+        if got != field.type:
+            raise DataError(f"column type {got}, expected {field.type}", path=path, field=field.name)

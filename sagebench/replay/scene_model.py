@@ -33,5 +33,8 @@ def open_replay_model(run_dir: Path, scene_id: str, *, agent: AgentConfig, repla
     except ValueError as err:
         raise DataError(f"cannot load: {err}", path=scene_dir / MJCF) from None
     present = {b.name for b in mjspec.bodies}
-    return build_replay_model(mjspec, agent=agent, floor_z=floor_z, config=replay,
-                              floor_bodies=[n for n in floor_body_names(scene_dir) if n in present])
+    try:  # compiling reads the collider STLs: a deleted or corrupted one fails here
+        return build_replay_model(mjspec, agent=agent, floor_z=floor_z, config=replay,
+                                  floor_bodies=[n for n in floor_body_names(scene_dir) if n in present])
+    except ValueError as err:
+        raise DataError(f"cannot compile: {err}", path=scene_dir / MJCF) from None

@@ -19,6 +19,7 @@ from scipy import ndimage
 from shapely import affinity
 from shapely.geometry import Polygon, box as rect
 
+from sagebench.errors import ConfigError
 from sagebench.fileio import dumps_json, staged_dir, write_bytes
 from sagebench.scene import assets
 from sagebench.scene.furniture import CATEGORY_NOUNS, Catalogue, fit_to_slot
@@ -79,6 +80,8 @@ def synth_spec_and_meshes(seed: int, furniture: Catalogue | None = None) -> tupl
     With a `furniture` catalogue, each piece whose category some catalogue entry fits (by its name's head
     noun, entries taken in turn) is that entry's model instead of the procedural one; the layout is the same.
     """
+    if seed < 0:
+        raise ConfigError(f"must be 0 or more (got {seed})", field="--seed")
     rng = np.random.default_rng(seed)
     pick = _FurniturePicker(furniture) if furniture is not None else None
     layout = _layout(rng)

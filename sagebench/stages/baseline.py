@@ -29,7 +29,7 @@ class BaselineConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     agent_name: Literal["oracle", "straight", "random"] = Field(default="oracle", description="Which baseline.")
-    seed: int = Field(default=0, description="Seed of the random agent's walks.")
+    seed: int = Field(default=0, ge=0, description="Seed of the random agent's walks.")
     max_actions: int = Field(default=500, ge=1, description="Actions per episode before it ends unstopped.")
     policy: PolicyConfig = PolicyConfig()
     agent: AgentConfig = AgentConfig()

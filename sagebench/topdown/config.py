@@ -20,7 +20,7 @@ class TopdownConfig(BaseModel):
     wall_gap: float = Field(
         default=0.3, ge=0, description="Room floor polygons closer than this join across the wall between them, m."
     )
-    seed: int = Field(default=0, description="Seed of the footprint surface and Gaussian sampling.")
+    seed: int = Field(default=0, ge=0, description="Seed of the footprint surface and Gaussian sampling.")
     agent: AgentConfig = AgentConfig()
     splats: SplatConfig = SplatConfig()
 

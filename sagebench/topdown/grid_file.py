@@ -37,7 +37,8 @@ def read_topdown_grids(npz_path: Path) -> TopdownGrids:
                         path=npz_path, field="navigable")
     origin = np.asarray(arrays["origin"], dtype=np.float64).ravel()
     resolution = float(np.asarray(arrays["resolution"]).ravel()[0])
-    if origin.shape != (2,) or not resolution > 0:
-        raise DataError("origin must be [x, y] and resolution > 0", path=npz_path, field="origin")
+    if origin.shape != (2,) or not np.isfinite(origin).all() or not 0 < resolution < np.inf:
+        raise DataError(f"origin must be finite [x, y] and resolution > 0 (got {origin.tolist()}, {resolution})",
+                        path=npz_path, field="origin")
     return TopdownGrids(np.ascontiguousarray(nav != 0, dtype=np.uint8), np.asarray(occ, dtype=np.uint8), resolution,
                         (float(origin[0]), float(origin[1])))

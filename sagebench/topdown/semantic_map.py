@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from sagebench.scene.model import DoorState, Kind
 
@@ -12,7 +12,7 @@ XY = tuple[float, float]
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class MultiPolygon(_Model):
@@ -23,6 +23,15 @@ class MultiPolygon(_Model):
 
     type: Literal["MultiPolygon"] = "MultiPolygon"
     coordinates: list[list[list[XY]]]
+
+    @field_validator("coordinates")
+    @classmethod
+    def _closed_rings(cls, polys: list[list[list[XY]]]) -> list[list[list[XY]]]:
+        for rings in polys:
+            for ring in rings:
+                if len(ring) < 4 or ring[0] != ring[-1]:
+                    raise ValueError(f"a ring needs at least 4 points, the last equal to the first (got {len(ring)})")
+        return polys
 
 
 class MapInstance(_Model):
