@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -13,6 +14,7 @@ from sagebench.collider_export.convex import (
     hull_part,
     is_convex_solid,
     is_convex_solid_reference,
+    merge_parts,
     split_convex,
     weld,
 )
@@ -117,3 +119,17 @@ def test_open_box_is_not_a_convex_solid():
     box = trimesh.creation.box((1, 1, 1))
     assert not is_convex_solid(box.vertices, box.faces[:-2], tolerance=0.002)
     assert not is_convex_solid_reference(box.vertices, box.faces[:-2])
+
+
+def test_merge_parts_merges_above_the_agent_band_first():
+    """Two boxes 0.3 m apart in the band and two 0.6 m apart above it: with the band, the far pair above it is
+    merged (the space between costs 2 %); without, the near pair."""
+    def box(x, z):
+        return hull_part(trimesh.creation.box((0.1, 0.1, 0.1)).apply_translation((x, 0, z)).vertices)
+
+    low = [box(0.0, 0.5), box(0.4, 0.5)]
+    high = [box(2.0, 2.0), box(2.7, 2.0)]
+    with_band = merge_parts(low + high, 3, band=(0.05, 1.2))
+    assert [np.ptp(p.vertices[:, 0]) for p in with_band] == pytest.approx([0.1, 0.1, 0.8])
+    without = merge_parts(low + high, 3)
+    assert [np.ptp(p.vertices[:, 0]) for p in without] == pytest.approx([0.1, 0.1, 0.5])

@@ -28,7 +28,7 @@ def test_greedy_boxes_cover_every_solid_cell_once(seed):
 
 def test_merged_boxes_still_cover_the_solid_within_budget():
     solid = np.random.default_rng(1).random((8, 8, 4)) < 0.5
-    merged = merge_boxes(greedy_boxes(solid), solid, 5)
+    merged = merge_boxes(greedy_boxes(solid), 5, np.ones(solid.shape[2]))
     assert len(merged) == 5
     assert np.all(_paint(merged, solid.shape)[solid] >= 1)
 

@@ -159,16 +159,26 @@ def _is_flat(points: np.ndarray) -> bool:
     return bool(_principal_extents(points)[1][-1] < MIN_THICKNESS)
 
 
-def merge_parts(parts: list[ConvexPart], budget: int) -> list[ConvexPart]:
+def merge_parts(parts: list[ConvexPart], budget: int, band: tuple[float, float] | None = None,
+                off_band: float = 0.02) -> list[ConvexPart]:
     """At most `budget` parts: repeatedly replace the two parts whose bounding boxes together enclose the least
-    extra space by the hull of both (small neighbours first: two legs of a chair before a leg and the seat)."""
+    extra space by the hull of both (small neighbours first: two legs of a chair before a leg and the seat).
+    Space outside the agent `band` (z range) counts `off_band` times as much: merging above it costs little."""
     out = list(parts)
     lo = np.array([p.vertices.min(axis=0) for p in out]).reshape(-1, 3)
     hi = np.array([p.vertices.max(axis=0) for p in out]).reshape(-1, 3)
+
+    def wvol(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        height = b[..., 2] - a[..., 2]
+        if band is not None:
+            inside = np.clip(np.minimum(b[..., 2], band[1]) - np.maximum(a[..., 2], band[0]), 0.0, None)
+            height = inside + off_band * (height - inside)
+        return (b[..., 0] - a[..., 0]) * (b[..., 1] - a[..., 1]) * height
+
     while len(out) > budget:
         ulo, uhi = np.minimum(lo[:, None], lo[None]), np.maximum(hi[:, None], hi[None])
-        vol = np.prod(hi - lo, axis=1)
-        cost = np.prod(uhi - ulo, axis=2) - vol[:, None] - vol[None, :]
+        vol = wvol(lo, hi)
+        cost = wvol(ulo, uhi) - vol[:, None] - vol[None, :]
         np.fill_diagonal(cost, np.inf)
         i, j = sorted(np.unravel_index(np.argmin(cost), cost.shape))
         merged = hull_part(np.concatenate([out[i].vertices, out[j].vertices]))

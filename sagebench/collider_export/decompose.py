@@ -9,7 +9,7 @@ import numpy as np
 
 from sagebench.collider_export.coacd_cache import PartCache, PieceResult
 from sagebench.collider_export.convex import ConvexPart, merge_parts, split_convex, weld
-from sagebench.collider_export.methods import LADDERS, ColliderSettings
+from sagebench.collider_export.methods import LADDERS, ColliderSettings, agent_band
 from sagebench.collider_export.pieces import Piece, decompose_pieces
 
 
@@ -45,22 +45,24 @@ def decompose_meshes(
     splits = {name: split_convex(v, f, tolerance=convex_tolerance) for name, (v, f) in meshes.items()}
     over = {name for name, s in splits.items()
             if len(s.parts) + len(s.concave) > WHOLE_MESH_FACTOR * settings.max_parts}
-    jobs = [Piece(f"{name} (concave piece {k})", pv, pf, LADDERS[settings.mode])
-            for name, split in splits.items() if name not in over for k, (pv, pf) in enumerate(split.concave)]
+    jobs = []  # one batch, so the whole-mesh jobs run beside the pieces (biggest first)
+    for name, split in splits.items():
+        if name in over:
+            jobs.append(Piece(f"{name} (whole mesh: {len(split.parts) + len(split.concave)} pieces)",
+                              *weld(*meshes[name]), ("voxel",)))
+        else:
+            jobs += [Piece(f"{name} (concave piece {k})", pv, pf, LADDERS[settings.mode])
+                     for k, (pv, pf) in enumerate(split.concave)]
     results = iter(decompose_pieces(jobs, settings, cache=cache, workers=workers, floor_height=floor_height))
     out: dict[str, MeshColliders] = {}
     for name, split in splits.items():
         if name in over:
+            result = next(results)
+            out[name] = MeshColliders(list(result.parts), 0, [result], whole=True)
             continue
         pieces = [next(results) for _ in split.concave]
         parts = list(split.parts) + [p for r in pieces for p in r.parts]
-        kept = merge_parts(parts, settings.max_parts) if len(parts) > settings.max_parts else parts
+        kept = merge_parts(parts, settings.max_parts, agent_band(floor_height)) if len(parts) > settings.max_parts else parts
         exact = len(split.parts) if kept is parts else 0
         out[name] = MeshColliders(kept, exact, pieces, merged=len(parts) - len(kept))
-    whole = [Piece(f"{name} (whole mesh: {len(splits[name].parts) + len(splits[name].concave)} pieces)",
-                   *weld(*meshes[name]), ("voxel",))
-             for name in sorted(over)]
-    for name, result in zip(sorted(over), decompose_pieces(whole, settings, cache=cache, workers=workers,
-                                                           floor_height=floor_height)):
-        out[name] = MeshColliders(list(result.parts), 0, [result], whole=True)
     return {name: out[name] for name in meshes}

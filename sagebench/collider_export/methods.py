@@ -43,19 +43,21 @@ class ColliderSettings(BaseModel):
                                                         "quality; fast: hull or voxel.")
     coacd: CoacdParams = CoacdParams()
     max_parts: int = Field(default=32, ge=1, description="Part budget per object; parts are merged to stay within it.")
-    piece_budget_s: float = Field(default=20.0, gt=0, description="Seconds one method may spend on one piece "
+    piece_budget_s: float = Field(default=10.0, gt=0, description="Seconds one method may spend on one piece "
                                                                   "before the next method is used.")
     band_tolerance_cm: float = Field(default=2.0, gt=0, description="A method is good enough when its agent-band "
                                                                     "footprint is within this of the piece's, cm.")
     voxel_pitch: float = Field(default=0.02, ge=0.01, le=0.1, description="Voxel size of the voxel method, m.")
 
 
-def run_method(method: Method, vertices: np.ndarray, faces: np.ndarray, settings: ColliderSettings) -> list[ConvexPart]:
+def run_method(method: Method, vertices: np.ndarray, faces: np.ndarray, settings: ColliderSettings,
+               floor_height: float = 0.0) -> list[ConvexPart]:
     """Convex parts of one piece (vertices [V, 3] m, faces [F, 3]) by `method`; raises when the method fails."""
     if method == "hull":
         return [hull_part(vertices)]
     if method == "voxel":
-        return voxel_parts(vertices, faces, pitch=settings.voxel_pitch, max_parts=settings.max_parts)
+        return voxel_parts(vertices, faces, pitch=settings.voxel_pitch, max_parts=settings.max_parts,
+                           band=agent_band(floor_height))
     closed = close_holes(vertices, faces)
     if closed is None:
         raise RuntimeError("its holes could not be closed")
@@ -65,11 +67,16 @@ def run_method(method: Method, vertices: np.ndarray, faces: np.ndarray, settings
     return [hull_part(v) for v, _ in run_coacd(*closed, params)]
 
 
+def agent_band(floor_height: float) -> tuple[float, float]:
+    """The agent band as z (m) in a mesh frame whose floor is at floor_height."""
+    return floor_height + AGENT_BAND[0], floor_height + AGENT_BAND[1]
+
+
 def band_error_cm(vertices: np.ndarray, faces: np.ndarray, parts: list[ConvexPart], floor_height: float) -> float:
     """The worse of the band over/under figures (cm) of `parts` against the piece, band measured from floor_height."""
     import trimesh
 
-    band = (floor_height + AGENT_BAND[0], floor_height + AGENT_BAND[1])
+    band = agent_band(floor_height)
     source = trimesh.Trimesh(np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64), process=False)
     return 100.0 * max(band_errors(source, parts, band, 0.01))
 

@@ -207,7 +207,7 @@ def _work(conn: Connection, vertices: np.ndarray, faces: np.ndarray, methods: tu
     for method in methods:
         conn.send(("start", method))
         try:
-            parts = run_method(method, vertices, faces, settings)
+            parts = run_method(method, vertices, faces, settings, floor_height)
         except Exception as err:  # CoACD and the repair raise many kinds; the next method handles all of them
             conn.send(("result", method, None, float("inf"), str(err) or type(err).__name__))
             continue

@@ -164,13 +164,11 @@ def outside_volume(source: trimesh.Trimesh, parts: Sequence[ConvexPart], planes:
     for part, pl in zip(parts, planes):
         i0 = np.floor((part.vertices.min(axis=0) - lo) / pitch).astype(int)
         i1 = np.ceil((part.vertices.max(axis=0) - lo) / pitch).astype(int) + 1
-        axes = [lo[k] + (np.arange(i0[k], i1[k]) + 0.5) * pitch for k in range(3)]
-        centres = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-        inside = _inside(centres, pl, eps=0.0).reshape(i1 - i0)
         block = (slice(i0[0], i1[0]), slice(i0[1], i1[1]), slice(i0[2], i1[2]))
-        fresh = inside & ~envelope[block]
-        outside += int(np.count_nonzero(fresh))
-        envelope[block] |= inside  # a cell two parts share counts once
+        free = np.argwhere(~envelope[block])  # only cells not yet counted need the half-space test
+        fresh = free[_inside(lo + (free + i0 + 0.5) * pitch, pl, eps=0.0)] + i0
+        outside += len(fresh)
+        envelope[fresh[:, 0], fresh[:, 1], fresh[:, 2]] = True  # a cell two parts share counts once
     return float(outside) * pitch**3
 
 

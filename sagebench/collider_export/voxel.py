@@ -15,10 +15,13 @@ from scipy import ndimage
 from sagebench.collider_export.convex import ConvexPart, hull_part
 from sagebench.collider_export.quality import lattice_points
 
+OFF_BAND = 0.02  # weight of empty space above or below the agent band when boxes are merged
 
-def voxel_parts(vertices: np.ndarray, faces: np.ndarray, *, pitch: float, max_parts: int) -> list[ConvexPart]:
+
+def voxel_parts(vertices: np.ndarray, faces: np.ndarray, *, pitch: float, max_parts: int,
+                band: tuple[float, float] | None = None) -> list[ConvexPart]:
     """Box parts for a mesh (vertices [V, 3] m, faces [F, 3]); at most max_parts of them (boxes merged where
-    the greedy cover needs more)."""
+    the greedy cover needs more, cheapest first: empty space outside the agent `band` (z range) costs little)."""
     tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces, dtype=np.int64)]
     points = lattice_points(tri, pitch / 2)
     lo = points.min(axis=0) - pitch / 2
@@ -27,7 +30,8 @@ def voxel_parts(vertices: np.ndarray, faces: np.ndarray, *, pitch: float, max_pa
     solid = np.zeros(shape, dtype=bool)
     solid[cell[:, 0], cell[:, 1], cell[:, 2]] = True
     solid = ndimage.binary_fill_holes(solid)
-    boxes = merge_boxes(greedy_boxes(solid), solid, max_parts)
+    z = lo[2] + (np.arange(shape[2]) + 0.5) * pitch
+    boxes = merge_boxes(greedy_boxes(solid), max_parts, layer_weights(z, band))
     return [_trimmed(b, solid, points, cell, lo, pitch) for b in boxes]
 
 
@@ -53,15 +57,28 @@ def greedy_boxes(solid: np.ndarray) -> list[tuple[int, int, int, int, int, int]]
     return boxes
 
 
-def merge_boxes(boxes: list[tuple[int, ...]], solid: np.ndarray, max_parts: int) -> list[tuple[int, ...]]:
-    """Merge pairs into their bounding box, the pair adding the fewest empty cells first, until at most max_parts."""
-    b = np.array(boxes, dtype=np.int64).reshape(-1, 6)
+def layer_weights(z: np.ndarray, band: tuple[float, float] | None) -> np.ndarray:
+    """[Z] weight of a cell per layer (centres z, m): 1 inside the band, OFF_BAND outside it (all 1 without a band)."""
+    if band is None:
+        return np.ones(len(z))
+    return np.where((z >= band[0]) & (z <= band[1]), 1.0, OFF_BAND)
+
+
+def merge_boxes(boxes: list[tuple[int, ...]], max_parts: int, weights: np.ndarray) -> list[tuple[int, ...]]:
+    """Merge pairs into their bounding box until at most max_parts, first the pair whose merged box adds the
+    least weighted volume (cells weighted per z layer by `weights` [Z]; overlaps aside)."""
+    b = np.array(boxes, dtype=np.float64).reshape(-1, 6)
+    cum = np.concatenate([[0.0], np.cumsum(weights)])
+
+    def wvol(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        return (hi[..., 0] - lo[..., 0]) * (hi[..., 1] - lo[..., 1]) * (cum[hi[..., 2].astype(int)] - cum[lo[..., 2].astype(int)])
+
     while len(b) > max_parts:
         lo = np.minimum(b[:, None, :3], b[None, :, :3])
         hi = np.maximum(b[:, None, 3:], b[None, :, 3:])
-        vol = np.prod(b[:, 3:] - b[:, :3], axis=1)
-        cost = np.prod(hi - lo, axis=2) - vol[:, None] - vol[None, :]  # empty cells the merged box adds (overlaps aside)
-        np.fill_diagonal(cost, np.iinfo(np.int64).max)
+        own = wvol(b[:, :3], b[:, 3:])
+        cost = wvol(lo, hi) - own[:, None] - own[None, :]
+        np.fill_diagonal(cost, np.inf)
         i, j = np.unravel_index(np.argmin(cost), cost.shape)
         merged = np.concatenate([lo[i, j], hi[i, j]])
         b = np.vstack([np.delete(b, [i, j], axis=0), merged])
