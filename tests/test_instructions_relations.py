@@ -74,3 +74,10 @@ def test_rooms_and_objects_along_a_path_in_walking_order():
     assert rooms_along(path, rooms) == ["a", "b", "a"]
     lay = layout({1: _box(6, 2.8, 6.5, 3.2), 2: _box(2, 1.0, 2.5, 1.5), 3: _box(2, -3, 2.5, -2.5)})
     assert [lay.ids[j] for j in objects_passed(lay, path[:2])] == [2, 1]
+
+
+def test_a_footprint_ring_that_crosses_itself_is_still_laid_out():
+    """Real artist meshes give such rings (GEOS refused to union them: 'side location conflict')."""
+    bowtie = np.array([(0.0, 0.0), (1.0, 1.0), (1.0, 0.0), (0.0, 1.0)])
+    lay = layout({1: [bowtie, np.array([(0.2, 0.0), (0.8, 0.0), (0.5, 0.4)])], 2: [np.array([(3.0, 0), (4, 0), (4, 1)])]})
+    assert lay.gaps[0, 1] == pytest.approx(2.0)

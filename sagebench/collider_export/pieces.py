@@ -10,6 +10,7 @@ once; every finished piece is already in the cache, so a rerun starts where this
 from __future__ import annotations
 
 import multiprocessing
+import os
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -203,7 +204,12 @@ class _Scheduler:
 
 def _work(conn: Connection, vertices: np.ndarray, faces: np.ndarray, methods: tuple[Method, ...],
           settings: ColliderSettings, floor_height: float) -> None:
-    """Worker body: run the methods in order, report each (start, result), stop at the first good enough."""
+    """Worker body: run the methods in order, report each (start, result), stop at the first good enough.
+    Native libraries' own prints (pymeshfix's "could not fix everything") are silenced: results and failures
+    reach the parent through `conn`."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 1)
+    os.dup2(devnull, 2)
     for method in methods:
         conn.send(("start", method))
         try:

@@ -1,8 +1,8 @@
 """Close the holes of open artist meshes so that CoACD can skip its slow remeshing preprocess.
 
-Measured on the concave pieces of 26 Sweet Home 3D catalogue models (README, export-usd): pymeshfix made
-every open piece but the degenerate ones watertight in milliseconds; manifold3d only accepts input that is
-already manifold, and trimesh's fill_holes closed none of the open pieces. pymeshfix also reshapes
+Measured on the 332 concave pieces of the 26 Sweet Home 3D catalogue models the benchmark scene uses
+(226 of them open): pymeshfix closed 198 of the open ones (1.1 s at most, 6 s for all), manifold3d 20 (it
+only accepts input that is already nearly manifold), trimesh's fill_holes none. pymeshfix also reshapes
 pieces that are already closed, so those are passed through untouched.
 """
 

@@ -44,7 +44,8 @@ class Layout:
 def layout(footprints: Mapping[int, Sequence[np.ndarray]]) -> Layout:
     """Layout of `footprints`: instance id -> exterior rings, each [K, 2] float64 world metres."""
     ids = tuple(footprints)
-    geoms = tuple(shapely.union_all([Polygon(r) for r in footprints[i] if len(r) >= 3]) for i in ids)
+    # make_valid: a real mesh's footprint ring can touch itself (GEOS then refuses the union)
+    geoms = tuple(shapely.union_all([shapely.make_valid(Polygon(r)) for r in footprints[i] if len(r) >= 3]) for i in ids)
     arr = np.array(geoms, dtype=object)
     gaps = shapely.distance(arr[:, None], arr[None, :]) if ids else np.zeros((0, 0))
     gaps = np.asarray(gaps, dtype=np.float64)
