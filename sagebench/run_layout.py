@@ -84,7 +84,7 @@ CONTRACT: dict[str, StageFiles] = {
         writes=(Place("scene", COLLIDERS), Place("scene", USD_GEOMETRY), Place("scene", USD), Place("scene", USDZ),
                 Place("scene", MJCF))),
     "validate": StageFiles(
-        reads=(*REPLAY_MODEL, Place("scene", GAUSSIANS), Place("episodes")),
+        reads=(*REPLAY_MODEL, Place("scene", GAUSSIANS), Place("scene", TOPDOWN), Place("episodes")),
         writes=(Place("validation"),)),
     "evaluate": StageFiles(reads=(Place("episodes"), Place("scene", TOPDOWN), *REPLAY_MODEL)),  # the model only to replay poses
     "baseline": StageFiles(reads=(Place("episodes"), *REPLAY_MODEL)),

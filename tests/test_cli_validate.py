@@ -49,7 +49,8 @@ def test_demo_trajectories_all_pass(validated_run, tmp_path, run_cli):
     assert sorted(sum(table.column("episode_ids").to_pylist(), [])) == sorted(episodes.column("episode_id").to_pylist())
     report = json.loads((vdir / "report.json").read_text())
     assert report["trajectories"] == 20 and report["failed"] == 0 and report["episodes"] == episodes.num_rows
-    assert report["failures_by_reason"] == {"collision": 0, "goal_not_reached": 0, "left_corridor": 0, "incomplete": 0}
+    assert report["failures_by_reason"] == {"collision": 0, "goal_not_reached": 0, "left_corridor": 0, "incomplete": 0,
+                                            "instruction_not_executable": 0}
     assert report["metrics"]["csr"]["min"] == 1.0
     assert len(report["alignment"]["frames"]) == 6
     assert all(f["median_abs_diff"] < 0.10 for f in report["alignment"]["frames"])
@@ -78,10 +79,26 @@ def test_a_path_through_a_wall_fails_with_collision(validated_run, tmp_path, run
     code, out, _ = run_cli("validate", run, "--frames-per-scene", "0")
     assert code == 1
     assert "19/20 trajectories pass" in out
-    assert f"FAIL {SCENE} {bad}: collision, goal_not_reached" in out
+    assert f"FAIL {SCENE} {bad}: collision, goal_not_reached, instruction_not_executable" in out
     report = json.loads((run / "validation" / SCENE / "report.json").read_text())
     assert report["failures_by_reason"]["collision"] == 1
     assert report["failures"][0]["trajectory_id"] == bad
+
+
+def test_a_base_action_sentence_that_misses_the_goal_fails_as_not_executable(validated_run, tmp_path, run_cli):
+    run = _copy(validated_run, tmp_path)
+    shard = run / "episodes" / SCENE / "part-00000.parquet"
+    table = pq.read_table(shard)
+    rows = table.to_pylist()
+    row = next(r for r in rows if r["instruction_type"] == "Base_Action")
+    row["instruction_text"] = "Turn around and walk forward 1 metre, then stop."  # the path itself is untouched
+    pq.write_table(pa.Table.from_pylist(rows, schema=table.schema), shard)
+    code, out, _ = run_cli("validate", run, "--frames-per-scene", "0")
+    assert code == 1
+    assert "19/20 trajectories pass" in out
+    assert f"FAIL {SCENE} {row['trajectory_id']}: instruction_not_executable" in out
+    report = json.loads((run / "validation" / SCENE / "report.json").read_text())
+    assert report["failures_by_reason"]["instruction_not_executable"] == 1
 
 
 def test_shifted_gaussians_fail_the_alignment(validated_run, tmp_path, run_cli):

@@ -23,6 +23,7 @@ class Trajectory:
     goal: np.ndarray  # [3]
     goal_radius: float
     geodesic_distance: float
+    base_action: tuple[str, ...] = ()  # the trajectory's Base_Action sentences
 
 
 def scene_ids(run_dir: Path, scene_id: str | None) -> list[str]:
@@ -49,7 +50,7 @@ def read_trajectories(episodes_dir: Path) -> list[Trajectory]:
         raise DataError(f"cannot read episode shards: {err}", path=episodes_dir) from None
     rows: dict[str, list[dict]] = {}
     for row in table.select(["episode_id", "trajectory_id", "reference_path", "goal_position", "goal_radius",
-                             "geodesic_distance"]).to_pylist():
+                             "geodesic_distance", "instruction_type", "instruction_text"]).to_pylist():
         rows.setdefault(row["trajectory_id"], []).append(row)
     out = []
     for tid in sorted(rows):
@@ -59,7 +60,8 @@ def read_trajectories(episodes_dir: Path) -> list[Trajectory]:
             raise DataError(f"trajectory {tid}: empty path", path=episodes_dir, field="reference_path")
         out.append(Trajectory(tid, tuple(sorted(r["episode_id"] for r in rows[tid])), path,
                               np.asarray(first["goal_position"], dtype=np.float64), float(first["goal_radius"]),
-                              float(first["geodesic_distance"])))
+                              float(first["geodesic_distance"]),
+                              tuple(r["instruction_text"] for r in rows[tid] if r["instruction_type"] == "Base_Action")))
     return out
 
 

@@ -8,6 +8,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from sagebench.instructions.execution import BlockedMap
 from sagebench.instructions.naming import ObjectInfo, RoomInfo, object_names, room_names
 from sagebench.instructions.relations import Layout, layout
 from sagebench.instructions.sight import SightMap
@@ -80,6 +81,8 @@ class TrajectoryText:
     start_room: str | None = None  # room id the endpoint is in (its own id for a room)
     goal_room: str | None = None
     scene: SceneContext | None = None
+    goal_radius: float = 1.0  # metres; Base_Action's literal execution must end this close to the last waypoint
+    blocked: BlockedMap | None = None  # cells Base_Action's literal execution must not cross (None: not checked)
 
 
 Generator = Callable[[TrajectoryText, np.random.Generator], list[Instruction]]

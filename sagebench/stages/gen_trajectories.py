@@ -27,6 +27,7 @@ from sagebench.config import from_options
 from sagebench.errors import ConfigError, DataError, ServiceError, first_error
 from sagebench.fileio import staged_dir, write_bytes
 from sagebench.instructions import instructions_for
+from sagebench.instructions.execution import BlockedMap
 from sagebench.instructions.base import HIGH_LEVEL_TYPES, SceneContext, TrajectoryText, make_context
 from sagebench.instructions.llm_client import API_KEY_ENV, LLMConfig, check_cache_dir, default_cache_dir
 from sagebench.instructions.naming import ObjectInfo, RoomInfo
@@ -155,7 +156,8 @@ def generate_scene(scene_dir: Path, out_dir: Path, config: GenTrajectoriesConfig
         from sagebench.instructions.llm import with_instructor
 
         ctx, instructor = with_instructor(ctx, config.llm, api_key=api_key)
-    rows = episode_rows(spec.scene_id, result.trajectories, names, config, ctx)
+    blocked = BlockedMap(occupancy != 0, grid.resolution, grid.origin)
+    rows = episode_rows(spec.scene_id, result.trajectories, names, config, ctx, blocked)
     if instructor is not None:
         share = instructor.share()
         if not share.enough:
@@ -245,8 +247,11 @@ def scene_targets(spec: SceneSpec, smap: SemanticMap,
 
 
 def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str, str],
-                 config: GenTrajectoriesConfig, ctx: SceneContext | None = None) -> list[dict[str, Any]]:
+                 config: GenTrajectoriesConfig, ctx: SceneContext | None = None,
+                 blocked: BlockedMap | None = None) -> list[dict[str, Any]]:
     """One row per (trajectory, instruction); one bare row per trajectory when instructions are 'none'.
+
+    `blocked` (the occupancy map) is what Base_Action's literal execution must not cross.
 
     Each trajectory's wording depends only on (seed, trajectory id), so in llm mode trajectories are
     instructed on `config.llm.concurrency` threads and the rows still come out in order.
@@ -255,7 +260,7 @@ def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str,
     def instruct(traj: Trajectory):
         text = TrajectoryText(traj.waypoints, names[traj.start.key], names[traj.goal.key], traj.start.kind,
                               traj.goal.kind, traj.start.instance_id, traj.goal.instance_id, traj.start.room_id,
-                              traj.goal.room_id, ctx)
+                              traj.goal.room_id, ctx, config.goal_radius_m, blocked)
         rng = np.random.default_rng([config.seed, int(traj.trajectory_id, 16)])
         return instructions_for(text, config.instructions, rng)
 

@@ -1,6 +1,7 @@
 """`validate`: replay every trajectory of a run in MuJoCo, score it, and spot-check appearance against physics.
 
-Reads RUN/scenes/<id>/{scene.json, scene.xml, colliders/, gaussians.ply} and RUN/episodes/<id>/part-*.parquet.
+Reads RUN/scenes/<id>/{scene.json, scene.xml, colliders/, gaussians.ply, topdown.npz} and
+RUN/episodes/<id>/part-*.parquet (Base_Action sentences are executed literally against topdown.npz's occupancy).
 Writes RUN/validation/<id>/ whole: part-00000.parquet (one row per trajectory), report.json (counts, failures
 by reason, metric distributions, alignment per frame), frames/*.png and frames/contact_sheet.png.
 """
@@ -22,10 +23,12 @@ from sagebench import ui
 from sagebench.config import AgentConfig, from_options
 from sagebench.fileio import dumps_json, staged_dir, write_bytes, write_text
 from sagebench.episodes.load import Trajectory, read_trajectories, scene_ids
+from sagebench.instructions.execution import BlockedMap, execute_sentence
+from sagebench.topdown.grid_file import read_topdown_grids
 from sagebench.replay.physics import AGENT_BODY, ReplayConfig, ReplayRecord, replay_batch
 from sagebench.replay.scene_model import open_replay_model
 from sagebench.run_layout import (
-    CONTACT_SHEET, CONTRACT, FRAMES, GAUSSIANS, REPORT, VALIDATION_SHARD, require, run_episodes_dir, run_scene_dir,
+    CONTACT_SHEET, CONTRACT, FRAMES, GAUSSIANS, REPORT, TOPDOWN, VALIDATION_SHARD, require, run_episodes_dir, run_scene_dir,
     run_validation_dir,
 )
 from sagebench.validation.checks import REASONS, CheckConfig, Verdict, judge
@@ -113,8 +116,11 @@ def validate_scene(run_dir: Path, scene_id: str, config: ValidateConfig) -> Scen
     rm = open_replay_model(run_dir, scene_id, agent=config.agent, replay=config.replay)
     start = time.perf_counter()
     records = replay_batch(rm, [t.reference_path for t in trajectories], threads=config.workers)
+    grids = read_topdown_grids(scene_dir / TOPDOWN)
+    blocked = BlockedMap(grids.occupancy != 0, grids.resolution, grids.origin)
     verdicts = [judge(rec, t.reference_path, t.goal, goal_radius=t.goal_radius,
-                      geodesic_distance=t.geodesic_distance, timestep=rm.timestep, config=config.checks)
+                      geodesic_distance=t.geodesic_distance, timestep=rm.timestep, config=config.checks,
+                      executable=base_action_executable(t, blocked))
                 for rec, t in zip(records, trajectories)]
     seconds = time.perf_counter() - start
     picks = _pick(len(trajectories), config)
@@ -128,6 +134,13 @@ def validate_scene(run_dir: Path, scene_id: str, config: ValidateConfig) -> Scen
     return SceneValidation(scene_id=scene_id, out_dir=out_dir, trajectories=len(trajectories),
                            episodes=sum(len(t.episode_ids) for t in trajectories), failures=failures,
                            frames=frames, alignment_ok=alignment_ok, seconds=seconds)
+
+
+def base_action_executable(traj: Trajectory, blocked: BlockedMap) -> bool:
+    """Whether every Base_Action sentence of `traj` ends within its goal radius without crossing `blocked`."""
+    start = traj.reference_path[0]
+    return all(execute_sentence(s, start[:2], float(start[3]), traj.goal[:2], blocked).ok(traj.goal_radius)
+               for s in traj.base_action)
 
 
 def _pick(n: int, config: ValidateConfig) -> list[int]:

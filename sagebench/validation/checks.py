@@ -9,6 +9,9 @@ Reasons (a trajectory passes when it has none):
 - `goal_not_reached`: the replay ended farther than goal_radius from the goal (SR = 0).
 - `left_corridor`: CSR below min_csr (the agent left the corridor around the reference path).
 - `incomplete`: the replay stopped short of the end without any contact (a controller limit, not a collider).
+- `instruction_not_executable`: a Base_Action sentence of the trajectory, executed literally from the start pose
+  (turn by each stated angle, walk each stated distance), ends farther than goal_radius from the goal or crosses
+  a blocked cell of the occupancy map (instructions/execution.py).
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from sagebench.metrics import MetricConfig, score_episode
 from sagebench.metrics.polyline import distance_to_polyline, path_length
 from sagebench.replay.physics import ReplayRecord
 
-REASONS = ("collision", "goal_not_reached", "left_corridor", "incomplete")
+REASONS = ("collision", "goal_not_reached", "left_corridor", "incomplete", "instruction_not_executable")
 
 
 class CheckConfig(BaseModel):
@@ -73,8 +76,10 @@ def judge(
     timestep: float,
     config: CheckConfig = CheckConfig(),
     metrics: MetricConfig = MetricConfig(),
+    executable: bool = True,
 ) -> Verdict:
-    """Score a replay of `reference_path` [M, 4] against `goal` [>=2] and list what is wrong with it."""
+    """Score a replay of `reference_path` [M, 4] against `goal` [>=2] and list what is wrong with it;
+    `executable`: whether every Base_Action sentence of the trajectory executes literally (see the module)."""
     ref = np.asarray(reference_path, dtype=np.float64)
     scores = score_episode(record.poses, ref, goal, on_foot=None, goal_radius=goal_radius, geodesic_distance=geodesic_distance,
                            stopped=True, collision_intensity=record.intensity, config=metrics)
@@ -87,7 +92,8 @@ def judge(
                              or short)
     reasons = [name for name, bad in (("collision", collision), ("goal_not_reached", scores.sr < 1.0),
                                       ("left_corridor", scores.csr < config.min_csr),
-                                      ("incomplete", short and not touched)) if bad]
+                                      ("incomplete", short and not touched),
+                                      ("instruction_not_executable", not executable)) if bad]
     return Verdict(reasons=tuple(reasons), reached_goal=scores.sr >= 1.0, collision_free=not collision,
                    final_distance=scores.ne, csr=scores.csr, icp=scores.icp, ps=scores.ps, ndtw=scores.ndtw,
                    path_length=scores.path_length, reference_length=path_length(ref), max_penetration=penetration,
