@@ -59,19 +59,22 @@ def _global(
 
 @app.command("synth-scene")
 def synth_scene(
-    out: Annotated[Path, typer.Option("--out", help="Scene directory to create (replaced if it exists).")],
+    out: Annotated[Path, typer.Option("--out", help="Scene directory to create: absent, empty or an earlier "
+                                                     "synth scene (replaced whole).")],
     seed: Annotated[int, typer.Option(help="Layout seed; the same seed gives byte-identical files.")] = 0,
     furniture: Annotated[Path | None, typer.Option(
         help="Sweet Home 3D furniture catalogue (directory or .sh3f) whose models replace the procedural pieces.")] = None,
+    force: Annotated[bool, typer.Option("--force", help="Replace OUT whatever it holds.")] = False,
 ) -> None:
     """Write a procedural apartment in the artist-scene input format.
 
     Reads FURNITURE/PluginFurnitureCatalog.properties and its OBJ/MTL models when given. Writes
-    OUT/scene.json and OUT/meshes/*.glb|.ply|.obj.
+    OUT/scene.json and OUT/meshes/*.glb|.ply|.obj; refuses an OUT that is a file or a directory holding
+    anything but an earlier synth scene, unless --force.
     """
     from sagebench.scene.synth import write_synth_scene
 
-    spec = write_synth_scene(out, seed=seed, furniture=furniture)
+    spec = write_synth_scene(out, seed=seed, furniture=furniture, force=force)
     typer.echo(f"wrote {out} ({len(spec.rooms)} rooms, {len(spec.objects)} objects)")
 
 

@@ -1,17 +1,45 @@
-"""Atomic file and directory writes: a reader never sees a half-written output."""
+"""Atomic file and directory writes: a reader never sees a half-written output.
+
+Every temporary is named `.NAME.sagebench-XXXXXXXX.tmp` (or `.old`, for the output a staged directory
+replaces), so `remove_temporaries` can tell sagebench's leftovers from anything a user keeps beside them.
+Outputs get the modes a plain open() / mkdir() would give under the current umask (mkstemp's 0600 and
+mkdtemp's 0700 would otherwise survive the rename).
+"""
 
 from __future__ import annotations
 
 import contextlib
 import json
 import os
+import re
+import secrets
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
 from sagebench.errors import OutputError
+
+TEMP_TAG = "sagebench-"
+_TEMPORARY = re.compile(r"\..+\.sagebench-[0-9a-z_]{8}\.(tmp|old)")
+
+
+def is_temporary(name: str) -> bool:
+    """Whether a file name is one of sagebench's temporaries (`.NAME.sagebench-XXXXXXXX.tmp` or `.old`)."""
+    return _TEMPORARY.fullmatch(name) is not None
+
+
+def current_umask() -> int:
+    """The process umask, read without changing it (os.umask would set it, briefly, for every thread)."""
+    with contextlib.suppress(OSError, ValueError):
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 @contextlib.contextmanager
@@ -25,12 +53,13 @@ def _writing(path: Path) -> Iterator[None]:
 
 
 def write_bytes(path: Path, data: bytes) -> None:
-    """Write to a temporary sibling, fsync, then rename over `path`."""
+    """Write to a temporary sibling, fsync, then rename over `path` (mode 0666 less the umask)."""
     with _writing(path):
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{TEMP_TAG}", suffix=".tmp", dir=path.parent)
         try:
             with os.fdopen(fd, "wb") as fh:
+                os.fchmod(fh.fileno(), 0o666 & ~current_umask())
                 fh.write(data)
                 fh.flush()
                 os.fsync(fh.fileno())
@@ -56,23 +85,70 @@ def write_json(path: Path, obj: Any) -> None:
 
 @contextlib.contextmanager
 def staged_dir(final: Path) -> Iterator[Path]:
-    """Yield an empty temporary directory beside `final`; on success it replaces `final` whole.
+    """Yield an empty temporary directory beside `final` (mode 0777 less the umask); on success it replaces
+    `final` whole.
 
     On any error the temporary directory is removed and `final` is left as it was.
     """
     with _writing(final):
         final.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".tmp", dir=final.parent))
+        tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.{TEMP_TAG}", suffix=".tmp", dir=final.parent))
     try:
+        os.chmod(tmp, 0o777 & ~current_umask())
         yield tmp
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     if final.exists():
-        old = final.with_name(f".{final.name}.old")
-        shutil.rmtree(old, ignore_errors=True)
+        old = final.with_name(f".{final.name}.{TEMP_TAG}{secrets.token_hex(4)}.old")
         os.replace(final, old)
         os.replace(tmp, final)
-        shutil.rmtree(old, ignore_errors=True)
+        _remove(old)
     else:
         os.replace(tmp, final)
+
+
+def remove_temporaries(trees: Iterable[Path], *, entries_of: Iterable[Path] = (),
+                       keep_out: Iterable[Path] = ()) -> list[Path]:
+    """Remove the temporaries a killed sagebench process left: anywhere under `trees`, and directly in each
+    directory of `entries_of` (not below). Never looks inside a directory of `keep_out` (input scenes) nor
+    removes one that holds such a directory. Returns what was removed, sorted.
+
+    Only names `is_temporary` matches are touched: a user's own `.x.old` or `.y.tmp` stays.
+    """
+    keep = [Path(os.path.abspath(p)) for p in keep_out]
+    removed: list[Path] = []
+
+    def kept(path: Path) -> bool:
+        return any(k == path or k in path.parents for k in keep)
+
+    def visit(d: Path, deep: bool) -> None:
+        try:
+            entries = sorted(os.scandir(d), key=lambda e: e.name)
+        except (FileNotFoundError, NotADirectoryError):
+            return
+        for e in entries:
+            path = Path(os.path.abspath(e.path))
+            if kept(path):
+                continue
+            is_dir = e.is_dir(follow_symlinks=False)
+            if is_temporary(e.name) and not any(path in k.parents for k in keep):
+                _remove(path)
+                removed.append(path)
+            elif is_dir and deep:
+                visit(path, deep)
+
+    for tree in trees:
+        if not kept(Path(os.path.abspath(tree))):
+            visit(Path(tree), deep=True)
+    for d in entries_of:
+        visit(Path(d), deep=False)
+    return sorted(removed)
+
+
+def _remove(path: Path) -> None:
+    """Remove a file, link or directory tree of sagebench's own (a temporary or a replaced output)."""
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        path.unlink(missing_ok=True)

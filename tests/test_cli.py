@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
+
+import pytest
 
 from sagebench.cli import app
 
@@ -35,6 +38,41 @@ def test_synth_scene_writes_a_loadable_scene(run_cli, tmp_path):
     code, out, err = run_cli("check-scene", tmp_path / "s3")
     assert code == 0, err
     assert out.startswith("scene demo_apartment_3: 5 rooms")
+
+
+def _tree(root: Path) -> dict[str, bytes | None]:
+    return {p.relative_to(root).as_posix(): None if p.is_dir() else p.read_bytes() for p in sorted(root.rglob("*"))}
+
+
+@pytest.mark.parametrize("make, says", [
+    (lambda out: (out.mkdir(), (out / "notes.txt").write_text("mine")),
+     "is not empty and not a scene written by `sagebench synth-scene`"),
+    (lambda out: (out.mkdir(), (out / ".x.old").write_text("mine")),
+     "is not empty and not a scene written by `sagebench synth-scene`"),
+    (lambda out: out.write_text("mine"), "exists and is not a directory"),
+])
+def test_synth_scene_refuses_to_replace_a_users_files(run_cli, tmp_path, make, says):
+    out = tmp_path / "target"
+    make(out)
+    before = _tree(tmp_path)
+    code, stdout, err = run_cli("synth-scene", "--seed", "3", "--out", out)
+    assert code == 2 and stdout == ""
+    assert err.splitlines() == [f"error: {out}: --out: {says}; choose another --out (or --force to replace it)"]
+    assert _tree(tmp_path) == before
+    code, _, err = run_cli("synth-scene", "--seed", "3", "--out", out, "--force")
+    assert code == 0, err
+    assert sorted(p.name for p in out.iterdir()) == ["meshes", "scene.json"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["target"]
+
+
+def test_synth_scene_replaces_an_empty_directory_or_its_own_scene(run_cli, tmp_path, demo_scene_dir):
+    out = tmp_path / "s"
+    out.mkdir()
+    assert run_cli("synth-scene", "--seed", "3", "--out", out)[0] == 0
+    assert run_cli("synth-scene", "--seed", "0", "--out", out)[0] == 0  # its own scene, another seed: replaced
+    assert _tree(out) == _tree(demo_scene_dir)
+    (out / "meshes" / "extra.ply").write_bytes(b"")  # no longer only what synth-scene wrote
+    assert run_cli("synth-scene", "--seed", "0", "--out", out)[0] == 2
 
 
 def test_schemas_command_writes_every_schema(run_cli, tmp_path):

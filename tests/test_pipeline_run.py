@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from sagebench.fileio import is_temporary
 from sagebench.pipeline.manifest import hash_run
 from sagebench.scene.synth import write_synth_scene
 from sagebench.versions import output_versions
@@ -99,8 +100,24 @@ def test_rerun_skips_every_stage(workspace, serial_run, run_cli):
     assert _manifest(serial_run) == before and hash_run(serial_run) == files
 
 
+def _plant_user_dotfiles(*dirs: Path) -> list[Path]:
+    """A user's own hidden files that look like temporaries to a careless cleaner; each must survive a run."""
+    planted = []
+    for d in dirs:
+        for name, is_dir in ((".x.old", False), (".y.tmp", False), (".cache.tmp", True), (".prev.old", True)):
+            p = d / name
+            p.mkdir(parents=True) if is_dir else (d.mkdir(parents=True, exist_ok=True), p.write_text("mine"))
+            planted.append(p)
+    return planted
+
+
 def test_killed_run_resumes_to_the_same_manifest(workspace, serial_run, run_cli):
     config = _config(workspace, "killed")
+    scene_copy = workspace / "killed_scenes" / "scenes"  # the inputs, with the user's dotfiles planted in one
+    shutil.copytree(workspace / "scenes", scene_copy)
+    config.write_text(config.read_text().replace('"scenes/*"', '"killed_scenes/scenes/*"'))
+    kept = _plant_user_dotfiles(workspace / "killed", workspace / "killed" / "scenes", scene_copy / "a",
+                                scene_copy / "a" / "meshes")
     proc = subprocess.Popen([sys.executable, "-m", "sagebench", "-q", "run", str(config)], cwd=workspace,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     stamps = workspace / "killed" / ".stamps"
@@ -117,8 +134,101 @@ def test_killed_run_resumes_to_the_same_manifest(workspace, serial_run, run_cli)
     counts = _stage_counts(out)
     assert len(counts) == 4 and all(ran + skipped == 2 and failed == 0 for ran, skipped, failed in counts.values())
     assert sum(skipped for _, skipped, _ in counts.values()) == stamped >= 3  # finished stages are not redone
-    assert _manifest(workspace / "killed") == _manifest(serial_run)
-    assert not [p for p in (workspace / "killed").rglob(".*") if p.name.endswith((".tmp", ".old"))]
+    resumed, serial = json.loads(_manifest(workspace / "killed")), json.loads(_manifest(serial_run))
+    assert (resumed["files"], resumed["inputs"]) == (serial["files"], serial["inputs"])  # scenes copied elsewhere
+    assert not [p for p in (workspace / "killed").rglob(".*") if is_temporary(p.name)]
+    assert all(p.exists() for p in kept), [p for p in kept if not p.exists()]
+
+
+def test_a_resumed_run_removes_only_its_own_leftovers(workspace, serial_run, run_cli):
+    run = workspace / "leftovers"
+    shutil.copytree(serial_run, run)
+    config = _config(workspace, "leftovers")
+    kept = _plant_user_dotfiles(run, run / "scenes" / "demo_apartment_0", run / "episodes", workspace / "scenes" / "b")
+    ours = [run / "scenes" / "demo_apartment_0" / ".topdown.npz.sagebench-abcd1234.tmp",
+            run / "episodes" / ".demo_apartment_1.sagebench-abcd1234.old" / "part-00000.parquet",
+            run / ".manifest.json.sagebench-0000aaaa.tmp"]
+    for p in ours:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_bytes(b"half")
+    theirs = workspace / "scenes" / "b" / ".scene.json.sagebench-abcd1234.tmp"  # in an input scene: not ours
+    theirs.write_text("a user's file, whatever its name")
+    try:
+        code, out, err = run_cli("-q", "run", config)
+        assert code == 0, out + err
+        assert all(p.exists() for p in kept) and theirs.exists()
+        assert not any(p.exists() for p in ours) and not ours[1].parent.exists()
+        assert _manifest(run) == _manifest(serial_run)
+    finally:
+        for p in [*kept, theirs]:
+            shutil.rmtree(p) if p.is_dir() else p.unlink()
+
+
+def _hold_lock(run: Path) -> subprocess.Popen:
+    """Another process holding RUN's lock, as a running `sagebench run` would, until it is killed."""
+    proc = subprocess.Popen([sys.executable, "-c", "import sys, time\nfrom pathlib import Path\n"
+                             "from sagebench.run_lock import run_lock\nwith run_lock(Path(sys.argv[1])):\n"
+                             "    print('locked', flush=True)\n    time.sleep(600)\n", str(run)],
+                            stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline() == "locked\n"
+    return proc
+
+
+def test_a_second_run_on_a_locked_directory_is_refused(workspace, run_cli):
+    run = workspace / "locked"
+    run.mkdir()
+    holder = _hold_lock(run)
+    try:
+        before = sorted(p.name for p in run.iterdir())
+        code, out, err = run_cli("-q", "run", _config(workspace, "locked"))
+        assert code == 2 and out == ""
+        assert err.splitlines() == [f"error: {run}: another `sagebench run` (pid {holder.pid}) is writing this run "
+                                    "directory; wait for it to end or set another `out`"]
+        assert sorted(p.name for p in run.iterdir()) == before == [".sagebench.lock"]
+    finally:
+        holder.kill()
+        holder.wait()
+    # the holder died without releasing anything: the kernel dropped its lock, and a run may take it
+    from sagebench.run_lock import run_lock
+
+    with run_lock(run) as path:
+        assert path == run / ".sagebench.lock" and path.read_text() == f"{os.getpid()}\n"
+
+
+def test_two_real_runs_on_one_directory(workspace):
+    config = _config(workspace, "raced")
+    first = subprocess.Popen([sys.executable, "-m", "sagebench", "-q", "run", str(config)], cwd=workspace,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lock = workspace / "raced" / ".sagebench.lock"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and first.poll() is None and not (lock.exists() and lock.read_text()):
+        time.sleep(0.02)
+    second = subprocess.run([sys.executable, "-m", "sagebench", "-q", "run", str(config)], cwd=workspace,
+                            capture_output=True, text=True)
+    first.kill()
+    first.wait()
+    assert second.returncode == 2, second.stderr
+    assert second.stderr.splitlines() == [
+        f"error: {workspace / 'raced'}: another `sagebench run` (pid {first.pid}) is writing this run directory; wait for it to "
+        "end or set another `out`"]
+
+
+@pytest.mark.parametrize("out, scenes, field, says", [
+    ("scenes/a/run", "scenes/*", "out", "the run directory {out} is inside the input scene {scene}"),
+    ("scenes/a", "scenes/*", "out", "the run directory {out} is inside the input scene {scene}"),
+    ("nested", "nested/scenes/*", "scenes", "the input scene {scene} is inside {out}'s output folders"),
+])
+def test_out_and_scenes_may_not_overlap(workspace, run_cli, out, scenes, field, says):
+    root = workspace / f"overlap_{field}_{out.count('/')}"
+    shutil.copytree(workspace / "scenes" / "a", root / scenes.replace("*", "a"))
+    config = root / "run.toml"
+    config.write_text(f'scenes = ["{scenes}"]\nout = "{out}"\n')
+    before = sorted(p.relative_to(root) for p in root.rglob("*"))
+    code, _, err = run_cli("-q", "run", config)
+    scene = root / scenes.replace("*", "a")
+    assert code == 2
+    assert err.splitlines()[0].startswith(f"error: {config}: {field}: " + says.format(out=root / out, scene=scene))
+    assert len(err.splitlines()) == 1 and sorted(p.relative_to(root) for p in root.rglob("*")) == before
 
 
 def test_verify_names_a_flipped_byte(workspace, serial_run, run_cli):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import shutil
+import os
 import time
 from collections import defaultdict
 from collections.abc import Iterator
@@ -14,8 +14,10 @@ from sagebench.errors import ConfigError
 from sagebench.pipeline.config import RunConfig, resolve_scenes
 from sagebench.pipeline.executors import make_executor
 from sagebench.pipeline.manifest import sha256_file, write_manifest
+from sagebench.fileio import remove_temporaries
 from sagebench.pipeline.stages import STAGES, Outcome, Task
-from sagebench.run_layout import SCENE_FILE, SHARDS, run_episodes_dir, stage_files
+from sagebench.run_layout import BASELINES, OUTPUT_ROOTS, SCENE_FILE, SHARDS, STAMPS, run_episodes_dir, stage_files
+from sagebench.run_lock import run_lock
 from sagebench.scene.loader import parse_spec
 
 
@@ -62,8 +64,15 @@ def run_pipeline(config: RunConfig, config_path: Path) -> RunSummary:
     start = time.perf_counter()
     sources = _scene_ids(resolve_scenes(config, config_path), config_path)
     run_dir = Path(config.out)
+    _check_out(run_dir, sources, config_path)
     run_dir.mkdir(parents=True, exist_ok=True)
-    clean_temporaries(run_dir)
+    with run_lock(run_dir):
+        clean_temporaries(run_dir, sources.values())
+        return _run_locked(config, config_path, sources, run_dir, start)
+
+
+def _run_locked(config: RunConfig, config_path: Path, sources: dict[str, Path], run_dir: Path, start: float
+                ) -> RunSummary:
     settings = {
         "build_scene": config.build_scene.model_dump(mode="json"),
         "gen_trajectories": config.gen_trajectories.model_dump(mode="json"),
@@ -135,11 +144,28 @@ def _scene_ids(dirs: list[Path], config_path: Path) -> dict[str, Path]:
     return out
 
 
-def clean_temporaries(run_dir: Path) -> None:
-    """Remove what a killed run left half-written: the hidden `.NAME.*.tmp` and `.NAME.old` entries."""
-    for p in sorted(run_dir.rglob(".*"), key=lambda p: len(p.parts), reverse=True):
-        if p.name.endswith((".tmp", ".old")):
-            shutil.rmtree(p) if p.is_dir() else p.unlink(missing_ok=True)
+def clean_temporaries(run_dir: Path, scene_dirs) -> list[Path]:
+    """Remove what a killed run left half-written: sagebench's own temporaries (fileio.is_temporary) in the
+    trees a run writes and directly in RUN_DIR, never inside an input scene. Call it holding the run lock,
+    so that no live process owns them."""
+    trees = [run_dir / d for d in (*OUTPUT_ROOTS, STAMPS, BASELINES)]
+    return remove_temporaries(trees, entries_of=[run_dir], keep_out=scene_dirs)
+
+
+def _check_out(run_dir: Path, sources: dict[str, Path], config_path: Path) -> None:
+    """`out` may not lie inside an input scene (its outputs would change the scene's inputs every run), and
+    no input scene may lie where the run writes (a stage would replace it)."""
+    out = Path(os.path.abspath(run_dir))
+    written = [out / d for d in (*OUTPUT_ROOTS, STAMPS)]
+    for sid in sorted(sources):
+        scene = Path(os.path.abspath(sources[sid]))
+        if out == scene or scene in out.parents:
+            raise ConfigError(f"the run directory {run_dir} is inside the input scene {sources[sid]}; "
+                              "put `out` outside every scene directory", path=config_path, field="out")
+        if any(w == scene or w in scene.parents for w in written):
+            raise ConfigError(f"the input scene {sources[sid]} is inside {run_dir}'s output folders "
+                              f"({', '.join(d + '/' for d in (*OUTPUT_ROOTS, STAMPS))}); move it elsewhere",
+                              path=config_path, field="scenes")
 
 
 def _inputs_hash(run_dir: Path, scene_id: str, source: Path) -> str:

@@ -9,7 +9,9 @@ never overlapping, keeping door swings clear and the floor connected for a 0.2 m
 from __future__ import annotations
 
 import hashlib
+import json
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -157,15 +159,44 @@ class _FurniturePicker:
         return fit_to_slot(self.models[entry.number], item.size, CEILING - 0.1 - item.z), entry.id
 
 
-def write_synth_scene(out: Path, *, seed: int = 0, furniture: Path | None = None) -> SceneSpec:
+def write_synth_scene(out: Path, *, seed: int = 0, furniture: Path | None = None, force: bool = False) -> SceneSpec:
     """Write the demo scene for `seed` into `out` (replaced whole, atomically), furnished from the Sweet Home
-    3D catalogue `furniture` (a directory or .sh3f) where given."""
+    3D catalogue `furniture` (a directory or .sh3f) where given. `out` must be absent, an empty directory or
+    an earlier synth scene, unless `force`: a user's files are never replaced by accident."""
+    if not force:
+        check_replaceable(Path(out))
     spec, files = synth_spec_and_meshes(seed, None if furniture is None else Catalogue(furniture))
     with staged_dir(Path(out)) as tmp:
         for name, data in files.items():
             write_bytes(tmp / name, data)
         write_bytes(tmp / SCENE_FILE, dumps_json(spec.model_dump(mode="json", exclude_defaults=True)).encode())
     return spec
+
+
+def check_replaceable(out: Path) -> None:
+    """A ConfigError unless `out` is absent, an empty directory or exactly what write_synth_scene writes
+    (scene.json of a demo apartment and the meshes it names, nothing else)."""
+    if not out.exists() and not out.is_symlink():
+        return
+    if out.is_symlink() or not out.is_dir():
+        raise ConfigError("exists and is not a directory; choose another --out (or --force to replace it)",
+                          path=out, field="--out")
+    if not any(out.iterdir()) or _is_synth_scene(out):
+        return
+    raise ConfigError("is not empty and not a scene written by `sagebench synth-scene`; choose another --out "
+                      "(or --force to replace it)", path=out, field="--out")
+
+
+def _is_synth_scene(out: Path) -> bool:
+    spec_path = out / SCENE_FILE
+    try:
+        spec = json.loads(spec_path.read_text(encoding="utf-8"))
+        scene_id, meshes = spec.get("scene_id"), {o["mesh"] for o in spec.get("objects")}
+    except (OSError, ValueError, AttributeError, TypeError, KeyError):
+        return False
+    present = {p.relative_to(out).as_posix() for p in out.rglob("*") if not p.is_dir() or p.is_symlink()}
+    return (isinstance(scene_id, str) and re.fullmatch(r"demo_apartment_\d+", scene_id) is not None
+            and {p.name for p in out.iterdir()} == {SCENE_FILE, "meshes"} and present == meshes | {SCENE_FILE})
 
 
 def _export(mesh: trimesh.Trimesh, ext: str) -> bytes:
