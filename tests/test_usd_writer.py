@@ -281,3 +281,21 @@ def test_upholstered_furniture_weighs_a_bulk_density_of_its_parts(tmp_path):
     stage = build_stage(tmp_path, "soft", [chair])
     mass = UsdPhysics.MassAPI(stage.GetPrimAtPath("/World/Objects/armchair_4")).GetMassAttr().Get()
     assert mass == pytest.approx(0.576 * 70.0, rel=1e-6)
+
+
+def test_usdz_bytes_do_not_depend_on_the_time(monkeypatch):
+    # UsdUtils stamps each zip entry with the current time: two packages a few seconds apart must still match
+    import io
+    import time
+    import zipfile
+
+    from sagebench.collider_export.usd_writer import usdz_package
+
+    files = {"scene.usda": b'#usda 1.0\n\ndef Xform "World"\n{\n}\n'}
+    first = usdz_package(files)
+    time.sleep(2.1)  # DOS times have a 2 s resolution
+    second = usdz_package(files)
+    assert first == second
+    with zipfile.ZipFile(io.BytesIO(first)) as z:
+        assert z.testzip() is None and [i.date_time for i in z.infolist()] == [(1980, 1, 1, 0, 0, 0)]
+        assert z.read("scene.usda") == files["scene.usda"]

@@ -94,7 +94,26 @@ def usdz_package(files: Mapping[str, bytes]) -> bytes:
         out = Path(tmp) / "package.usdz"
         if not UsdUtils.CreateNewUsdzPackage(str(Path(tmp) / USD), str(out)):
             raise RuntimeError(f"UsdUtils could not package {USD} as .usdz")
-        return out.read_bytes()
+        return _without_zip_times(out.read_bytes())
+
+
+def _without_zip_times(data: bytes) -> bytes:
+    """The zip `data` with every entry's DOS modification time and date set to 1980-01-01 00:00, so the
+    package's bytes do not depend on when it was made. Patched in place: the fields have a fixed size, so the
+    64-byte alignment usdz requires of each file's data is kept."""
+    import struct
+
+    buf = bytearray(data)
+    end = buf.rfind(b"PK\x05\x06")
+    count, _, cd_offset = struct.unpack_from("<HII", buf, end + 10)
+    at = cd_offset
+    for _ in range(count):
+        name_len, extra_len, comment_len = struct.unpack_from("<HHH", buf, at + 28)
+        local = struct.unpack_from("<I", buf, at + 42)[0]
+        struct.pack_into("<HH", buf, at + 12, 0, 0x21)  # central header: time, date
+        struct.pack_into("<HH", buf, local + 10, 0, 0x21)  # local header: time, date
+        at += 46 + name_len + extra_len + comment_len
+    return bytes(buf)
 
 
 def build_stage(directory: Path, scene_id: str, objects: Sequence[StageObject], background: Gaussians | None = None):
