@@ -75,8 +75,8 @@ def run() -> list[dict]:
             rows.append({
                 "name": f"export-usd --colliders {mode}, cold", "reference": "-", "seconds": cold,
                 "speed-up": "", "notes": f"{catalogue.name}: {len(models)} real models ({len(set(models))} "
-                f"different); pieces {made}; {err.count('budget; using')} stopped at the {budget or 'default'} s "
-                f"budget; {WORKERS} workers; load average {load:.1f}"})
+                f"different); pieces {made}; {err.count('budget; using')} stopped at the "
+                f"{budget or ExportConfig().colliders.piece_budget_s:g} s budget; {WORKERS} workers; load average {load:.1f}"})
             rows.append({"name": f"export-usd --colliders {mode}, warm", "reference": "cold", "seconds": warm,
                          "speed-up": cold / warm, "notes": _quality_notes(scene_dir, max_parts)})
         _export(tmp / "run", tmp / "cache-balanced", "balanced", None)
