@@ -118,6 +118,8 @@ MUTANTS = (
            "half = (yaw - math.pi / 2) / 2", "half = yaw / 2", ("tests/test_vlnce.py",)),
     Mutant("habitat frame mirrored", "sagebench/vlnce/frame.py",
            "[0.0, -1.0, 0.0]])", "[0.0, 1.0, 0.0]])", ("tests/test_vlnce.py",)),
+    Mutant("a door hinge anywhere in the scene", "sagebench/scene/checks.py",
+           "    if gap > HINGE_TOLERANCE_M:\n", "    if gap > 100 * HINGE_TOLERANCE_M:\n", ("tests/test_fuzz_inputs.py",)),
 )
 
 

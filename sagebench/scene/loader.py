@@ -92,9 +92,9 @@ def load_scene(scene_dir: Path | str) -> LoadedScene:
         field = f"objects[{i}].mesh"
         mesh_path = resolve_mesh_path(scene_dir, obj.mesh, spec_path, field)
         if mesh_path not in cache:
-            cache[mesh_path] = read_mesh(mesh_path, spec_path, field)
-            for name in mesh_files(scene_dir, obj.mesh, spec_path, field):
+            for name in mesh_files(scene_dir, obj.mesh, spec_path, field):  # a .gltf's buffers checked first
                 hasher.update(name.encode() + b"\0" + (scene_dir / name).read_bytes())
+            cache[mesh_path] = read_mesh(mesh_path, spec_path, field)
         to_world = frame @ obj.transform.as_matrix()
         world = cache[mesh_path].copy()
         world.apply_transform(to_world)

@@ -93,6 +93,13 @@ class Door(_Model):
     open_deg: Annotated[float, Field(gt=0, le=180, strict=True)] = 90.0
     ajar_deg: Annotated[float, Field(gt=0, le=180, strict=True)] = 45.0
 
+    @field_validator("swing", mode="before")
+    @classmethod
+    def _not_a_boolean(cls, v: object) -> object:
+        if isinstance(v, bool):  # true == 1 in Python: a boolean would pass as +1
+            raise ValueError(f"swing must be 1 or -1 (got {str(v).lower()})")
+        return v
+
     def angle_rad(self) -> float:
         """Signed rotation of the leaf from its closed pose about the up axis."""
         deg = {"closed": 0.0, "ajar": self.ajar_deg, "open": self.open_deg}[self.state]

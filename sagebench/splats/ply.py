@@ -57,6 +57,8 @@ def read_ply(path: Path | str) -> Gaussians:
 
 def _checked(g: Gaussians, path: Path) -> Gaussians:
     """Refuse NaN or infinite values and zero rotations: one would turn a whole rendered frame into NaN."""
+    if g.count == 0:
+        return g
     for name, values in (("position", g.means), ("rotation", g.quats_wxyz), ("scale", g.log_scales),
                          ("opacity", g.opacity_logits), ("colour", g.sh)):
         bad = ~np.isfinite(values.reshape(g.count, -1)).all(axis=1)

@@ -26,7 +26,7 @@ def read_topdown_grids(npz_path: Path) -> TopdownGrids:
     try:
         with np.load(npz_path) as npz:
             arrays = {k: npz[k] for k in ("navigable", "occupancy", "resolution", "origin") if k in npz.files}
-    except (OSError, ValueError, zipfile.BadZipFile) as err:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as err:
         raise DataError(f"cannot read: {err}", path=npz_path) from None
     for key in ("navigable", "occupancy", "resolution", "origin"):
         if key not in arrays:
