@@ -97,7 +97,8 @@ def load_scene(scene_dir: Path | str) -> LoadedScene:
             cache[mesh_path] = read_mesh(mesh_path, spec_path, field)
         to_world = frame @ obj.transform.as_matrix()
         world = cache[mesh_path].copy()
-        world.apply_transform(to_world)
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflow to inf is refused with one line below
+            world.apply_transform(to_world)
         door = _normalise_door(obj.door, frame) if obj.door else None
         if door is not None:
             check_hinge(door, world.bounds, spec_path, f"objects[{i}].door.hinge")
