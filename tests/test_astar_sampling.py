@@ -38,7 +38,8 @@ def test_every_trajectory_is_navigable_in_range_and_starts_and_ends_where_the_pa
     cfg = SamplingConfig(per_scene=50, min_geodesic_m=0.1, max_geodesic_m=20.0)
     result = sample_trajectories(grid, targets, "two_rooms", cfg)
     assert result.pairs_tried == 12 == len(result.trajectories) + sum(result.rejected.values())
-    assert len(result.trajectories) >= 10  # an object right beside its room's centre is too short a trip
+    # an object right beside its room's centre is too short a trip; an object's own room is no goal from it
+    assert len(result.trajectories) >= 9
     for t in result.trajectories:
         assert grid.navigable[t.cells[:, 0], t.cells[:, 1]].all()
         assert 0.1 <= t.path_length_m <= 20.0
@@ -109,3 +110,26 @@ def test_demo_scene_gives_the_default_200_trajectories_on_navigable_cells(demo_b
     for t in result.trajectories:
         assert grid.navigable[t.cells[:, 0], t.cells[:, 1]].all()
         assert 2.0 <= t.path_length_m <= 20.0
+
+
+def test_no_room_goal_starts_inside_its_goal_room():
+    grid, targets = _two_rooms()
+    result = sample_trajectories(grid, targets, "two_rooms", SamplingConfig(per_scene=50, min_geodesic_m=0.1))
+    pairs = {(t.start.key, t.goal.key) for t in result.trajectories}
+    assert ("object:1", "room:a") not in pairs and ("object:2", "room:b") not in pairs
+    assert ("object:1", "room:b") in pairs
+    # box 2 -> room b is even shorter than min_geodesic_m (box 2 stands by room b's centre)
+    assert result.rejected == {"shorter than min_geodesic_m": 2, "starts inside the goal room": 1}
+
+
+def test_start_and_goal_rooms_come_from_the_positions_not_the_annotation():
+    grid, targets = _two_rooms()
+    # box 1 annotated in room b although it stands in room a: its stand points are in room a
+    targets[0] = TargetSpec("object:1", "object", 1, "b", targets[0].outlines)
+    result = sample_trajectories(grid, targets, "two_rooms", SamplingConfig(per_scene=50, min_geodesic_m=0.1))
+    to_box1 = next(t for t in result.trajectories if t.goal.key == "object:1")
+    from_box1 = next(t for t in result.trajectories if t.start.key == "object:1")
+    assert to_box1.goal_room == "a" and from_box1.start_room == "a"
+    for t in result.trajectories:
+        for (x, y), room in ((t.waypoints[0, :2], t.start_room), (t.waypoints[-1, :2], t.goal_room)):
+            assert room == ("a" if x <= 3.95 else "b" if x >= 4.05 else None)

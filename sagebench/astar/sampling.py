@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy import ndimage
-from shapely.geometry import MultiPolygon, Polygon
+from shapely.geometry import MultiPolygon, Point, Polygon
 
 from sagebench.astar.grid_astar import Workspace, astar
 from sagebench.astar.shortcut import polyline_length, shortcut_indices, waypoints
@@ -88,6 +88,8 @@ class Trajectory:
     waypoints: np.ndarray  # [M, 4] float64 (x, y, z, yaw) after shortcutting
     grid_length_m: float  # A* cost along the grid path
     path_length_m: float  # length of the waypoint polyline (<= grid_length_m)
+    start_room: str | None = None  # the room the start position lies in (not the start target's annotation)
+    goal_room: str | None = None  # the room the goal position lies in
 
 
 @dataclass(frozen=True)
@@ -121,6 +123,8 @@ def sample_trajectories(grid: GridMap, targets: Sequence[TargetSpec], scene_id: 
         else:
             stands[t.key] = stand
     usable = [t for t in targets if t.key in stands]
+    rooms = {t.room_id: MultiPolygon([Polygon(r) for r in t.outlines]) for t in targets
+             if t.kind == "room" and t.room_id is not None}
     rng = np.random.default_rng([config.seed, zlib.crc32(scene_id.encode())])
     queues = _pair_queues(usable, rng)
     workspace = Workspace(nav.shape)
@@ -137,7 +141,7 @@ def sample_trajectories(grid: GridMap, targets: Sequence[TargetSpec], scene_id: 
         taken[kind] += 1
         tried += 1
         traj, reason = _try_pair(nav, grid, stands[start.key], stands[goal.key], start, goal, scene_id, config,
-                                 workspace)
+                                 workspace, rooms)
         if traj is None:
             rejected[reason] += 1
             continue
@@ -172,7 +176,8 @@ def _next_kind(queues: dict[str, list], taken: dict[str, int], mix: dict[str, fl
 
 
 def _try_pair(nav, grid: GridMap, s: _Stand, g: _Stand, start: TargetSpec, goal: TargetSpec, scene_id: str,
-              config: SamplingConfig, workspace: Workspace) -> tuple[Trajectory | None, str]:
+              config: SamplingConfig, workspace: Workspace,
+              rooms: dict[str, MultiPolygon]) -> tuple[Trajectory | None, str]:
     ok = np.isin(s.components, g.components)
     if not ok.any():
         return None, "goal not reachable from start"
@@ -193,7 +198,17 @@ def _try_pair(nav, grid: GridMap, s: _Stand, g: _Stand, start: TargetSpec, goal:
         return None, "shorter than min_geodesic_m"
     if length > config.max_geodesic_m:
         return None, "longer than max_geodesic_m"
-    return Trajectory(_trajectory_id(scene_id, start, goal, wps), start, goal, path.cells, wps, path.cost, length), ""
+    start_room, goal_room = room_at(wps[0, :2], rooms), room_at(wps[-1, :2], rooms)
+    if goal.kind == "room" and start_room == goal.room_id:
+        return None, "starts inside the goal room"
+    return Trajectory(_trajectory_id(scene_id, start, goal, wps), start, goal, path.cells, wps, path.cost, length,
+                      start_room, goal_room), ""
+
+
+def room_at(xy: np.ndarray, rooms: dict[str, MultiPolygon]) -> str | None:
+    """The first room (by id) whose floor covers world point `xy` [2] (its boundary included), else None."""
+    p = Point(float(xy[0]), float(xy[1]))
+    return next((rid for rid in sorted(rooms) if rooms[rid].covers(p)), None)
 
 
 def _sq_dist(cells: np.ndarray, point: np.ndarray) -> np.ndarray:

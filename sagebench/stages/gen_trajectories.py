@@ -259,8 +259,8 @@ def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str,
 
     def instruct(traj: Trajectory):
         text = TrajectoryText(traj.waypoints, names[traj.start.key], names[traj.goal.key], traj.start.kind,
-                              traj.goal.kind, traj.start.instance_id, traj.goal.instance_id, traj.start.room_id,
-                              traj.goal.room_id, ctx, config.goal_radius_m, blocked)
+                              traj.goal.kind, traj.start.instance_id, traj.goal.instance_id, traj.start_room,
+                              traj.goal_room, ctx, config.goal_radius_m, blocked)
         rng = np.random.default_rng([config.seed, int(traj.trajectory_id, 16)])
         return instructions_for(text, config.instructions, rng)
 
@@ -285,8 +285,8 @@ def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str,
             "scene_id": scene_id,
             "start_instance_id": traj.start.instance_id,
             "goal_instance_id": traj.goal.instance_id,
-            "start_room": traj.start.room_id,
-            "goal_room": traj.goal.room_id,
+            "start_room": traj.start_room,
+            "goal_room": traj.goal_room,
             "start_position": wps[0, :3].tolist(),
             "start_yaw": float(wps[0, 3]),
             "goal_position": wps[-1, :3].tolist(),
