@@ -349,9 +349,8 @@ def validate_cmd(
         for trajectory_id, reasons in result.failures:
             typer.echo(f"  FAIL {result.scene_id} {trajectory_id}: {', '.join(reasons)}")
         for frame in result.frames:
-            if frame.median_abs_diff > config.depth_tolerance:
-                typer.echo(f"  FAIL {result.scene_id} {frame.file}: median depth difference "
-                           f"{frame.median_abs_diff:.3f} m > {config.depth_tolerance} m")
+            if frame.problem:
+                typer.echo(f"  FAIL {result.scene_id} {frame.file}: {frame.problem}")
         failed |= not result.passed
     if failed:
         raise typer.Exit(code=1)

@@ -117,6 +117,26 @@ def test_shifted_gaussians_fail_the_alignment(validated_run, tmp_path, run_cli):
     assert report["alignment"]["ok"] is False and report["failed"] == 0  # the paths themselves are fine
 
 
+def test_no_gaussians_to_compare_fail_the_alignment(validated_run, tmp_path, run_cli):
+    # an empty gaussians.ply renders nothing: 0 compared pixels must fail, not pass with a NaN median
+    from sagebench.render.gaussians import Gaussians
+    from sagebench.splats.ply import read_ply, write_ply
+
+    run = _copy(validated_run, tmp_path)
+    ply = run / "scenes" / SCENE / "gaussians.ply"
+    g = read_ply(ply)
+    write_ply(ply, Gaussians(g.means[:0], g.quats_wxyz[:0], g.log_scales[:0], g.opacity_logits[:0], g.sh[:0],
+                             g.instance_id[:0]))
+    code, out, _ = run_cli("validate", run, "--frames-per-scene", "1")
+    assert code == 1
+    assert "alignment FAILED on 3 frames" in out
+    assert (f"  FAIL {SCENE} frames/" in out and "_start.png: 0 of 1200 sampled pixels compared, fewer than the "
+            "minimum 300 (0.25 of them): nothing to align with" in out), out
+    report = json.loads((run / "validation" / SCENE / "report.json").read_text())
+    assert report["alignment"]["ok"] is False and report["alignment"]["min_compared_fraction"] == 0.25
+    assert [f["compared_pixels"] for f in report["alignment"]["frames"]] == [0, 0, 0]
+
+
 def test_missing_mjcf_is_exit_2_and_writes_nothing(validated_run, tmp_path, run_cli):
     run = _copy(validated_run, tmp_path)
     (run / "scenes" / SCENE / "scene.xml").unlink()

@@ -105,3 +105,23 @@ def test_nothing_to_compare_gives_nan():
     grid = pixel_grid(cam, 2)
     a = compare_depth(np.zeros((8, 8)), np.zeros((8, 8)), grid, np.full((4, 4), np.nan))
     assert a.compared == 0 and math.isnan(a.median_abs_diff)
+
+
+@pytest.mark.parametrize("compared, fails", [(299, True), (300, False)])
+def test_too_few_compared_pixels_fail_at_the_stated_minimum(compared, fails):
+    from sagebench.replay.alignment import Alignment, frame_problem
+
+    a = Alignment(median_abs_diff=0.01, compared=compared, sampled=1200)
+    problem = frame_problem(a, tolerance=0.1, min_fraction=0.25)
+    assert problem == (f"{compared} of 1200 sampled pixels compared, fewer than the minimum 300 (0.25 of them): "
+                       "nothing to align with" if fails else None)
+
+
+def test_no_compared_pixel_fails_and_a_far_median_fails():
+    from sagebench.replay.alignment import Alignment, frame_problem
+
+    assert frame_problem(Alignment(float("nan"), 0, 1200), tolerance=0.1, min_fraction=0.25).startswith(
+        "0 of 1200 sampled pixels compared, fewer than the minimum 300")
+    assert frame_problem(Alignment(0.1, 1200, 1200), tolerance=0.1, min_fraction=0.25) is None  # at the tolerance
+    assert frame_problem(Alignment(0.1001, 1200, 1200), tolerance=0.1, min_fraction=0.25) == (
+        "median depth difference 0.100 m > 0.1 m")

@@ -77,6 +77,8 @@ MUTANTS = (
            'fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{TEMP_TAG}", suffix=".tmp", dir=path.parent)',
            "fd, tmp = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644), str(path)",
            ("tests/test_fileio.py",)),
+    Mutant("alignment passes on too few compared pixels", "sagebench/replay/alignment.py",
+           "if a.compared < need:", "if a.compared < need - 1:", ("tests/test_replay_alignment.py",)),
     Mutant("resume removes every hidden *.tmp / *.old", "sagebench/fileio.py",
            "return _TEMPORARY.fullmatch(name) is not None", 'return name.startswith(".") and name.endswith((".tmp", ".old"))',
            ("tests/test_fileio.py",)),

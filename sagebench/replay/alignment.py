@@ -10,6 +10,7 @@ median of tens of centimetres, an aligned one as the splats' own thickness of a 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import mujoco
@@ -97,3 +98,19 @@ def compare_depth(splat_depth: np.ndarray, splat_alpha: np.ndarray, grid: PixelG
     diff = np.abs(depth[use] - colliders[use])
     return Alignment(median_abs_diff=float(np.median(diff)) if diff.size else float("nan"),
                      compared=int(use.sum()), sampled=int(colliders.size))
+
+
+def min_compared(sampled: int, fraction: float) -> int:
+    """The fewest compared pixels that make a frame's median meaningful: `fraction` of those sampled, at least 1."""
+    return max(1, math.ceil(fraction * sampled))
+
+
+def frame_problem(a: Alignment, *, tolerance: float, min_fraction: float) -> str | None:
+    """Why a frame fails the alignment check (too few pixels compared, or depths too far apart), else None."""
+    need = min_compared(a.sampled, min_fraction)
+    if a.compared < need:
+        return (f"{a.compared} of {a.sampled} sampled pixels compared, fewer than the minimum {need} "
+                f"({min_fraction:g} of them): nothing to align with")
+    if a.median_abs_diff > tolerance:
+        return f"median depth difference {a.median_abs_diff:.3f} m > {tolerance} m"
+    return None

@@ -61,7 +61,7 @@ def _checked(g: Gaussians, path: Path) -> Gaussians:
         return g
     for name, values in (("position", g.means), ("rotation", g.quats_wxyz), ("scale", g.log_scales),
                          ("opacity", g.opacity_logits), ("colour", g.sh)):
-        bad = ~np.isfinite(values.reshape(g.count, -1)).all(axis=1)
+        bad = ~np.isfinite(values.reshape(g.count, int(np.prod(values.shape[1:])))).all(axis=1)  # N may be 0
         if bad.any():
             raise DataError(f"Gaussian {int(np.argmax(bad))} has a non-finite {name} "
                             f"({int(bad.sum())} of {g.count} do)", path=path, field="vertex")

@@ -51,6 +51,9 @@ class ValidateConfig(BaseModel):
     frame_height: int = Field(default=240, ge=8, le=4096, description="Spot-check frame height, px.")
     ray_stride: int = Field(default=8, ge=1, description="Collider rays are cast every this many pixels.")
     min_alpha: float = Field(default=0.5, gt=0, le=1, description="Splat pixels this opaque are compared.")
+    min_compared_fraction: float = Field(default=0.25, gt=0, le=1, description=(
+        "A frame whose compared pixels (opaque splat and a collider hit) are fewer than this fraction of the "
+        "sampled ones fails alignment."))
     workers: int = Field(default=2, ge=1, description="Threads stepping the MuJoCo replays.")
     seed: int = Field(default=0, description="Picks the spot-checked trajectories.")
 
@@ -71,6 +74,8 @@ class FrameCheck:
     point: str  # start / middle / goal
     median_abs_diff: float  # m; NaN when no pixel could be compared
     compared: int
+    sampled: int
+    problem: str | None  # why the frame fails alignment (replay.alignment.frame_problem), None when it passes
 
 
 @dataclass(frozen=True)
@@ -127,7 +132,7 @@ def validate_scene(run_dir: Path, scene_id: str, config: ValidateConfig) -> Scen
     out_dir = run_validation_dir(run_dir, scene_id)
     with staged_dir(out_dir) as tmp:
         frames = _spot_checks(scene_dir, rm, [(trajectories[i], records[i]) for i in picks], tmp / FRAMES, config)
-        alignment_ok = all(not (f.median_abs_diff > config.depth_tolerance) for f in frames)
+        alignment_ok = all(f.problem is None for f in frames)
         write_bytes(tmp / VALIDATION_SHARD, _table_bytes(scene_id, trajectories, verdicts))
         write_text(tmp / REPORT, dumps_json(_report(scene_id, trajectories, verdicts, frames, alignment_ok, config)))
     failures = [(t.trajectory_id, v.reasons) for t, v in zip(trajectories, verdicts) if v.reasons]
@@ -201,8 +206,10 @@ def _report(scene_id: str, trajectories: list[Trajectory], verdicts: list[Verdic
                      for t, v in failed],
         "metrics": {m: _distribution(np.array([getattr(v, m) for v in verdicts], dtype=np.float64)) for m in METRICS},
         "alignment": {"ok": alignment_ok, "depth_tolerance": config.depth_tolerance,
+                      "min_compared_fraction": config.min_compared_fraction,
                       "frames": [{"file": f.file, "trajectory_id": f.trajectory_id, "point": f.point,
-                                  "median_abs_diff": _r(f.median_abs_diff), "compared_pixels": f.compared}
+                                  "median_abs_diff": _r(f.median_abs_diff), "compared_pixels": f.compared,
+                                  "sampled_pixels": f.sampled, "problem": f.problem}
                                  for f in frames]},
         "config": config.model_dump(mode="json"),
     }
@@ -216,7 +223,7 @@ def _spot_checks(scene_dir: Path, rm, picks: list[tuple[Trajectory, ReplayRecord
     """Render start/middle/goal of each picked replay, compare its depth with the colliders, write PNGs."""
     if not picks:
         return []
-    from sagebench.replay.alignment import collider_depth, compare_depth, pixel_grid
+    from sagebench.replay.alignment import collider_depth, compare_depth, frame_problem, pixel_grid
     from sagebench.render.camera import agent_camera
     from sagebench.render.splat_render import render
     from sagebench.splats.ply import read_ply
@@ -241,7 +248,9 @@ def _spot_checks(scene_dir: Path, rm, picks: list[tuple[Trajectory, ReplayRecord
             name = f"{traj.trajectory_id}_{point}"
             write_bytes(frames_dir / f"{name}.png", _png(rgb))
             write_bytes(frames_dir / f"{name}_ids.png", _png(ids))
-            checks.append(FrameCheck(f"{FRAMES}/{name}.png", traj.trajectory_id, point, a.median_abs_diff, a.compared))
+            problem = frame_problem(a, tolerance=config.depth_tolerance, min_fraction=config.min_compared_fraction)
+            checks.append(FrameCheck(f"{FRAMES}/{name}.png", traj.trajectory_id, point, a.median_abs_diff, a.compared,
+                                     a.sampled, problem))
             tiles += [_label(rgb, f"{point}  d={a.median_abs_diff:.3f} m"), _label(ids, traj.trajectory_id)]
         rows.append(np.hstack(tiles))
     write_bytes(frames_dir / CONTACT_SHEET, _png(np.vstack(rows)))
