@@ -15,6 +15,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,6 +24,8 @@ from typing import Any
 import numpy as np
 import pytest
 import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from sagebench.errors import field_path
 
@@ -756,3 +759,58 @@ def test_debug_shows_the_traceback(tiny_scene, tmp_path):
     proc = subprocess.run([sys.executable, "-m", "sagebench", "--debug", "check-scene", str(scene)],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode != 0 and "Traceback" in proc.stderr and "SceneError" in proc.stderr
+
+
+# ---------------------------------------------------------------- properties: any corruption is a DataError or a valid read
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, len(GOOD_PLY) - 1), st.integers(0, 255)), min_size=1, max_size=8),
+       st.integers(0, len(GOOD_PLY)))
+def test_any_corrupted_ply_reads_finite_or_raises_one_data_error(flips, keep):
+    """Overwrite bytes of a good PLY and cut it anywhere: read_ply gives finite Gaussians or one DataError line."""
+    from sagebench.errors import DataError
+    from sagebench.splats.ply import read_ply
+
+    data = bytearray(GOOD_PLY)
+    for at, value in flips:
+        data[at] = value
+    path = Path(tempfile.mkdtemp()) / "gaussians.ply"
+    path.write_bytes(bytes(data[:keep]))
+    try:
+        g = read_ply(path)
+    except DataError as err:
+        assert "\n" not in str(err) and str(err).startswith(str(path))
+    else:
+        assert all(np.isfinite(a).all() for a in (g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh))
+    finally:
+        shutil.rmtree(path.parent)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.sampled_from(_leaves(SPEC)), st.one_of(st.none(), st.booleans(), st.integers(), st.floats(),
+                                                 st.text(max_size=20), st.lists(st.integers(), max_size=3)))
+def test_any_leaf_value_parses_or_raises_one_scene_error(leaf, value):
+    """Any JSON value at any leaf of scene.json: a valid spec or one SceneError line starting with the file."""
+    from sagebench.errors import SceneError
+    from sagebench.scene.loader import parse_spec
+
+    loc, _ = leaf
+    text = json.dumps(_set(SPEC, loc, value))
+    try:
+        parse_spec(text, "scene.json")
+    except SceneError as err:
+        assert "\n" not in str(err) and str(err).startswith("scene.json: ")
+
+
+def test_a_full_disk_is_one_line_and_leaves_nothing(tiny_scene, run_cli, tmp_path, monkeypatch):
+    import errno
+
+    import sagebench.fileio
+
+    def full(fd: int) -> None:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(sagebench.fileio.os, "fsync", full)
+    assert_refused(run_cli, ["build-scene", tiny_scene, "--out", tmp_path / "run"], tmp_path,
+                   "cannot write: No space left on device")
