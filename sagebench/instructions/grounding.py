@@ -157,7 +157,8 @@ class Grounder:
     def _serves(self, need: str, goal_id: int | None, goal_room: str | None) -> bool:
         n = self.needs[need]
         if goal_id is not None:
-            return self.ctx.object(goal_id).category in n.categories
+            obj = self.ctx.object(goal_id)
+            return n.served_by(obj.category, self.room_type.get(obj.room_id or ""))
         return self.room_type.get(goal_room or "") in n.rooms
 
     def _serving(self, needs: list[str], objects: bool, rooms: set | None) -> set:

@@ -39,6 +39,11 @@ class Scenario:
     rooms: tuple[str, ...]
     say: tuple[str, ...]
     purpose: tuple[str, ...]
+    only_in: dict[str, tuple[str, ...]]  # category -> room types where it serves the need (others: any room)
+
+    def served_by(self, category: str, room_type: str | None) -> bool:
+        """Whether a `category` object in a room of `room_type` serves the need (a bathroom sink is no drink)."""
+        return category in self.categories and (category not in self.only_in or room_type in self.only_in[category])
 
 
 @dataclass(frozen=True)
@@ -51,7 +56,8 @@ class Delivery:
 def scenario_data() -> tuple[tuple[Scenario, ...], dict[str, Delivery]]:
     """Needs and deliveries from the package file sagebench/data/scenarios.toml."""
     raw = tomllib.loads(resources.files("sagebench").joinpath("data/scenarios.toml").read_text(encoding="utf-8"))
-    needs = tuple(Scenario(k, tuple(v["categories"]), tuple(v["rooms"]), tuple(v["say"]), tuple(v["purpose"]))
+    needs = tuple(Scenario(k, tuple(v["categories"]), tuple(v["rooms"]), tuple(v["say"]), tuple(v["purpose"]),
+                           {c: tuple(r) for c, r in v.get("only_in", {}).items()})
                   for k, v in raw["need"].items())
     deliveries = {k: Delivery(v["prep"], tuple(v["items"])) for k, v in raw["add_object"].items()}
     return needs, deliveries
@@ -112,7 +118,7 @@ def scenario_driven(ctx: SceneContext, text: TrajectoryText, rng: np.random.Gene
     needs, _ = scenario_data()
     if text.goal_id is not None:
         goal = ctx.object(text.goal_id)
-        fits = [n for n in needs if goal.category in n.categories]
+        fits = [n for n in needs if n.served_by(goal.category, _room_type(ctx, goal.room_id))]
     else:
         room = _room(ctx, text.goal_room)
         fits = [n for n in needs if room is not None and room.type in n.rooms]
@@ -121,7 +127,7 @@ def scenario_driven(ctx: SceneContext, text: TrajectoryText, rng: np.random.Gene
     need = _pick(rng, fits)
     say, purpose = _pick(rng, need.say), _pick(rng, need.purpose)
     if text.goal_id is not None:
-        serving = [o for o in ctx.objects if o.category in need.categories]
+        serving = [o for o in ctx.objects if need.served_by(o.category, _room_type(ctx, o.room_id))]
         in_room = [o for o in serving if o.room_id == goal.room_id]
         if len(serving) == 1:
             return _pick(rng, (f"{say} Go where I can {purpose}.", f"{say} Take me to where I can {purpose}."))
@@ -158,8 +164,8 @@ def relation_phrases(ctx: SceneContext, text: TrajectoryText) -> list[str]:
     lay = ctx.layout
     goal = ctx.object(text.goal_id)
     peers = [o for o in ctx.objects if o.category == goal.category]
-    if goal.instance_id not in lay or not all(p.instance_id in lay for p in peers):
-        return []
+    if len(peers) == 1 or goal.instance_id not in lay or not all(p.instance_id in lay for p in peers):
+        return []  # the only one of its category needs no relation to single it out
     noun, i = words(goal.category), lay.index(goal.instance_id)
     peer_idx = [lay.index(p.instance_id) for p in peers]
     marks = {lay.index(k): n for k, n in ctx.names.items()
@@ -254,6 +260,11 @@ def _distinguishing(obj: ObjectInfo, pool: list[ObjectInfo]) -> tuple[str, ...] 
 
 def _room(ctx: SceneContext, room_id: str | None):
     return next((r for r in ctx.rooms if r.id == room_id), None)
+
+
+def _room_type(ctx: SceneContext, room_id: str | None) -> str | None:
+    room = _room(ctx, room_id)
+    return None if room is None else room.type
 
 
 def _capitalise(s: str) -> str:
