@@ -410,7 +410,7 @@ def verify_cmd(
 
     Reads RUN_DIR/manifest.json and every file of the run (with --regenerate also CONFIG and its scenes).
     Writes nothing (--regenerate works in a temporary directory it removes). Exit status 1 names every
-    file that differs.
+    file that differs and every scene whose stage failed in the run (the manifest records them).
     """
     from sagebench.errors import ConfigError
     from sagebench.pipeline.verify import regenerate_and_compare, verify_run

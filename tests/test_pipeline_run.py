@@ -70,6 +70,7 @@ def test_manifest_lists_every_output(serial_run):
     assert manifest["versions"] == output_versions() and manifest["versions"]["numpy"] == np.__version__
     assert "workers" not in manifest["config"] and manifest["config"]["gen_trajectories"]["per_scene"] == 20
     assert not any(p.startswith(".") for p in files)
+    assert manifest["failed"] == {}
 
 
 def test_two_workers_give_the_same_manifest(workspace, serial_run, run_cli):
@@ -278,6 +279,24 @@ def test_a_broken_scene_fails_alone(workspace, run_cli):
     assert f"FAILED broken at build_scene: {broken / 'scene.json'}: objects[20].mesh: cannot read mesh" in out
     files = json.loads((root / "out" / "manifest.json").read_text())["files"]
     assert "validation/demo_apartment_0/report.json" in files and not any("broken" in f for f in files)
+    failure = f"{broken / 'scene.json'}: objects[20].mesh: cannot read mesh"
+    manifest = json.loads((root / "out" / "manifest.json").read_text())
+    assert manifest["failed"]["broken"]["stage"] == "build_scene" and list(manifest["failed"]) == ["broken"]
+    assert manifest["failed"]["broken"]["message"].startswith(failure)
+    code, out, _ = run_cli("verify", root / "out")  # every file matches, but a stage failed: not ok
+    assert code == 1 and out.startswith(f"failed: broken at build_scene: {failure}") and "ok:" not in out
+    assert len(out.splitlines()) == 1
+    # scene b and the broken one leave the config: the manifest drops them, and verify passes on what is left
+    config = root / "only_a.toml"
+    config.write_text(CONFIG.format(out="out").replace('"scenes/*"', '"scenes/a"'))
+    code, out, _ = run_cli("-q", "run", config)
+    assert code == 0, out
+    manifest = json.loads((root / "out" / "manifest.json").read_text())
+    assert manifest["failed"] == {} and list(manifest["inputs"]) == ["demo_apartment_0"]
+    assert {f.split("/")[1] for f in manifest["files"]} == {"demo_apartment_0"}
+    assert (root / "out" / "episodes" / "demo_apartment_1").is_dir()  # still there: sagebench removes no outputs
+    code, out, _ = run_cli("verify", root / "out")
+    assert code == 0 and out.startswith("ok:"), out
 
 
 def test_bad_config_is_one_line(workspace, run_cli):

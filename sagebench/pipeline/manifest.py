@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,31 +22,37 @@ def sha256_file(path: Path) -> str:
     return h.hexdigest()
 
 
-def run_files(run_dir: Path) -> list[Path]:
+def run_files(run_dir: Path, scene_ids: Iterable[str] | None = None) -> list[Path]:
     """Every output file of a run under the trees the stages write (scenes/, episodes/, validation/), sorted;
-    hidden files and directories (stamps, temporaries) are not outputs."""
+    hidden files and directories (stamps, temporaries) are not outputs. With `scene_ids`, only those scenes'
+    files (a scene that left the config keeps its old outputs, which are no longer the run's)."""
+    keep = None if scene_ids is None else set(scene_ids)
     out = []
     for root in OUTPUT_ROOTS:
         for path in (run_dir / root).rglob("*"):
             rel = path.relative_to(run_dir)
-            if path.is_file() and not any(part.startswith(".") for part in rel.parts):
+            if (path.is_file() and not any(part.startswith(".") for part in rel.parts)
+                    and (keep is None or rel.parts[1] in keep)):
                 out.append(path)
     return sorted(out, key=lambda p: p.relative_to(run_dir).as_posix())
 
 
-def hash_run(run_dir: Path) -> dict[str, str]:
-    return {p.relative_to(run_dir).as_posix(): sha256_file(p) for p in run_files(run_dir)}
+def hash_run(run_dir: Path, scene_ids: Iterable[str] | None = None) -> dict[str, str]:
+    return {p.relative_to(run_dir).as_posix(): sha256_file(p) for p in run_files(run_dir, scene_ids)}
 
 
-def write_manifest(run_dir: Path, *, config: dict[str, Any], inputs: dict[str, str]) -> dict[str, Any]:
-    """Hash the run and write manifest.json: versions (sagebench's, Python's and the libraries' that shape
-    outputs), config, input hashes per scene, file hashes."""
+def write_manifest(run_dir: Path, *, config: dict[str, Any], inputs: dict[str, str],
+                   failed: dict[str, dict[str, str]] | None = None) -> dict[str, Any]:
+    """Hash the run's scenes (those of `inputs`) and write manifest.json: versions (sagebench's, Python's and
+    the libraries' that shape outputs), config, input hashes per scene, file hashes, and per failed scene the
+    stage that failed it and why."""
     manifest = {
         "sagebench_version": __version__,
         "versions": output_versions(),
         "config": config,
         "inputs": dict(sorted(inputs.items())),
-        "files": hash_run(run_dir),
+        "files": hash_run(run_dir, inputs),
+        "failed": dict(sorted((failed or {}).items())),
     }
     write_json(run_dir / MANIFEST, manifest)
     return manifest
@@ -59,15 +66,17 @@ class FileDiff:
     missing: tuple[str, ...]
     extra: tuple[str, ...]
     cause: str = ""  # what probably made the files differ, when known
+    failed: tuple[str, ...] = ()  # "SCENE at STAGE: why", the manifest's failed stages
 
     @property
     def ok(self) -> bool:
-        return not (self.changed or self.missing or self.extra)
+        return not (self.changed or self.missing or self.extra or self.failed)
 
     def lines(self) -> list[str]:
         lines = ([f"changed: {p}" for p in self.changed] + [f"missing: {p}" for p in self.missing]
                  + [f"extra: {p}" for p in self.extra])
-        return lines + ([f"likely cause: {self.cause}"] if lines and self.cause else [])
+        return ([f"failed: {f}" for f in self.failed] + lines
+                + ([f"likely cause: {self.cause}"] if lines and self.cause else []))
 
 
 def compare(expected: dict[str, str], actual: dict[str, str]) -> FileDiff:

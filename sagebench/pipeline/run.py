@@ -91,7 +91,8 @@ def _run_locked(config: RunConfig, config_path: Path, sources: dict[str, Path], 
     summary.episodes = _count_episodes(run_dir, summary.scenes)
     summary.wall_seconds = time.perf_counter() - start
     write_manifest(run_dir, config=config.outputs_config(),
-                   inputs={sid: _inputs_hash(run_dir, sid, src) for sid, src in sources.items()})
+                   inputs={sid: _inputs_hash(run_dir, sid, src) for sid, src in sources.items()},
+                   failed={sid: {"stage": o.stage, "message": o.message} for sid, o in summary.failed.items()})
     return summary
 
 

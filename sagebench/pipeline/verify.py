@@ -27,8 +27,19 @@ def read_manifest(run_dir: Path) -> dict:
 
 
 def verify_run(run_dir: Path) -> FileDiff:
-    """Compare every file of the run with the manifest's hashes."""
-    return compare(read_manifest(run_dir)["files"], hash_run(Path(run_dir)))
+    """Compare every file of the run's scenes with the manifest's hashes; a stage the manifest records as
+    failed fails the run too."""
+    manifest = read_manifest(run_dir)
+    scenes = manifest.get("inputs") if isinstance(manifest.get("inputs"), dict) else None
+    diff = compare(manifest["files"], hash_run(Path(run_dir), scenes))
+    return replace(diff, failed=failed_stages(manifest))
+
+
+def failed_stages(manifest: dict) -> tuple[str, ...]:
+    """"SCENE at STAGE: why" for every scene the manifest records as failed."""
+    failed = manifest.get("failed") if isinstance(manifest.get("failed"), dict) else {}
+    return tuple(f"{sid} at {f.get('stage')}: {f.get('message')}" if isinstance(f, dict) else f"{sid}: {f}"
+                 for sid, f in sorted(failed.items()))
 
 
 def regenerate_and_compare(run_dir: Path, config_path: Path, *, workers: int = 1) -> FileDiff:
@@ -44,7 +55,7 @@ def regenerate_and_compare(run_dir: Path, config_path: Path, *, workers: int = 1
             raise DataError("this config differs from the one the run was made with (see the manifest's 'config')",
                             path=config_path)
         run_pipeline(config, config_path)
-        diff = compare(expected["files"], hash_run(Path(tmp)))
-    if diff.ok:
+        diff = replace(compare(expected["files"], hash_run(Path(tmp))), failed=failed_stages(expected))
+    if diff.ok or not (diff.changed or diff.missing or diff.extra):
         return diff
     return replace(diff, cause=likely_cause(expected.get("versions"), output_versions()))
