@@ -175,7 +175,7 @@ def gen_trajectories_cmd(
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene id (default: every scene).")] = None,
     per_scene: Annotated[int | None, typer.Option(help="Distinct trajectories per scene.")] = None,
     seed: Annotated[int | None, typer.Option(help="Seed of sampling and wording.")] = None,
-    shard_size: Annotated[int | None, typer.Option(help="Episode rows per Parquet shard.")] = None,
+    shard_mb: Annotated[float | None, typer.Option(help="Largest Parquet shard, MB (one split per shard).")] = None,
     instructions: Annotated[
         str | None, typer.Option(help="template: two low-level rows and one high-level row per trajectory; llm: the "
                                       "high-level row from a chat model; none: bare trajectories.")
@@ -203,7 +203,7 @@ def gen_trajectories_cmd(
     """Sample A* trajectories between objects and rooms and write them with low- and high-level instructions.
 
     Reads RUN_DIR/scenes/<id>/topdown.npz, semantic_map.json and scene.json. Writes
-    RUN_DIR/episodes/<id>/part-NNNNN.parquet (one row per trajectory-instruction pair) and
+    RUN_DIR/episodes/<id>/part-<split>-NNNNN.parquet (one row per trajectory-instruction pair) and
     RUN_DIR/episodes/<id>/_preview/paths.png. With --instructions llm it also reads and writes the
     answer cache; the API key comes from the environment variable SAGEBENCH_LLM_API_KEY (or the one
     --llm-api-key-env names). Exit status 1 when the LLM gave no usable answer for a scene.
@@ -217,7 +217,7 @@ def gen_trajectories_cmd(
                              "concurrency": llm_concurrency, "timeout_s": llm_timeout, "max_attempts": llm_attempts,
                              "temperature": llm_temperature, "max_tokens": llm_max_tokens,
                              "min_share": llm_min_share}.items() if v is not None}
-    config = make_config(per_scene=per_scene, seed=seed, shard_size=shard_size, instructions=instructions,
+    config = make_config(per_scene=per_scene, seed=seed, shard_mb=shard_mb, instructions=instructions,
                          min_geodesic_m=min_geodesic, max_geodesic_m=max_geodesic, goal_radius_m=goal_radius,
                          llm=llm or None)
     api_key = None

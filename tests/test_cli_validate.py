@@ -64,7 +64,7 @@ def test_demo_trajectories_all_pass(validated_run, tmp_path, run_cli):
 
 def test_a_path_through_a_wall_fails_with_collision(validated_run, tmp_path, run_cli):
     run = _copy(validated_run, tmp_path)
-    shard = run / "episodes" / SCENE / "part-00000.parquet"
+    (shard,) = (run / "episodes" / SCENE).glob("part-*.parquet")
     table = pq.read_table(shard)
     rows = table.to_pylist()
     bad = rows[0]["trajectory_id"]

@@ -3,11 +3,12 @@
 import cv2
 import numpy as np
 import pyarrow as pa
+import pyarrow.parquet as pq
 import pytest
 
 from sagebench.episodes.preview import render_paths
 from sagebench.episodes.schema import EPISODE_SCHEMA, episode_schema_json
-from sagebench.episodes.shards import read_episodes, rows_table, write_shards
+from sagebench.episodes.shards import read_episodes, rows_table, table_bytes, write_shards
 
 DESIGN_COLUMNS = ["episode_id", "trajectory_id", "scene_id", "instruction_level", "instruction_type",
                   "instruction_text", "start_instance_id", "goal_instance_id", "start_room", "goal_room",
@@ -32,20 +33,48 @@ def test_columns_are_exactly_design_md_in_order():
     assert [f["name"] for f in episode_schema_json()["fields"]] == DESIGN_COLUMNS
 
 
-def test_shards_split_by_size_and_round_trip(tmp_path):
+def test_shards_split_by_bytes_and_round_trip(tmp_path):
     rows = [_row(i) for i in range(7)]
-    paths = write_shards(rows, tmp_path, shard_size=3)
-    assert [p.name for p in paths] == ["part-00000.parquet", "part-00001.parquet", "part-00002.parquet"]
+    whole = len(table_bytes(rows_table(rows)))
+    paths = write_shards(rows, tmp_path, shard_bytes=whole // 3 + 1)  # needs 3 shards: rows 3, 3, 1
+    assert [p.name for p in paths] == ["part-train-00000.parquet", "part-train-00001.parquet",
+                                       "part-train-00002.parquet"]
+    assert [pq.read_metadata(p).num_rows for p in paths] == [3, 3, 1]
     table = read_episodes(tmp_path)
     assert table.schema == EPISODE_SCHEMA
     assert table.to_pylist() == rows
     assert not list(tmp_path.glob(".*"))  # no temporary files left behind
+    assert [p.name for p in write_shards(rows, tmp_path / "one", shard_bytes=whole)] == ["part-train-00000.parquet"]
+
+
+def test_one_split_per_shard(tmp_path):
+    rows = [_row(i, split=s) for i, s in enumerate(["val_seen", "train", "test", "train", "val_seen"])]
+    paths = write_shards(rows, tmp_path, shard_bytes=2**27)
+    assert [p.name for p in paths] == ["part-test-00000.parquet", "part-train-00000.parquet",
+                                       "part-val_seen-00000.parquet"]
+    for path in paths:
+        split = path.name.split("-")[1]
+        assert [r["episode_id"] for r in pq.read_table(path).to_pylist()] == \
+            [r["episode_id"] for r in rows if r["split"] == split]
+
+
+def test_row_groups_hold_about_16_mb(tmp_path, monkeypatch):
+    """Row groups sized by bytes: a budget of 2.5 average rows gives groups of 2 rows."""
+    import sagebench.episodes.shards as shards
+
+    rows = [_row(i, instruction_text="x" * 2000 + str(i)) for i in range(7)]
+    per_row = len(table_bytes(rows_table(rows))) / 7
+    monkeypatch.setattr(shards, "ROW_GROUP_BYTES", int(2.5 * per_row))
+    (path,) = write_shards(rows, tmp_path, shard_bytes=2**27)
+    meta = pq.read_metadata(path)
+    assert [meta.row_group(i).num_rows for i in range(meta.num_row_groups)] == [2, 2, 2, 1]
 
 
 def test_same_rows_give_byte_identical_shards(tmp_path):
     rows = [_row(i) for i in range(5)]
-    a = write_shards(rows, tmp_path / "a", 2)
-    b = write_shards(rows, tmp_path / "b", 2)
+    a = write_shards(rows, tmp_path / "a", 600)
+    b = write_shards(rows, tmp_path / "b", 600)
+    assert len(a) > 1
     assert [p.read_bytes() for p in a] == [p.read_bytes() for p in b]
 
 

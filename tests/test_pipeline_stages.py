@@ -5,7 +5,8 @@ from __future__ import annotations
 import json
 import shutil
 
-import pyarrow.parquet as pq
+
+from sagebench.episodes.shards import read_episodes
 
 from sagebench.pipeline import stages
 from sagebench.pipeline.stages import Task, run_task, stamp_path
@@ -29,7 +30,7 @@ def test_a_changed_setting_reruns_a_stamped_stage(demo_built_run, demo_scene_dir
     assert gen(4) == "ran"  # the stamp of per_scene=3 is stale
     stamp = json.loads(stamp_path(Task("gen_trajectories", SCENE, demo_scene_dir, run, {})).read_text())
     assert stamp["key"] != key
-    shard = pq.read_table(run / "episodes" / SCENE / "part-00000.parquet")
+    shard = read_episodes(run / "episodes" / SCENE)
     assert len(set(shard.column("trajectory_id").to_pylist())) == 4
     assert gen(4) == "skipped"
 

@@ -45,7 +45,7 @@ EPISODE_SCHEMA = pa.schema([f for f, _ in EPISODE_FIELDS])
 def episode_schema_json() -> dict[str, Any]:
     """The schema as JSON for schemas/episode.arrow.json: name, Arrow type, nullability, meaning."""
     return {
-        "title": "sagebench episode row (Parquet, episodes/<scene_id>/part-NNNNN.parquet)",
+        "title": "sagebench episode row (Parquet, episodes/<scene_id>/part-<split>-NNNNN.parquet)",
         "fields": [
             {"name": f.name, "type": str(f.type), "nullable": f.nullable, "description": doc}
             for f, doc in EPISODE_FIELDS

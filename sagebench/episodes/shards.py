@@ -1,8 +1,14 @@
-"""Write episode rows as Parquet shards part-NNNNN.parquet, each complete or absent."""
+"""Write episode rows as Parquet shards part-<split>-NNNNN.parquet, each complete or absent, sized by bytes.
+
+One split per shard, so a split is a file pattern (what a Hugging Face dataset card's `configs` names):
+each split's rows, in their order, go into as few shards as keep each under the byte budget, with row
+groups of about ROW_GROUP_BYTES.
+"""
 
 from __future__ import annotations
 
 import io
+import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -14,9 +20,16 @@ from sagebench.episodes.schema import EPISODE_SCHEMA
 from sagebench.errors import DataError
 from sagebench.fileio import write_bytes
 
+ROW_GROUP_BYTES = 16 * 2**20  # compressed; readers (HF's viewer, DuckDB) fetch a row group at a time
 
-def shard_name(index: int) -> str:
-    return f"part-{index:05d}.parquet"
+
+def shard_name(split: str, index: int) -> str:
+    return f"part-{split}-{index:05d}.parquet"
+
+
+def split_pattern(split: str) -> str:
+    """The glob of one split's shards in an episodes/<scene_id>/ directory."""
+    return f"part-{split}-*.parquet"
 
 
 def rows_table(rows: Sequence[dict[str, Any]]) -> pa.Table:
@@ -24,22 +37,39 @@ def rows_table(rows: Sequence[dict[str, Any]]) -> pa.Table:
     return pa.Table.from_pylist(list(rows), schema=EPISODE_SCHEMA)
 
 
-def table_bytes(table: pa.Table) -> bytes:
+def table_bytes(table: pa.Table, row_group_rows: int | None = None) -> bytes:
     """Parquet bytes; zstd, no pandas metadata, so equal tables give equal bytes."""
     sink = io.BytesIO()
-    pq.write_table(table, sink, compression="zstd", store_schema=True)
+    pq.write_table(table, sink, compression="zstd", store_schema=True, row_group_size=row_group_rows)
     return sink.getvalue()
 
 
-def write_shards(rows: Sequence[dict[str, Any]], out_dir: Path, shard_size: int) -> list[Path]:
-    """Write rows in order into out_dir/part-00000.parquet, part-00001.parquet, ... of `shard_size` rows."""
-    if shard_size < 1:
-        raise ValueError("shard_size must be at least 1")
+def shard_tables(table: pa.Table, shard_bytes: int) -> list[bytes]:
+    """`table` as Parquet files of at most about `shard_bytes` each (at least one row each, one file when
+    empty), the rows split evenly in order; row groups of about ROW_GROUP_BYTES."""
+    if shard_bytes < 1:
+        raise ValueError("shard_bytes must be at least 1")
+    whole = table_bytes(table)
+    if table.num_rows == 0:
+        return [whole]
+    per_row = len(whole) / table.num_rows  # the compressed size of a row, on average
+    count = min(table.num_rows, max(1, math.ceil(len(whole) / shard_bytes)))
+    rows = math.ceil(table.num_rows / count)
+    group = max(1, math.floor(ROW_GROUP_BYTES / per_row))
+    return [table_bytes(table.slice(lo, rows), group) for lo in range(0, table.num_rows, rows)]
+
+
+def write_shards(rows: Sequence[dict[str, Any]], out_dir: Path, shard_bytes: int) -> list[Path]:
+    """Write each split's rows (in order) into out_dir/part-<split>-00000.parquet, ... of about `shard_bytes`;
+    splits in sorted order. No rows: one empty part-empty-00000.parquet keeps the schema."""
+    splits = sorted({r["split"] for r in rows}) or ["empty"]
     paths = []
-    for index, lo in enumerate(range(0, max(len(rows), 1), shard_size)):
-        path = out_dir / shard_name(index)
-        write_bytes(path, table_bytes(rows_table(rows[lo:lo + shard_size])))
-        paths.append(path)
+    for split in splits:
+        table = rows_table([r for r in rows if r["split"] == split])
+        for index, data in enumerate(shard_tables(table, shard_bytes)):
+            path = out_dir / shard_name(split, index)
+            write_bytes(path, data)
+            paths.append(path)
     return paths
 
 

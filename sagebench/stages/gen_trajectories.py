@@ -1,7 +1,7 @@
 """`gen-trajectories`: A* episodes with low-level instructions, from build-scene's maps to Parquet shards.
 
 Reads RUN/scenes/<scene_id>/{topdown.npz, semantic_map.json, scene.json}; writes
-RUN/episodes/<scene_id>/part-NNNNN.parquet and _preview/paths.png, replacing the directory whole. The
+RUN/episodes/<scene_id>/part-<split>-NNNNN.parquet and _preview/paths.png, replacing the directory whole. The
 preview sits in a "_" folder so that the directory reads as one Parquet dataset (pyarrow skips "_" names).
 """
 
@@ -45,7 +45,7 @@ FIXTURE_KINDS = ("window",)  # what else an instruction may mention
 class GenTrajectoriesConfig(SamplingConfig):
     """Settings of gen-trajectories: sampling plus what is written (defaults here, nowhere else)."""
 
-    shard_size: int = Field(default=1000, ge=1, description="Rows per Parquet shard.")
+    shard_mb: float = Field(default=128.0, gt=0, description="Largest Parquet shard, MB (one split per shard).")
     instructions: Literal["template", "llm", "none"] = Field(
         default="template",
         description="template: Base_Action, Single_Goal and one high-level row per trajectory; llm: the high-level "
@@ -84,7 +84,7 @@ def make_config(**fields: object) -> GenTrajectoriesConfig:
 
 
 # gen-trajectories' options and the GenTrajectoriesConfig fields they set (their defaults and error names come from here)
-OPTIONS = {"--per-scene": "per_scene", "--seed": "seed", "--shard-size": "shard_size", "--instructions": "instructions",
+OPTIONS = {"--per-scene": "per_scene", "--seed": "seed", "--shard-mb": "shard_mb", "--instructions": "instructions",
            "--min-geodesic": "min_geodesic_m", "--max-geodesic": "max_geodesic_m", "--goal-radius": "goal_radius_m",
            "--llm-base-url": "llm.base_url", "--llm-model": "llm.model", "--llm-cache-dir": "llm.cache_dir",
            "--llm-concurrency": "llm.concurrency", "--llm-timeout": "llm.timeout_s", "--llm-attempts": "llm.max_attempts",
@@ -167,7 +167,7 @@ def generate_scene(scene_dir: Path, out_dir: Path, config: GenTrajectoriesConfig
         if instructor.stats["fallback"]:
             ui.warn(f"{spec.scene_id}: {instructor.summary()}")
     with staged_dir(out_dir) as tmp:
-        shards = write_shards(rows, tmp, config.shard_size)
+        shards = write_shards(rows, tmp, round(config.shard_mb * 2**20))
         png = render_paths(grid.navigable, occupancy, [t.waypoints for t in result.trajectories[:config.preview_paths]],
                            grid.resolution, grid.origin)
         write_bytes(tmp / PREVIEW, png)
