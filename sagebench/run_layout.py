@@ -25,6 +25,7 @@ BASELINES = "baselines"  # the demo's baseline predictions and scores
 STAMPS = ".stamps"  # RUN/.stamps/<scene_id>/<stage>.json
 MANIFEST = "manifest.json"
 LOCK = ".sagebench.lock"  # held (flock) by the `sagebench run` writing this directory; left in place after it
+DATASET_CARD = "README.md"  # written by `run` with the manifest: Hugging Face configs, columns, how to load
 
 # RUN/scenes/<scene_id>/ (build-scene, then export-usd)
 SCENE_FILE = "scene.json"  # the normalised scene; with the meshes it names, a loadable scene directory

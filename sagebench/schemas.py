@@ -1,4 +1,6 @@
-"""JSON Schemas of every file format sagebench reads or writes, generated from the models."""
+"""JSON Schemas of every file format sagebench reads or writes, generated from the models, and the episode
+row's Arrow schema as an IPC file. Every JSON Schema declares its dialect ($schema, draft 2020-12) and an
+$id naming it."""
 
 from __future__ import annotations
 
@@ -21,12 +23,6 @@ def _semantic_map_schema() -> dict[str, Any]:
     return SemanticMap.model_json_schema()
 
 
-def _episode_schema() -> dict[str, Any]:
-    from sagebench.episodes.schema import episode_schema_json
-
-    return episode_schema_json()
-
-
 def _run_config_schema() -> dict[str, Any]:
     from sagebench.pipeline.config import RunConfig
 
@@ -43,22 +39,35 @@ def _predictions_schema() -> dict[str, Any]:
 SCHEMAS: dict[str, Callable[[], dict[str, Any]]] = {
     "scene.schema.json": _scene_schema,
     "semantic_map.schema.json": _semantic_map_schema,
-    "episode.arrow.json": _episode_schema,
     "run_config.schema.json": _run_config_schema,
     "predictions.schema.json": _predictions_schema,
 }
 
 
-def render_schemas() -> dict[str, str]:
-    """file name -> canonical JSON text."""
-    return {name: dumps_json(make()) for name, make in sorted(SCHEMAS.items())}
+DIALECT = "https://json-schema.org/draft/2020-12/schema"
+EPISODE_ARROW = "episode.arrow"  # the episode row's Arrow schema (IPC), with each column's description
+
+
+def schema_id(name: str) -> str:
+    """The $id of schemas/<name>: a URN, since the schemas have no web home."""
+    return f"urn:sagebench:schemas:{name}"
+
+
+def render_schemas() -> dict[str, bytes]:
+    """file name -> contents: canonical JSON text of each JSON Schema, the IPC bytes of the Arrow schema."""
+    from sagebench.episodes.schema import episode_schema_ipc
+
+    out = {name: dumps_json({"$schema": DIALECT, "$id": schema_id(name), **make()}).encode()
+           for name, make in sorted(SCHEMAS.items())}
+    out[EPISODE_ARROW] = episode_schema_ipc()
+    return dict(sorted(out.items()))
 
 
 def write_schemas(out: Path) -> list[Path]:
-    from sagebench.fileio import write_text
+    from sagebench.fileio import write_bytes
 
     written = []
-    for name, text in render_schemas().items():
-        write_text(out / name, text)
+    for name, data in render_schemas().items():
+        write_bytes(out / name, data)
         written.append(out / name)
     return written

@@ -7,7 +7,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from sagebench.episodes.preview import render_paths
-from sagebench.episodes.schema import EPISODE_SCHEMA, episode_schema_json
+from sagebench.episodes.schema import EPISODE_SCHEMA, field_descriptions
 from sagebench.episodes.shards import read_episodes, rows_table, table_bytes, write_shards
 
 DESIGN_COLUMNS = ["episode_id", "trajectory_id", "scene_id", "instruction_level", "instruction_type",
@@ -30,7 +30,14 @@ def test_columns_are_exactly_design_md_in_order():
     assert EPISODE_SCHEMA.names == DESIGN_COLUMNS
     assert EPISODE_SCHEMA.field("start_position").type == pa.list_(pa.float64(), 3)
     assert EPISODE_SCHEMA.field("reference_path").type == pa.list_(pa.list_(pa.float64(), 4))
-    assert [f["name"] for f in episode_schema_json()["fields"]] == DESIGN_COLUMNS
+    assert list(field_descriptions()) == DESIGN_COLUMNS
+
+
+def test_every_shard_carries_the_column_descriptions(tmp_path):
+    (path,) = write_shards([_row(0)], tmp_path, shard_bytes=2**27)
+    schema = pq.read_schema(path)
+    for name, doc in field_descriptions().items():
+        assert schema.field(name).metadata[b"description"].decode() == doc
 
 
 def test_shards_split_by_bytes_and_round_trip(tmp_path):

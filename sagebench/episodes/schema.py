@@ -8,8 +8,6 @@ the rooms (an endpoint outside every room polygon), and the instruction columns 
 
 from __future__ import annotations
 
-from typing import Any
-
 import pyarrow as pa
 
 _F64 = pa.float64()
@@ -39,15 +37,16 @@ EPISODE_FIELDS: list[tuple[pa.Field, str]] = [
      "train, val_seen, val_unseen or test: unseen splits hold whole scenes, seen splits share scenes with train."),
 ]
 
-EPISODE_SCHEMA = pa.schema([f for f, _ in EPISODE_FIELDS])
+# each field carries its meaning as metadata {"description": ...}, so every shard documents its columns
+EPISODE_SCHEMA = pa.schema([f.with_metadata({"description": doc}) for f, doc in EPISODE_FIELDS],
+                           metadata={"title": "sagebench episode row (Parquet, episodes/<scene_id>/part-<split>-NNNNN.parquet)"})
 
 
-def episode_schema_json() -> dict[str, Any]:
-    """The schema as JSON for schemas/episode.arrow.json: name, Arrow type, nullability, meaning."""
-    return {
-        "title": "sagebench episode row (Parquet, episodes/<scene_id>/part-<split>-NNNNN.parquet)",
-        "fields": [
-            {"name": f.name, "type": str(f.type), "nullable": f.nullable, "description": doc}
-            for f, doc in EPISODE_FIELDS
-        ],
-    }
+def episode_schema_ipc() -> bytes:
+    """The schema as an Arrow IPC message (schemas/episode.arrow): `pyarrow.ipc.read_schema` reads it back."""
+    return EPISODE_SCHEMA.serialize().to_pybytes()
+
+
+def field_descriptions() -> dict[str, str]:
+    """Column name -> meaning, in column order."""
+    return {f.name: doc for f, doc in EPISODE_FIELDS}

@@ -1,4 +1,5 @@
-"""`sagebench run`: every stage over many scenes, skipping what is up to date, then the manifest."""
+"""`sagebench run`: every stage over many scenes, skipping what is up to date, then the manifest and the
+dataset card (README.md)."""
 
 from __future__ import annotations
 
@@ -10,13 +11,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from sagebench import ui
+from sagebench.episodes.card import card_text
 from sagebench.errors import ConfigError
 from sagebench.pipeline.config import RunConfig, resolve_scenes
 from sagebench.pipeline.executors import make_executor
 from sagebench.pipeline.manifest import sha256_file, write_manifest
-from sagebench.fileio import remove_temporaries
+from sagebench.fileio import remove_temporaries, write_text
 from sagebench.pipeline.stages import STAGES, Outcome, Task
-from sagebench.run_layout import BASELINES, OUTPUT_ROOTS, SCENE_FILE, SHARDS, STAMPS, run_episodes_dir, stage_files
+from sagebench.run_layout import BASELINES, DATASET_CARD, OUTPUT_ROOTS, SCENE_FILE, SHARDS, STAMPS, run_episodes_dir, stage_files
 from sagebench.run_lock import run_lock
 from sagebench.scene.loader import parse_spec
 
@@ -93,6 +95,7 @@ def _run_locked(config: RunConfig, config_path: Path, sources: dict[str, Path], 
     write_manifest(run_dir, config=config.outputs_config(),
                    inputs={sid: _inputs_hash(run_dir, sid, src) for sid, src in sources.items()},
                    failed={sid: {"stage": o.stage, "message": o.message} for sid, o in summary.failed.items()})
+    write_text(run_dir / DATASET_CARD, card_text(run_dir))
     return summary
 
 
