@@ -64,8 +64,9 @@ def test_manifest_lists_every_output(serial_run):
     files = manifest["files"]
     for sid in ("demo_apartment_0", "demo_apartment_1"):
         for rel in ("scenes/{}/topdown.npz", "scenes/{}/gaussians.ply", "scenes/{}/scene.usda",
-                    "scenes/{}/scene.xml", "episodes/{}/part-00000.parquet", "validation/{}/report.json"):
+                    "scenes/{}/scene.xml", "scenes/{}/geometry.usdc", "validation/{}/report.json"):
             assert rel.format(sid) in files
+        assert any(f.startswith(f"episodes/{sid}/part-") and f.endswith("-00000.parquet") for f in files)
     assert set(manifest["inputs"]) == {"demo_apartment_0", "demo_apartment_1"}
     assert manifest["versions"] == output_versions() and manifest["versions"]["numpy"] == np.__version__
     assert "workers" not in manifest["config"] and manifest["config"]["gen_trajectories"]["per_scene"] == 20
