@@ -17,7 +17,7 @@ from sagebench.errors import SagebenchError
 from sagebench.ui import SETTINGS
 
 app = typer.Typer(
-    add_completion=False,
+    add_completion=True,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     help="Turn artist-made indoor scenes into a physically executable VLN benchmark.",
@@ -48,13 +48,34 @@ def _defaults_from(settings: str) -> type[typer.core.TyperCommand]:
     return Command
 
 
+GLOBAL_FLAGS = ("--quiet", "-q", "--debug")  # accepted before or after the command
+
+
+def _show_version(value: bool) -> None:
+    if value:
+        from sagebench import __version__
+
+        typer.echo(f"sagebench {__version__}")
+        raise typer.Exit()
+
+
 @app.callback()
 def _global(
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Hide progress bars and progress lines.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show the full traceback on errors.")] = False,
+    version: Annotated[bool, typer.Option("--version", callback=_show_version, is_eager=True,
+                                          help="Print the version and exit.")] = False,
 ) -> None:
     SETTINGS.quiet = quiet
     SETTINGS.debug = debug
+
+
+def hoist_global_flags(argv: list[str]) -> list[str]:
+    """`sagebench CMD ... --quiet` as `sagebench --quiet CMD ...`: the global flags may follow the command
+    (not after a `--`)."""
+    end = argv.index("--") if "--" in argv else len(argv)
+    flags = [a for a in argv[:end] if a in GLOBAL_FLAGS]
+    return flags + [a for a in argv[:end] if a not in GLOBAL_FLAGS] + argv[end:]
 
 
 @app.command("synth-scene")
@@ -495,7 +516,7 @@ def baseline_cmd(
 def main(argv: list[str] | None = None) -> None:
     """Console entry point: the one place where errors become exit status 2."""
     try:
-        app(args=argv, prog_name="sagebench")
+        app(args=hoist_global_flags(sys.argv[1:] if argv is None else list(argv)), prog_name="sagebench")
     except SagebenchError as err:
         if SETTINGS.debug:
             raise

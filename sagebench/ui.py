@@ -1,10 +1,13 @@
-"""Process-wide output settings (--quiet, --debug) and the progress bar every long stage uses."""
+"""Process-wide output settings (--quiet, --debug), the progress bar every long stage uses, and warnings
+(printed at once, or collected while a pipeline task runs so the driver prints them: a Ray worker's
+stderr never reaches the terminal)."""
 
 from __future__ import annotations
 
+import contextlib
 import sys
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TypeVar
 
 T = TypeVar("T")
@@ -14,6 +17,7 @@ T = TypeVar("T")
 class Settings:
     quiet: bool = False
     debug: bool = False
+    collected: list[str] | None = field(default=None, repr=False)  # warnings of the task running, if collecting
 
 
 SETTINGS = Settings()
@@ -36,5 +40,18 @@ def info(message: str) -> None:
 
 
 def warn(message: str) -> None:
-    """A warning always reaches stderr, even with --quiet."""
-    print(f"warning: {message}", file=sys.stderr)
+    """A warning always reaches stderr, even with --quiet (through the driver while collected)."""
+    if SETTINGS.collected is not None:
+        SETTINGS.collected.append(message)
+    else:
+        print(f"warning: {message}", file=sys.stderr)
+
+
+@contextlib.contextmanager
+def collect_warnings() -> Iterator[list[str]]:
+    """Collect the warnings given inside the block instead of printing them (nesting is not needed)."""
+    SETTINGS.collected = found = []
+    try:
+        yield found
+    finally:
+        SETTINGS.collected = None

@@ -97,3 +97,31 @@ def test_demo_runs_the_whole_pipeline_and_verifies(run_cli, tmp_path):
     assert overall["sr"] == 1.0 and overall["icp"] == 0.0 and overall["csr"] == 1.0
     code, stdout, _ = run_cli("verify", out)
     assert code == 0 and stdout.startswith("ok:")
+
+
+def test_version_prints_the_package_version(run_cli):
+    from sagebench import __version__
+
+    assert run_cli("--version") == (0, f"sagebench {__version__}\n", "")
+
+
+def test_global_flags_are_accepted_after_the_command(run_cli, tmp_path):
+    from sagebench.cli import hoist_global_flags
+
+    assert hoist_global_flags(["export-usd", "r", "-q", "--debug", "--", "--quiet"]) == \
+        ["-q", "--debug", "export-usd", "r", "--", "--quiet"]
+    code, out, err = run_cli("synth-scene", "--out", tmp_path / "s", "--seed", "1", "--quiet")
+    assert code == 0 and (tmp_path / "s" / "scene.json").is_file(), err
+    code, _, err = run_cli("check-scene", tmp_path / "nope", "--quiet")
+    assert code == 2 and err == f"error: {tmp_path / 'nope'}: no scene.json in this directory\n"
+
+
+def test_shell_completion_completes_command_names():
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "_SAGEBENCH_COMPLETE": "complete_bash", "COMP_WORDS": "sagebench export-", "COMP_CWORD": "1"}
+    done = subprocess.run([sys.executable, "-m", "sagebench"], env=env, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["export-usd", "export-vlnce"]

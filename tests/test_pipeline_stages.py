@@ -45,3 +45,25 @@ def test_a_changed_library_version_reruns_a_stamped_stage(demo_built_run, demo_s
     monkeypatch.setattr(stages, "output_versions", lambda: older)
     assert run_task(task).status == "ran"
     assert run_task(task).status == "skipped"
+
+
+def test_a_tasks_warnings_come_back_in_its_outcome_not_on_stderr(demo_scene_dir, tmp_path, monkeypatch, capsys):
+    """A Ray worker's stderr goes nowhere: run_task returns the warnings so the driver prints them."""
+    from sagebench import ui
+
+    def warns(t):
+        ui.warn("only 3 of 5 trajectories")
+        return "done", True
+
+    monkeypatch.setitem(stages.STAGES, "build_scene", stages.Stage("build_scene", warns))
+    outcome = run_task(Task("build_scene", SCENE, demo_scene_dir, tmp_path / "run", {}))
+    assert outcome.status == "ran" and outcome.warnings == ("only 3 of 5 trajectories",)
+    assert capsys.readouterr().err == ""
+    ui.warn("after")  # printing again once the task is over
+    assert capsys.readouterr().err == "warning: after\n"
+
+
+def test_stages_ask_for_the_cpus_their_workers_use(demo_scene_dir, tmp_path):
+    task = Task("export_usd", SCENE, demo_scene_dir, tmp_path, {"workers": 3})
+    assert stages.STAGES["export_usd"].cpus(task) == 3
+    assert stages.STAGES["build_scene"].cpus(Task("build_scene", SCENE, demo_scene_dir, tmp_path, {})) == 1

@@ -7,7 +7,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from typing import Any, Protocol
 
 from sagebench.errors import ConfigError
-from sagebench.pipeline.stages import Outcome, Task, run_task
+from sagebench.pipeline.stages import STAGES, Outcome, Task, run_task
 
 
 class Executor(Protocol):
@@ -52,7 +52,8 @@ class PoolExecutor:
 
 
 class RayExecutor:
-    """One Ray task per scene and stage; with no address a local Ray starts and stops with the run."""
+    """One Ray task per scene and stage, asking for the CPUs the stage uses; with no address a local Ray
+    starts and stops with the run. Worker logs stay on the workers: warnings come back in the outcomes."""
 
     def __init__(self, address: str | None):
         try:
@@ -66,7 +67,7 @@ class RayExecutor:
         self._remote: Callable = ray.remote(run_task)
 
     def submit(self, task: Task) -> Any:
-        return self._remote.remote(task)
+        return self._remote.options(num_cpus=STAGES[task.stage].cpus(task)).remote(task)
 
     def wait_any(self, pending: list[Any]) -> list[tuple[Any, Outcome]]:
         done, _ = self._ray.wait(pending, num_returns=1)

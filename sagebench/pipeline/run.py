@@ -88,6 +88,8 @@ def _run_locked(config: RunConfig, config_path: Path, sources: dict[str, Path], 
         for outcome in ui.track(tasks, "scenes x stages", total=len(sources) * len(STAGES)):
             summary.outcomes.append(outcome)
             ui.info(f"{outcome.status:>7} {outcome.stage} {outcome.scene_id}: {outcome.message}")
+            for message in outcome.warnings:
+                ui.warn(f"{outcome.scene_id} {outcome.stage}: {message}")
     finally:
         executor.close()
     summary.episodes = _count_episodes(run_dir, summary.scenes)

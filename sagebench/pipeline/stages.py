@@ -10,6 +10,7 @@ re-runs exactly the stages whose stamps are missing or stale.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import time
@@ -19,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sagebench import __version__
+from sagebench import __version__, ui
 from sagebench.errors import SagebenchError
 from sagebench.fileio import dumps_json, write_text
 from sagebench.pipeline.manifest import sha256_file
@@ -47,6 +48,7 @@ class Outcome:
     seconds: float
     message: str = ""  # a summary line, or the error for a failure
     ok: bool = True  # False when the stage ran but judged its scene bad (validate failures)
+    warnings: tuple[str, ...] = ()  # what the stage warned about; the driver prints them
 
 
 def _run_build(t: Task) -> tuple[str, bool]:
@@ -92,6 +94,10 @@ class Stage:
     def outputs(self, t: Task) -> list[Path]:
         return stage_files(self.name, "writes", t.run_dir, t.scene_id, t.source)
 
+    def cpus(self, t: Task) -> int:
+        """CPUs the stage keeps busy: its `workers` setting (CoACD processes, replay threads), else one."""
+        return int(t.settings.get("workers", 1))
+
 
 STAGES: dict[str, Stage] = {s.name: s for s in (
     Stage("build_scene", _run_build),
@@ -135,7 +141,14 @@ def up_to_date(task: Task, key: str) -> bool:
 
 
 def run_task(task: Task) -> Outcome:
-    """Run one stage of one scene unless its stamp says it is up to date; never raises."""
+    """Run one stage of one scene unless its stamp says it is up to date; never raises. Its warnings come
+    back in the outcome (a worker's stderr may go nowhere)."""
+    with ui.collect_warnings() as found:
+        outcome = _run_task(task)
+    return dataclasses.replace(outcome, warnings=tuple(found))
+
+
+def _run_task(task: Task) -> Outcome:
     start = time.perf_counter()
     stage = STAGES[task.stage]
     try:
