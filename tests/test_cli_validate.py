@@ -87,7 +87,7 @@ def test_a_path_through_a_wall_fails_with_collision(validated_run, tmp_path, run
 
 def test_a_base_action_sentence_that_misses_the_goal_fails_as_not_executable(validated_run, tmp_path, run_cli):
     run = _copy(validated_run, tmp_path)
-    shard = run / "episodes" / SCENE / "part-00000.parquet"
+    (shard,) = (run / "episodes" / SCENE).glob("part-*.parquet")
     table = pq.read_table(shard)
     rows = table.to_pylist()
     row = next(r for r in rows if r["instruction_type"] == "Base_Action")

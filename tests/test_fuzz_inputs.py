@@ -508,7 +508,7 @@ def _shard(table_of: Callable[[Any], Any]) -> Callable[[Path], None]:
     def apply(run: Path) -> None:
         import pyarrow.parquet as pq
 
-        path = run / "episodes/tiny/part-00000.parquet"
+        path = sorted((run / "episodes/tiny").glob("part-*.parquet"))[0]
         pq.write_table(table_of(pq.read_table(path)), path)
     return apply
 
@@ -571,14 +571,14 @@ RUN_CASES: list[tuple[str, Callable[[Path], None], list[str], str]] = [
     ("eval-xml-garbage", _write(f"{TS}/scene.xml", b"<mujoco"), EVAL, "scene.xml: cannot load: XML parse error"),
     ("baseline-xml-empty", _write(f"{TS}/scene.xml", b""), BASELINE, "scene.xml: cannot load"),
     ("eval-shard-schema", _shard(lambda t: __import__("pyarrow").table({"a": [1]})), EVAL,
-     "part-00000.parquet: episode_id: not an episode shard: column missing (has a)"),
+     "-00000.parquet: episode_id: not an episode shard: column missing (has a)"),
     ("eval-shard-type", _shard(lambda t: t.set_column(t.schema.get_field_index("goal_radius"), "goal_radius",
                                                       t.column("goal_radius").cast("string"))), EVAL,
-     "part-00000.parquet: goal_radius: column type string, expected double"),
+     "-00000.parquet: goal_radius: column type string, expected double"),
     ("eval-shard-dropped", _shard(lambda t: t.drop_columns(["reference_path"])), EVAL,
-     "part-00000.parquet: reference_path: not an episode shard: column missing"),
+     "-00000.parquet: reference_path: not an episode shard: column missing"),
     ("baseline-shard-schema", _shard(lambda t: __import__("pyarrow").table({"x": [1.0]})), BASELINE,
-     "part-00000.parquet: episode_id: not an episode shard"),
+     "-00000.parquet: episode_id: not an episode shard"),
     ("eval-shard-garbage", _write("episodes/tiny/part-00000.parquet", b"PAR1junk"), EVAL,
      "episodes/tiny: cannot read episode shards"),
     ("validate-shard-garbage", _write("episodes/tiny/part-00000.parquet", b"junk"), VALIDATE,
