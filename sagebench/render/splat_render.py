@@ -9,11 +9,13 @@ each Gaussian's 3-sigma box, and stops once every pixel's transmittance is spent
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numba
 import numpy as np
 
 from sagebench.render.camera import Camera
+from sagebench.render.chunks import PackedGaussians, visible_index
 from sagebench.render.gaussians import Gaussians
 from sagebench.render.sh import C0, C1, C2, C3
 from sagebench.render.splat_reference import (
@@ -48,9 +50,10 @@ def _sh_colour(sh: np.ndarray, i: int, c: int, k: int, x: float, y: float, z: fl
 
 
 @numba.njit(parallel=True, cache=True)
-def _project(means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, width, height):  # pragma: no cover - jit
-    """Per Gaussian: image centre, conic, depth, colour, opacity and tile rectangle; rect[i, 0] = -1 if culled."""
-    n = means.shape[0]
+def _project(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, width, height):  # pragma: no cover - jit
+    """Per Gaussian of `index` [n]: image centre, conic, depth, colour, opacity and tile rectangle (rows follow
+    `index`); rect[r, 0] = -1 if culled."""
+    n = index.shape[0]
     k = sh.shape[1]
     xy = np.empty((n, 2))
     conic = np.empty((n, 3))
@@ -67,7 +70,8 @@ def _project(means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, width, h
     ox = -(r00 * t0 + r10 * t1 + r20 * t2)
     oy = -(r01 * t0 + r11 * t1 + r21 * t2)
     oz = -(r02 * t0 + r12 * t1 + r22 * t2)
-    for i in numba.prange(n):
+    for r in numba.prange(n):
+        i = index[r]
         mx, my, mz = float(means[i, 0]), float(means[i, 1]), float(means[i, 2])
         pz = r20 * mx + r21 * my + r22 * mz + t2
         if pz <= NEAR:
@@ -125,12 +129,12 @@ def _project(means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, width, h
         dn = max(math.sqrt(dx * dx + dy * dy + dz * dz), 1e-12)
         dx, dy, dz = dx / dn, dy / dn, dz / dn
         for c in range(3):
-            rgb[i, c] = _sh_colour(sh, i, c, k, dx, dy, dz)
-        xy[i, 0], xy[i, 1] = u, v
-        conic[i, 0], conic[i, 1], conic[i, 2] = cc / det, -cb / det, ca / det
-        depth[i] = pz
-        opac[i] = o
-        rect[i, 0], rect[i, 1], rect[i, 2], rect[i, 3] = x0, x1, y0, y1
+            rgb[r, c] = _sh_colour(sh, i, c, k, dx, dy, dz)
+        xy[r, 0], xy[r, 1] = u, v
+        conic[r, 0], conic[r, 1], conic[r, 2] = cc / det, -cb / det, ca / det
+        depth[r] = pz
+        opac[r] = o
+        rect[r, 0], rect[r, 1], rect[r, 2], rect[r, 3] = x0, x1, y0, y1
     return xy, conic, depth, rgb, opac, rect
 
 
@@ -223,9 +227,13 @@ def _rasterise(offsets, pairs, xy, conic, depth, rgb, opac, inst, width, height,
                 out_inst[ty0 + i, tx0 + j] = bid[i, j]
 
 
-def _run(g: Gaussians, cam: Camera, background: tuple[float, float, float]) -> tuple[Frame, np.ndarray, np.ndarray]:
+def _run(g: Gaussians, cam: Camera, background: tuple[float, float, float], index: np.ndarray | None = None
+         ) -> tuple[Frame, np.ndarray, np.ndarray]:
+    """Render the Gaussians at `index` [M] (all when None); pairs index rows of `index`."""
+    index = np.arange(g.count, dtype=np.int64) if index is None else np.asarray(index, dtype=np.int64)
     xy, conic, depth, rgb, opac, rect = _project(
-        g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh, np.ascontiguousarray(cam.world_to_camera, np.float64),
+        index, g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh,
+        np.ascontiguousarray(cam.world_to_camera, np.float64),
         float(cam.fx), float(cam.fy), float(cam.cx), float(cam.cy), cam.width, cam.height,
     )
     visible = np.flatnonzero(rect[:, 0] >= 0)
@@ -238,14 +246,21 @@ def _run(g: Gaussians, cam: Camera, background: tuple[float, float, float]) -> t
     out_alpha = np.empty((h, w), np.float32)
     out_inst = np.empty((h, w), np.int32)
     pair_weight = np.zeros(len(pairs))
-    _rasterise(offsets, pairs, xy, conic, depth, rgb, opac, g.instance_id, w, h,
+    _rasterise(offsets, pairs, xy, conic, depth, rgb, opac, g.instance_id[index], w, h,
                np.asarray(background, np.float64), out_rgb, out_depth, out_alpha, out_inst, pair_weight)
-    return Frame(rgb=out_rgb, depth=out_depth, alpha=out_alpha, instance=out_inst), pairs, pair_weight
+    return Frame(rgb=out_rgb, depth=out_depth, alpha=out_alpha, instance=out_inst), index[pairs], pair_weight
 
 
 def render(g: Gaussians, cam: Camera, *, background: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> Frame:
     """Render `g` through `cam`: RGB, expected depth, alpha and the instance-id image."""
     return _run(g, cam, background)[0]
+
+
+def render_packed(packed: PackedGaussians, cams: Sequence[Camera], *,
+                  background: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> list[Frame]:
+    """One frame per camera of packed Gaussians, projecting only the chunks each camera may see; every frame
+    equals `render(packed.gaussians, cam)` (chunks.py)."""
+    return [_run(packed.gaussians, cam, background, visible_index(packed, cam))[0] for cam in cams]
 
 
 def contributions(g: Gaussians, cam: Camera) -> np.ndarray:
