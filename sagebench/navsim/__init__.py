@@ -1,0 +1,1 @@
+"""Closed-loop navigation: actions, agents moved by MuJoCo with collision recovery, rendered observations, episodes."""

@@ -1,0 +1,66 @@
+"""The two action spaces: VLN-CE's discrete actions and continuous (v, omega), both as commands held for one
+control interval.
+
+Discrete: STOP ends the episode; MOVE_FORWARD drives forward_step metres, TURN_LEFT / TURN_RIGHT turn turn_deg
+degrees counter-clockwise / clockwise, each at the constant speed that takes exactly one control interval.
+Continuous: [v m/s, omega rad/s, stop], v in [0, max_speed], omega within +-max_turn_rate (the replay's
+limits, which the drive can hold against a wall without tunnelling); stop >= 0.5 ends the episode.
+"""
+
+from __future__ import annotations
+
+import math
+from enum import IntEnum
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from sagebench.replay.physics import ReplayConfig
+
+
+class Action(IntEnum):
+    STOP = 0
+    MOVE_FORWARD = 1
+    TURN_LEFT = 2
+    TURN_RIGHT = 3
+
+
+class ActionConfig(BaseModel):
+    """What one action does (defaults: VLN-CE's 0.25 m and 15 degrees)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    control_interval: float = Field(default=0.5, gt=0, le=5, description="Seconds one action lasts.")
+    forward_step: float = Field(default=0.25, gt=0, description="MOVE_FORWARD distance, m.")
+    turn_deg: float = Field(default=15.0, gt=0, le=180, description="TURN_LEFT / TURN_RIGHT angle, degrees.")
+
+    @model_validator(mode="after")
+    def _reachable(self) -> ActionConfig:
+        replay = ReplayConfig()
+        if self.forward_step / self.control_interval > replay.max_speed + 1e-12:
+            raise ValueError(f"forward_step / control_interval exceeds the agent's top speed {replay.max_speed} m/s")
+        if math.radians(self.turn_deg) / self.control_interval > replay.max_turn_rate + 1e-12:
+            raise ValueError(f"turn_deg / control_interval exceeds the agent's turn-rate limit "
+                             f"{replay.max_turn_rate} rad/s")
+        return self
+
+
+def discrete_commands(actions: np.ndarray, config: ActionConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """[B] Action values -> v [B] m/s, omega [B] rad/s, stop [B] bool; a value outside the enum is a ValueError."""
+    a = np.asarray(actions).reshape(-1)
+    if not np.isin(a, [int(x) for x in Action]).all():
+        raise ValueError(f"discrete actions are 0..3 (STOP, MOVE_FORWARD, TURN_LEFT, TURN_RIGHT), got {a.tolist()}")
+    rate = math.radians(config.turn_deg) / config.control_interval
+    v = np.where(a == Action.MOVE_FORWARD, config.forward_step / config.control_interval, 0.0)
+    omega = np.where(a == Action.TURN_LEFT, rate, np.where(a == Action.TURN_RIGHT, -rate, 0.0))
+    return v, omega, a == Action.STOP
+
+
+def continuous_commands(values: np.ndarray, replay: ReplayConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """[B, 3] (v, omega, stop) -> v and omega clipped to the agent's limits, stop [B] bool."""
+    x = np.asarray(values, dtype=np.float64).reshape(-1, 3)
+    if not np.isfinite(x).all():
+        raise ValueError("continuous actions must be finite")
+    v = np.clip(x[:, 0], 0.0, replay.max_speed)
+    omega = np.clip(x[:, 1], -replay.max_turn_rate, replay.max_turn_rate)
+    return v, omega, x[:, 2] >= 0.5

@@ -1,0 +1,133 @@
+"""Policies that act on the closed-loop observations: the built-in baselines in VLN-CE's discrete actions.
+
+A policy sees, per running episode, its observation dict and info (and at `begin`, the episodes themselves:
+the baselines are privileged, the oracle reads the reference path and `straight` the goal).
+- `oracle` walks the reference path's stations (agents.policies.oracle_targets): it turns towards the next one
+  while the heading error exceeds half a turn step, else moves forward; a station within half a forward step
+  counts as passed; it stops after the last.
+- `straight` turns towards the goal and moves forward; it stops within the goal radius (straight distance) or
+  after stall_patience forward moves in a row without min_progress towards the goal.
+- `random`: forward, or with random_turn_probability a turn of 15-90 degrees either way (as successive turn
+  actions), 90-180 degrees after an action more than half blocked; stops after a number of actions drawn from
+  [random_min_actions, random_max_actions]; each episode seeded by (seed, episode id).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Protocol
+
+import numpy as np
+
+from sagebench.agents.policies import PolicyConfig, episode_rng, oracle_targets
+from sagebench.evaluation.scoring import Episode
+from sagebench.navsim.actions import Action, ActionConfig
+
+BUILT_IN = ("oracle", "straight", "random")
+
+
+class Policy(Protocol):
+    def begin(self, episodes: Sequence[Episode]) -> None:
+        """A new batch of episodes (slot i is episodes[i])."""
+
+    def act(self, slots: Sequence[int], observations: Sequence[dict], infos: Sequence[dict]) -> list:
+        """One action per running slot."""
+
+
+def _heading_action(pose: np.ndarray, target: np.ndarray, turn: float) -> Action:
+    """Turn towards `target` [2] while the heading error exceeds half a turn, else move forward."""
+    err = math.remainder(math.atan2(target[1] - pose[1], target[0] - pose[0]) - pose[3], 2 * math.pi)
+    if abs(err) > turn / 2:
+        return Action.TURN_LEFT if err > 0 else Action.TURN_RIGHT
+    return Action.MOVE_FORWARD
+
+
+class Oracle:
+    def __init__(self, actions: ActionConfig = ActionConfig()):
+        self.actions = actions
+
+    def begin(self, episodes: Sequence[Episode]) -> None:
+        self.targets = [oracle_targets(e.reference_path, self.actions.forward_step)[1:] for e in episodes]
+        self.next = [0] * len(episodes)
+
+    def act(self, slots, observations, infos) -> list:
+        out, reach = [], self.actions.forward_step / 2
+        for i, obs in zip(slots, observations):
+            pose, t = obs["pose"], self.targets[i]
+            while self.next[i] < len(t) and np.hypot(*(t[self.next[i]] - pose[:2])) <= reach:
+                self.next[i] += 1
+            out.append(Action.STOP if self.next[i] >= len(t)
+                       else _heading_action(pose, t[self.next[i]], math.radians(self.actions.turn_deg)))
+        return out
+
+
+class Straight:
+    def __init__(self, config: PolicyConfig = PolicyConfig(), actions: ActionConfig = ActionConfig()):
+        self.config, self.actions = config, actions
+
+    def begin(self, episodes: Sequence[Episode]) -> None:
+        self.goal = [np.asarray(e.goal[:2], dtype=np.float64) for e in episodes]
+        self.radius = [e.goal_radius for e in episodes]
+        self.best = [math.inf] * len(episodes)
+        self.idle = [0] * len(episodes)
+
+    def act(self, slots, observations, infos) -> list:
+        out = []
+        for i, obs in zip(slots, observations):
+            pose = obs["pose"]
+            dist = float(np.hypot(*(self.goal[i] - pose[:2])))
+            if dist <= self.radius[i] or self.idle[i] >= self.config.stall_patience:
+                out.append(Action.STOP)
+                continue
+            a = _heading_action(pose, self.goal[i], math.radians(self.actions.turn_deg))
+            if a == Action.MOVE_FORWARD:
+                improved = dist < self.best[i] - self.config.min_progress
+                self.best[i] = dist if improved else self.best[i]
+                self.idle[i] = 0 if improved else self.idle[i] + 1
+            out.append(a)
+        return out
+
+
+class RandomWalk:
+    def __init__(self, config: PolicyConfig = PolicyConfig(), actions: ActionConfig = ActionConfig(), *, seed: int = 0):
+        self.config, self.actions, self.seed = config, actions, seed
+
+    def begin(self, episodes: Sequence[Episode]) -> None:
+        cfg = self.config
+        self.rngs = [episode_rng(self.seed, e.episode_id) for e in episodes]
+        self.budget = [int(g.integers(cfg.random_min_actions, cfg.random_max_actions + 1)) for g in self.rngs]
+        self.taken = [0] * len(episodes)
+        self.queue: list[list[Action]] = [[] for _ in episodes]
+
+    def act(self, slots, observations, infos) -> list:
+        out, step = [], math.radians(self.actions.turn_deg)
+        for i, info in zip(slots, infos):
+            if self.taken[i] >= self.budget[i]:
+                out.append(Action.STOP)
+                continue
+            self.taken[i] += 1
+            if not self.queue[i]:
+                g = self.rngs[i]
+                if info["collision_intensity"] > 0.5:
+                    turn = g.uniform(math.pi / 2, math.pi)
+                elif g.random() < self.config.random_turn_probability:
+                    turn = g.uniform(math.pi / 12, math.pi / 2)
+                else:
+                    turn = 0.0
+                side = Action.TURN_LEFT if g.random() < 0.5 else Action.TURN_RIGHT
+                self.queue[i] = [side] * max(1, round(turn / step)) if turn else [Action.MOVE_FORWARD]
+            out.append(self.queue[i].pop(0))
+        return out
+
+
+def built_in(name: str, *, seed: int = 0, config: PolicyConfig = PolicyConfig(),
+             actions: ActionConfig = ActionConfig()) -> Policy:
+    """The built-in policy called `name` (one of BUILT_IN)."""
+    if name == "oracle":
+        return Oracle(actions)
+    if name == "straight":
+        return Straight(config, actions)
+    if name == "random":
+        return RandomWalk(config, actions, seed=seed)
+    raise ValueError(f"unknown policy {name!r} (expected a URL or one of {', '.join(BUILT_IN)})")

@@ -1,0 +1,200 @@
+"""Episodes run closed-loop: B episode slots of one run stepped together, one action each per step.
+
+A step turns each running slot's action into a command (actions.py), moves the agents of each scene in one
+MuJoCo call (motion.py), ends slots on STOP, on the step limit or on leaving the map, and renders every
+running slot's view in one renderer call per scene (observe.py). Slots never influence each other: stepping
+episodes together gives byte for byte what stepping them one at a time gives (tests/test_navsim_simulator.py).
+Running metrics per slot: the distance on foot to the goal, success (stopped within the goal radius on foot)
+and c(t) of the last action; the reward is the step's progress on foot towards the goal.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from sagebench.config import AgentConfig
+from sagebench.evaluation.predictions import Prediction
+from sagebench.evaluation.scoring import Episode
+from sagebench.navsim.actions import ActionConfig, continuous_commands, discrete_commands
+from sagebench.navsim.motion import Agents, MotionConfig, wrap
+from sagebench.navsim.observe import observe
+from sagebench.navsim.world import World, open_world, run_episodes
+from sagebench.replay.physics import ReplayConfig
+
+POSE_DECIMALS = 6  # predictions are written to the micrometre / microradian
+ImageKey = Literal["rgb", "depth", "instance"]
+
+
+class EnvConfig(BaseModel):
+    """The closed-loop environment's settings (defaults here, nowhere else)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    width: int = Field(default=224, ge=1, le=4096, description="Image width, px.")
+    height: int = Field(default=224, ge=1, le=4096, description="Image height, px.")
+    agent: AgentConfig = AgentConfig()
+    observations: tuple[ImageKey, ...] = Field(default=("rgb", "depth", "instance"),
+                                               description="Images to render (none: pose and instruction only).")
+    max_steps: int = Field(default=500, ge=1, description="Actions per episode before it is cut off.")
+    action_space: Literal["discrete", "continuous"] = Field(default="discrete", description="Which action space.")
+    actions: ActionConfig = ActionConfig()
+    motion: MotionConfig = MotionConfig()
+    replay: ReplayConfig = ReplayConfig()
+
+
+@dataclass
+class Slot:
+    """One running (or finished) episode."""
+
+    episode: Episode
+    instruction: str
+    world: World
+    row: int  # the agent's row in its scene's Agents
+    poses: list[tuple[float, float, float, float]]
+    intensity: list[float]
+    distance: float  # on foot to the goal now, m
+    steps: int = 0
+    stopped: bool = False
+    outcome: str = ""  # "" while running, else stop / step_limit / left_map
+    collided: bool = False
+    last: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def done(self) -> bool:
+        return bool(self.outcome)
+
+    @property
+    def success(self) -> float:
+        return float(self.stopped and self.distance <= self.episode.goal_radius)
+
+    def prediction(self) -> Prediction:
+        """The episode so far as a predictions.jsonl row, c(t) as the simulator measured it."""
+        return Prediction(episode_id=self.episode.episode_id, poses=self.poses, stopped=self.stopped,
+                          collision_intensity=self.intensity, intensity_source="simulator")
+
+
+@dataclass(frozen=True)
+class StepResult:
+    observation: dict
+    reward: float
+    terminated: bool  # STOP or left the map
+    truncated: bool  # step limit
+    info: dict
+
+
+class Simulator:
+    """Episode slots over one run directory; scenes load on first use."""
+
+    def __init__(self, run_dir: Path, config: EnvConfig = EnvConfig(), *, scene_id: str | None = None,
+                 threads: int = 1):
+        self.run_dir, self.config, self.threads = Path(run_dir), config, threads
+        episodes, self.instructions = run_episodes(self.run_dir, scene_id)
+        self.episodes = {e.episode_id: e for e in episodes}
+        self.order = [e.episode_id for e in episodes]
+        self._worlds: dict[str, World] = {}
+        self.slots: list[Slot] = []
+        self._agents: dict[str, Agents] = {}
+
+    def world(self, scene_id: str) -> World:
+        if scene_id not in self._worlds:
+            c = self.config
+            self._worlds[scene_id] = open_world(self.run_dir, scene_id, agent=c.agent, replay=c.replay,
+                                                images=bool(c.observations))
+        return self._worlds[scene_id]
+
+    def start(self, episode_ids: Sequence[str]) -> list[StepResult]:
+        """Begin these episodes, one slot each, at their start poses."""
+        unknown = [i for i in episode_ids if i not in self.episodes]
+        if unknown:
+            raise KeyError(f"no episode {unknown[0]!r} in {self.run_dir}")
+        self.slots, self._agents = [], {}
+        by_scene: dict[str, list[int]] = {}
+        for i, eid in enumerate(episode_ids):
+            e = self.episodes[eid]
+            w = self.world(e.scene_id)
+            rows = by_scene.setdefault(e.scene_id, [])
+            pose = (float(e.start[0]), float(e.start[1]), w.model.floor_z, float(wrap(e.start_yaw)))
+            self.slots.append(Slot(episode=e, instruction=self.instructions.get(eid, ""), world=w, row=len(rows),
+                                   poses=[_rounded(pose)], intensity=[0.0],
+                                   distance=float(w.navmap.field(e.goal).distance(e.start[None])[0])))
+            rows.append(i)
+        for sid, rows in by_scene.items():
+            starts = np.array([[self.slots[i].episode.start[0], self.slots[i].episode.start[1],
+                                self.slots[i].episode.start_yaw] for i in rows], dtype=np.float64)
+            self._agents[sid] = Agents(self._worlds[sid].model, starts, threads=self.threads)
+        self._render(range(len(self.slots)))
+        return [self._result(s, 0.0, 0.0) for s in self.slots]
+
+    def step(self, actions: Sequence) -> list[StepResult]:
+        """One action per slot (ignored for finished slots); the slots' results in slot order."""
+        if len(actions) != len(self.slots):
+            raise ValueError(f"expected {len(self.slots)} actions (one per slot), got {len(actions)}")
+        running = [i for i, s in enumerate(self.slots) if not s.done]
+        c = self.config
+        if running:
+            if c.action_space == "discrete":
+                v, omega, stop = discrete_commands(np.array([actions[i] for i in running]), c.actions)
+            else:
+                v, omega, stop = continuous_commands(np.array([actions[i] for i in running]), c.replay)
+        before = {i: self.slots[i].distance for i in running}
+        moving: dict[str, list[tuple[int, float, float]]] = {}
+        for k, i in enumerate(running):
+            s = self.slots[i]
+            if stop[k]:
+                s.stopped, s.outcome, s.collided = True, "stop", False  # STOP takes no action: no new pose
+            else:
+                moving.setdefault(s.episode.scene_id, []).append((i, float(v[k]), float(omega[k])))
+        moved = []
+        for sid, items in moving.items():
+            slots = [self.slots[i] for i, _, _ in items]
+            motion = self._agents[sid].move(np.array([s.row for s in slots]), np.array([x[1] for x in items]),
+                                            np.array([x[2] for x in items]), c.actions.control_interval, c.motion)
+            for k, s in enumerate(slots):
+                x, y, yaw = motion.pose[k]
+                s.poses.append(_rounded((float(x), float(y), s.world.model.floor_z, float(wrap(yaw)))))
+                s.intensity.append(round(float(motion.intensity[k]), POSE_DECIMALS))
+                s.collided = bool(motion.collided[k])
+                s.steps += 1
+                s.distance = float(s.world.navmap.field(s.episode.goal).distance(np.array([[x, y]]))[0])
+                if not s.world.inside(np.array([[x, y]]))[0]:
+                    s.outcome = "left_map"
+                elif s.steps >= c.max_steps:
+                    s.outcome = "step_limit"
+            moved += [i for i, _, _ in items]
+        self._render(sorted(moved))
+        out = []
+        for i, s in enumerate(self.slots):
+            gained = before[i] - s.distance if i in before and np.isfinite(before[i] - s.distance) else 0.0
+            out.append(self._result(s, gained, s.intensity[-1] if i in moved else 0.0))
+        return out
+
+    def _render(self, slots: Sequence[int]) -> None:
+        c = self.config
+        by_scene: dict[str, list[int]] = {}
+        for i in slots:
+            by_scene.setdefault(self.slots[i].episode.scene_id, []).append(i)
+        for sid, rows in by_scene.items():
+            w = self._worlds[sid]
+            poses = np.array([self.slots[i].poses[-1] for i in rows])
+            images = observe(w.gaussians, poses, c.observations, floor_z=w.model.floor_z,
+                             camera_height=c.agent.camera_height, hfov_deg=c.agent.hfov_deg, width=c.width,
+                             height=c.height) if c.observations else [{} for _ in rows]
+            for i, img in zip(rows, images):
+                self.slots[i].last = img
+
+    def _result(self, s: Slot, reward: float, c_t: float) -> StepResult:
+        obs = {**{k: v.copy() for k, v in s.last.items()}, "pose": np.array(s.poses[-1], dtype=np.float64), "instruction": s.instruction,
+               "collided": s.collided}
+        info = {"episode_id": s.episode.episode_id, "distance_to_goal": s.distance, "success": s.success,
+                "collision_intensity": float(c_t), "steps": s.steps, "outcome": s.outcome or "running"}
+        return StepResult(obs, float(reward), s.outcome in ("stop", "left_map"), s.outcome == "step_limit", info)
+
+
+def _rounded(pose: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+    return tuple(round(v, POSE_DECIMALS) for v in pose)  # type: ignore[return-value]
