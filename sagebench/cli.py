@@ -513,6 +513,36 @@ def baseline_cmd(
     typer.echo(run_baseline(run_dir, out, config, scene_id=scene).summary())
 
 
+@app.command("rollout", cls=_defaults_from("sagebench.stages.rollout:RolloutConfig"))
+def rollout_cmd(
+    run_dir: Annotated[Path, typer.Option("--run", help="Run directory (build-scene, gen-trajectories, export-usd).")],
+    out: Annotated[Path, typer.Option("--out", help="Predictions file to write (JSON Lines).")],
+    policy: Annotated[str | None, typer.Option(help="A policy server's http(s):// URL, or oracle, straight, random.")] = None,
+    episodes: Annotated[int | None, typer.Option(help="Run a seeded sample of N episodes (default: all).")] = None,
+    obs: Annotated[str | None, typer.Option(help="Images to render: comma-separated rgb, depth, instance, or none.")] = None,
+    width: Annotated[int | None, typer.Option(help="Image width, px.")] = None,
+    height: Annotated[int | None, typer.Option(help="Image height, px.")] = None,
+    max_steps: Annotated[int | None, typer.Option(help="Actions per episode before it is cut off.")] = None,
+    workers: Annotated[int | None, typer.Option(help="Threads stepping MuJoCo and calling the policy server.")] = None,
+    seed: Annotated[int | None, typer.Option(help="Seed of the episode sample and of the random policy.")] = None,
+    scene: Annotated[str | None, typer.Option("--scene", help="Only this scene's episodes (default: every scene).")] = None,
+) -> None:
+    """Run a policy closed-loop in the simulator: it sees rendered views, acts (STOP, MOVE_FORWARD 0.25 m,
+    TURN_LEFT / TURN_RIGHT 15 degrees), MuJoCo moves the agent and measures each step's collision intensity.
+
+    A URL policy gets one HTTP POST per step and episode (README: the policy protocol); oracle, straight and
+    random are the built-in baselines. Reads RUN/episodes/<id>/, RUN/scenes/<id>/ (scene.json, topdown.npz,
+    gaussians.ply, scene.xml, colliders/). Writes OUT (one JSON line per episode: poses, stopped, the
+    simulator's collision_intensity marked intensity_source "simulator") and, when rgb is rendered,
+    OUT's stem + _contact_sheet.png (start, middle and end views of the first 4 episodes).
+    """
+    from sagebench.stages.rollout import make_config, run_rollout
+
+    config = make_config(policy=policy, episodes=episodes, obs=obs, width=width, height=height, max_steps=max_steps,
+                         workers=workers, seed=seed)
+    typer.echo(run_rollout(run_dir, out, config, scene_id=scene).summary())
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console entry point: the one place where errors become exit status 2."""
     try:

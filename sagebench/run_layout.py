@@ -92,6 +92,7 @@ CONTRACT: dict[str, StageFiles] = {
     "baseline": StageFiles(reads=(Place("episodes"), *REPLAY_MODEL)),
     "render": StageFiles(reads=(Place("scene", SCENE_FILE), Place("scene", GAUSSIANS))),
     "export_vlnce": StageFiles(reads=(Place("episodes"), *NORMALISED_SCENE)),  # writes its own directory
+    "rollout": StageFiles(reads=(Place("episodes"), Place("scene", TOPDOWN), Place("scene", GAUSSIANS), *REPLAY_MODEL)),
 }
 
 OUTPUT_ROOTS = tuple(sorted({_RUN_ROOTS[p.root] for s in CONTRACT.values() for p in s.writes}))

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import contextlib
 import sys
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import TypeVar
 
@@ -31,6 +32,21 @@ def track(items: Iterable[T], description: str, total: int | None = None) -> Ite
     from rich.progress import track as rich_track
 
     yield from rich_track(items, description=description, total=total, transient=True)
+
+
+@contextmanager
+def progress(total: int, description: str) -> Iterator[Callable[[int, str], None]]:
+    """A bar the caller advances: `update(completed, status)` (status: a short text shown after the bar, such
+    as a rate); does nothing when quiet or not a TTY."""
+    if SETTINGS.quiet or not sys.stderr.isatty():
+        yield lambda completed, status: None
+        return
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TextColumn("{task.fields[status]}"), transient=True) as bar:
+        task = bar.add_task(description, total=total, status="")
+        yield lambda completed, status: bar.update(task, completed=completed, status=status)
 
 
 def info(message: str) -> None:

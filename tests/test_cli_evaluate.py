@@ -44,19 +44,21 @@ def test_the_oracle_scores_perfectly(demo_eval_run, oracle, tmp_path, run_cli):
     n = len(_lines(oracle))
     assert lines[0] == HEADER
     assert lines[1].startswith(f"overall                          {n:>8d}    1.000    1.000")
-    groups = [ln.split()[0] for ln in lines[2:-2]]
+    groups = [ln.split()[0] for ln in lines[2:-3]]
     assert groups == sorted(groups, key=("level", "type", "split").index) and lines[-1] == f"wrote {out}"  # levels, then types
-    assert lines[-2] == DISTANCES
+    assert lines[-3] == DISTANCES
+    assert lines[-2].startswith(f"ICP from c(t) self-reported in {n} episodes (measured: ")  # the baseline's own
     res = json.loads(out.read_text())
     o = res["overall"]
     assert (o["episodes"], o["sr"], o["osr"], o["csr"], o["icp"]) == (n, 1.0, 1.0, 1.0, 0.0)
     assert o["spl"] == pytest.approx(1.0, abs=1e-5) and o["ndtw"] == pytest.approx(0.99735, abs=2e-4)  # measured
     assert res["missing"] == [] and res["intensity_replayed"] == 0 and len(res["per_episode"]) == n
+    assert res["icp_source"] == {"measured": 0, "self-reported": n, "derived": 0}
     assert res["predictions"]["file"] == "oracle.jsonl" and res["config"]["metrics"]["corridor_radius"] == 1.0
     assert set(res["by_type"]) >= {"Base_Action", "Single_Goal"} and set(res["by_level"]) >= {"low"}
     assert sum(g["episodes"] for g in res["by_type"].values()) == n
     assert sum(g["episodes"] for g in res["by_level"].values()) == n
-    assert len(lines) == 1 + 1 + len(res["by_level"]) + len(res["by_type"]) + len(res["by_split"]) + 2
+    assert len(lines) == 1 + 1 + len(res["by_level"]) + len(res["by_type"]) + len(res["by_split"]) + 3
     assert res["by_split"] == {"val_unseen": res["overall"]}  # the demo scene, held out at the default fractions
     assert res["distance_used"]["sr"] == "on_foot" and res["distance_used"]["ne_straight"] == "straight"
     first = out.read_bytes()
@@ -75,6 +77,7 @@ def test_poses_alone_are_replayed_for_collision_intensity(demo_eval_run, oracle,
     assert run_cli("evaluate", "--run", demo_eval_run, "--predictions", pred, "--out", out)[0] == 0
     res = json.loads(out.read_text())
     assert res["intensity_replayed"] == len(rows)
+    assert {e["icp_source"] for e in res["per_episode"]} == {"derived"}
     icp = {e["episode_id"]: e["icp"] for e in res["per_episode"]}
     assert icp.pop(first["episode_id"]) > 0.3  # c of the step >= 1 - 12/30, and ICP its mean with c(0) = 0
     assert set(icp.values()) == {0.0}  # the oracle's own poses replay without collisions

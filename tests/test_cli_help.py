@@ -22,6 +22,7 @@ COMMANDS = {  # command -> (stage module, settings model)
     "validate": ("sagebench.stages.validate", "ValidateConfig"),
     "evaluate": ("sagebench.stages.evaluate", "EvaluateConfig"),
     "baseline": ("sagebench.stages.baseline", "BaselineConfig"),
+    "rollout": ("sagebench.stages.rollout", "RolloutConfig"),
 }
 
 

@@ -114,8 +114,15 @@ def _export_vlnce(run: Path, out: Path) -> bytes:
     return b"".join(p.read_bytes() for p in export_vlnce(run, out).files)
 
 
+def _rollout(run: Path, out: Path) -> bytes:
+    from sagebench.stages.rollout import make_config, run_rollout
+
+    run_rollout(run, out / "r.jsonl", make_config(width=16, height=12, episodes=2, max_steps=3))
+    return (out / "r.jsonl").read_bytes() + (out / "r_contact_sheet.png").read_bytes()
+
+
 @pytest.mark.parametrize("command, call", [("baseline", _baseline), ("evaluate", _evaluate), ("render", _render),
-                                           ("export_vlnce", _export_vlnce)])
+                                           ("export_vlnce", _export_vlnce), ("rollout", _rollout)])
 def test_commands_outside_the_pipeline_need_only_the_files_they_declare(command, call, full_run, tmp_path):
     run, _ = full_run
     alone = tmp_path / "run"

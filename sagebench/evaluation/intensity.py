@@ -28,6 +28,8 @@ from sagebench.replay.physics import ReplayConfig, ReplayModel, replay_batch
 # lands on it exactly, so short steps do not fall short), a blocked step gives up after 0.5 s without progress
 # (not 2 s), and the time limit's slack is 1 s, since a step is short.
 STEP_REPLAY = ReplayConfig(stall_time=0.5, time_slack=1.0, waypoint_tolerance=0.005)
+ICP_NOTE = ("measured: c(t) from sagebench rollout's simulator; self-reported: the agent's own; derived: evaluate "
+            "replayed each step from pose t-1 towards pose t and took the share of the motion contact blocked")
 ARRIVAL_TOLERANCE = 0.05  # m, one map cell: a step that ended this close to its target was not blocked (a brush)
 
 

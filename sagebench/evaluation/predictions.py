@@ -5,14 +5,15 @@ One object per line (blank lines are skipped):
 `poses` are world metres and radians (Z up, yaw counter-clockwise from +X), row 0 the start, one row per agent
 step; `stopped` says the agent ended the episode itself (SR needs it); the optional `collision_intensity` gives
 c(t) in [0, 1] per pose (the fraction of that step's commanded motion contact blocked; 0 for row 0). Without
-it, evaluate derives c(t) by replaying each step against the scene's colliders.
+it, evaluate derives c(t) by replaying each step against the scene's colliders. `intensity_source` "simulator"
+marks c(t) that `sagebench rollout` measured (absent: the agent's own report).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
@@ -39,9 +40,15 @@ class Prediction(BaseModel):
         default=None,
         description="Optional c(t) in [0, 1] per pose: fraction of the step's commanded motion that contact "
                     "blocked (0 for row 0). When absent, evaluate replays the poses against the colliders.")
+    intensity_source: Literal["simulator"] | None = Field(
+        default=None,
+        description="'simulator' when sagebench rollout measured collision_intensity in its MuJoCo simulator; "
+                    "absent when the agent reported it itself. evaluate reports each episode's ICP source.")
 
     @model_validator(mode="after")
     def _one_intensity_per_pose(self) -> Prediction:
+        if self.intensity_source is not None and self.collision_intensity is None:
+            raise ValueError("intensity_source without collision_intensity")
         if self.collision_intensity is not None and len(self.collision_intensity) != len(self.poses):
             raise ValueError(f"collision_intensity has {len(self.collision_intensity)} values for "
                              f"{len(self.poses)} poses (one per pose)")

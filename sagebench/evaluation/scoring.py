@@ -20,6 +20,8 @@ METRIC_NAMES = ("sr", "osr", "spl", "ne", "ne_straight", "ndtw", "sdtw", "csr", 
 # which distance to the goal each metric stands on (evaluate reports this with the scores)
 DISTANCE_USED = {"sr": "on_foot", "osr": "on_foot", "spl": "on_foot (success)", "ne": "on_foot",
                  "ne_straight": "straight", "sdtw": "on_foot (success)"}
+# who measured an episode's c(t): sagebench rollout's simulator, the agent itself, or evaluate's replay of the poses
+ICP_SOURCES = ("measured", "self-reported", "derived")
 NO_LEVEL = "none"  # group of rows without instruction_level/type (gen-trajectories --instructions none)
 
 
@@ -45,7 +47,11 @@ class EpisodeScore:
     episode: Episode
     metrics: EpisodeMetrics
     missing: bool  # no prediction: scored as a failure
-    replayed: bool  # c(t) came from replaying the poses (the prediction had no collision_intensity)
+    icp_source: str  # where c(t) came from: one of ICP_SOURCES, "missing" without a prediction
+
+    @property
+    def replayed(self) -> bool:
+        return self.icp_source == "derived"
 
 
 def score_prediction(episode: Episode, prediction: Prediction, intensity: np.ndarray,
@@ -55,6 +61,13 @@ def score_prediction(episode: Episode, prediction: Prediction, intensity: np.nda
     return score_episode(np.asarray(prediction.poses, dtype=np.float64), episode.reference_path, episode.goal,
                          on_foot=on_foot, goal_radius=episode.goal_radius, geodesic_distance=episode.geodesic_distance,
                          stopped=prediction.stopped, collision_intensity=intensity, config=config)
+
+
+def icp_source(prediction: Prediction) -> str:
+    """One of ICP_SOURCES for a prediction."""
+    if prediction.collision_intensity is None:
+        return "derived"
+    return "measured" if prediction.intensity_source == "simulator" else "self-reported"
 
 
 def missing_metrics(on_foot: GoalField) -> EpisodeMetrics:

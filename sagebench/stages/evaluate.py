@@ -20,10 +20,11 @@ from sagebench.config import AgentConfig, from_options
 from sagebench.episodes.load import load_episodes
 from sagebench.episodes.splits import SPLITS
 from sagebench.errors import ConfigError, DataError
-from sagebench.evaluation.intensity import STEP_REPLAY, replay_intensity
+from sagebench.evaluation.intensity import ICP_NOTE, STEP_REPLAY, replay_intensity
 from sagebench.evaluation.predictions import Prediction, match_episodes, read_predictions
 from sagebench.evaluation.scoring import (
-    DISTANCE_USED, METRIC_NAMES, Episode, EpisodeScore, Summary, missing_metrics, score_prediction, summarise_scores,
+    DISTANCE_USED, ICP_SOURCES, METRIC_NAMES, Episode, EpisodeScore, Summary, icp_source, missing_metrics,
+    score_prediction, summarise_scores,
 )
 from sagebench.fileio import write_json
 from sagebench.metrics import MetricConfig, NavigableMap
@@ -91,6 +92,7 @@ class Evaluation:
             "episodes": len(self.scores),
             "missing": self.missing,
             "intensity_replayed": sum(s.replayed for s in self.scores),
+            "icp_source": {k: sum(s.icp_source == k for s in self.scores) for k in ICP_SOURCES},
             "overall": rounded(self.summary.overall),
             "by_level": {k: rounded(v) for k, v in self.summary.by_level.items()},
             "by_type": {k: rounded(v) for k, v in self.summary.by_type.items()},
@@ -99,7 +101,8 @@ class Evaluation:
             "per_episode": [{"episode_id": s.episode.episode_id, "scene_id": s.episode.scene_id,
                              "instruction_level": s.episode.level, "instruction_type": s.episode.type,
                              "split": s.episode.split,
-                             "missing": s.missing, **{m: _r(getattr(s.metrics, m)) for m in METRIC_NAMES}}
+                             "missing": s.missing, "icp_source": s.icp_source,
+                             **{m: _r(getattr(s.metrics, m)) for m in METRIC_NAMES}}
                             for s in self.scores],
             "distance_used": DISTANCE_USED,
             "config": self.config.model_dump(mode="json"),
@@ -122,6 +125,9 @@ class Evaluation:
             used.setdefault(how.split()[0], []).append(label.get(m, m.upper()))
         lines.append("distance to the goal: " + "; ".join(f"{how.replace('_', ' ')} for {', '.join(ms)}"
                                                          for how, ms in used.items()))
+        counts = {k: sum(s.icp_source == k for s in self.scores) for k in ICP_SOURCES}
+        lines.append("ICP from c(t) " + ", ".join(f"{k} in {n} episodes" for k, n in counts.items() if n)
+                     + f" ({ICP_NOTE})")
         return "\n".join(lines)
 
 
@@ -171,12 +177,12 @@ def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = Evaluate
         p = matched.get(e.episode_id)
         if p is None:
             scores.append(EpisodeScore(e, missing_metrics(maps[e.scene_id].field(e.goal)), missing=True,
-                                       replayed=False))
+                                       icp_source="missing"))
             continue
-        replayed = p.collision_intensity is None
-        c = intensity[e.episode_id] if replayed else np.asarray(p.collision_intensity, dtype=np.float64)
+        source = icp_source(p)
+        c = intensity[e.episode_id] if source == "derived" else np.asarray(p.collision_intensity, dtype=np.float64)
         scores.append(EpisodeScore(e, score_prediction(e, p, c, config.metrics, on_foot=maps[e.scene_id].field(e.goal)),
-                                   missing=False, replayed=replayed))
+                                   missing=False, icp_source=source))
     result = Evaluation(scores=scores, summary=summarise_scores(scores), missing=missing, predictions=predictions,
                         predictions_sha256=hashlib.sha256(predictions.read_bytes()).hexdigest(), config=config,
                         split=split)

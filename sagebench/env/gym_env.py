@@ -1,0 +1,118 @@
+"""gymnasium's API over the closed-loop simulator: `NavEnv` runs one episode at a time, `VectorNavEnv` several.
+
+reset(options={"episode_id": ID}) starts that episode; without one, episodes come in an order shuffled by the
+reset seed (each once, then again). Observations: rgb [H, W, 3] uint8, depth [H, W] float32 m, instance [H, W]
+int32 (those asked for), pose [4] (x, y, z, yaw), instruction (text) and collided (this step). info: episode_id,
+distance_to_goal (on foot, m), success (SR so far), collision_intensity (c of this step), steps, outcome.
+"""
+
+from __future__ import annotations
+
+import string
+from collections.abc import Sequence
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from sagebench.navsim.actions import Action
+from sagebench.navsim.simulator import EnvConfig, Simulator, StepResult
+
+MAX_INSTRUCTION = 4096  # characters
+
+
+def action_space(config: EnvConfig) -> spaces.Space:
+    """Discrete(4) (STOP, MOVE_FORWARD, TURN_LEFT, TURN_RIGHT) or Box [v, omega, stop]."""
+    if config.action_space == "discrete":
+        return spaces.Discrete(len(Action))
+    r = config.replay
+    return spaces.Box(low=np.array([0.0, -r.max_turn_rate, 0.0], np.float32),
+                      high=np.array([r.max_speed, r.max_turn_rate, 1.0], np.float32), dtype=np.float32)
+
+
+def observation_space(config: EnvConfig, instructions: Sequence[str] = ()) -> spaces.Dict:
+    """The observation dict's space; the instruction's charset holds printable ASCII and every character used."""
+    h, w = config.height, config.width
+    images = {"rgb": spaces.Box(0, 255, (h, w, 3), np.uint8),
+              "depth": spaces.Box(0.0, np.inf, (h, w), np.float32),
+              "instance": spaces.Box(0, np.iinfo(np.int32).max, (h, w), np.int32)}
+    charset = sorted(set(string.printable) | {ch for text in instructions for ch in text})
+    return spaces.Dict({
+        **{k: images[k] for k in config.observations},
+        "pose": spaces.Box(-np.inf, np.inf, (4,), np.float64),
+        "instruction": spaces.Text(max_length=MAX_INSTRUCTION, min_length=0, charset="".join(charset)),
+        "collided": spaces.Discrete(2),
+    })
+
+
+class NavEnv(gym.Env):
+    """One episode of a run directory at a time (module docstring)."""
+
+    metadata = {"render_modes": ["rgb_array"]}
+
+    def __init__(self, run_dir: Path, config: EnvConfig = EnvConfig(), *, scene_id: str | None = None,
+                 render_mode: str | None = None):
+        self.sim = Simulator(run_dir, config, scene_id=scene_id)
+        self.config, self.render_mode = config, render_mode
+        self.action_space = action_space(config)
+        self.observation_space = observation_space(config, list(self.sim.instructions.values()))
+        self._queue: list[str] = []
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        if seed is not None:
+            self._queue = []
+        eid = (options or {}).get("episode_id")
+        if eid is None:
+            if not self._queue:
+                self._queue = [self.sim.order[i] for i in self.np_random.permutation(len(self.sim.order))]
+            eid = self._queue.pop(0)
+        r = self.sim.start([eid])[0]
+        return r.observation, r.info
+
+    def step(self, action):
+        if not self.sim.slots:
+            raise RuntimeError("call reset() before step()")
+        if self.sim.slots[0].done:
+            raise RuntimeError("the episode has ended; call reset()")
+        r = self.sim.step([action])[0]
+        return r.observation, r.reward, r.terminated, r.truncated, r.info
+
+    def render(self):
+        if "rgb" not in self.config.observations:
+            return None
+        return self.sim.slots[0].last["rgb"] if self.sim.slots else None
+
+    def prediction(self):
+        """The current episode as a predictions.jsonl row (c(t) measured by the simulator)."""
+        return self.sim.slots[0].prediction()
+
+
+class VectorNavEnv:
+    """Several episodes stepped together: physics in one MuJoCo call and rendering in one call per scene.
+
+    Unlike gymnasium's vector envs it does not reset a finished episode: finished slots ignore their action and
+    repeat their last result, so a batch of episodes runs until all are done (rollout's use).
+    """
+
+    def __init__(self, run_dir: Path, config: EnvConfig = EnvConfig(), *, scene_id: str | None = None,
+                 threads: int = 2):
+        self.sim = Simulator(run_dir, config, scene_id=scene_id, threads=threads)
+        self.config = config
+        self.single_action_space = action_space(config)
+        self.single_observation_space = observation_space(config, list(self.sim.instructions.values()))
+
+    def reset(self, episode_ids: Sequence[str]) -> tuple[list[dict], list[dict]]:
+        results = self.sim.start(list(episode_ids))
+        return [r.observation for r in results], [r.info for r in results]
+
+    def step(self, actions: Sequence) -> list[StepResult]:
+        return self.sim.step(list(actions))
+
+    @property
+    def done(self) -> list[bool]:
+        return [s.done for s in self.sim.slots]
+
+    def predictions(self):
+        return [s.prediction() for s in self.sim.slots]

@@ -1,0 +1,180 @@
+"""The closed-loop environment on the demo run: gymnasium's checker, the baselines through it, a real HTTP policy
+server, vectorised == sequential, and rollout / evaluate on its predictions."""
+
+from __future__ import annotations
+
+import json
+import threading
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+from sagebench.env import NavEnv, VectorNavEnv
+from sagebench.metrics.episode import path_smoothness
+from sagebench.navsim.actions import Action
+from sagebench.navsim.http_policy import decode_image
+from sagebench.navsim.policies import RandomWalk, built_in
+from sagebench.navsim.rollout import rollout
+from sagebench.navsim.simulator import EnvConfig, Simulator
+
+SMALL = EnvConfig(width=32, height=24, observations=("rgb", "depth", "instance"))
+BLIND = EnvConfig(observations=())
+
+
+def test_gymnasium_accepts_the_env(demo_eval_run):
+    env = NavEnv(demo_eval_run, SMALL.model_copy(update={"max_steps": 5}))
+    check_env(env, skip_render_check=False)
+    obs, info = env.reset(seed=3)
+    assert obs["rgb"].shape == (24, 32, 3) and obs["rgb"].dtype == np.uint8
+    assert obs["depth"].dtype == np.float32 and obs["instance"].dtype == np.int32
+    assert obs["instruction"] and obs["pose"].shape == (4,) and info["outcome"] == "running"
+    eid = info["episode_id"]
+    assert env.reset(options={"episode_id": eid})[1]["episode_id"] == eid
+
+
+def test_episodes_end_on_stop_and_on_the_step_limit(demo_eval_run):
+    env = NavEnv(demo_eval_run, BLIND.model_copy(update={"max_steps": 3}))
+    env.reset(seed=0)
+    for k in range(3):
+        _, _, terminated, truncated, info = env.step(Action.TURN_LEFT)
+    assert (terminated, truncated, info["outcome"], info["steps"]) == (False, True, "step_limit", 3)
+    with pytest.raises(RuntimeError, match="has ended"):
+        env.step(Action.TURN_LEFT)
+    env.reset(seed=0)
+    _, _, terminated, truncated, info = env.step(Action.STOP)
+    assert (terminated, truncated, info["outcome"], info["steps"]) == (True, False, "stop", 0)
+    assert len(env.prediction().poses) == 1 and env.prediction().stopped
+
+
+def test_the_oracle_reaches_every_goal(demo_eval_run):
+    sim = Simulator(demo_eval_run, BLIND)
+    result = rollout(sim, built_in("oracle"), sim.order, batch=len(sim.order))
+    assert len(result.predictions) == len(sim.order) == len(sim.slots) > 0
+    assert all(s.success == 1.0 for s in sim.slots)  # SR 1
+    icp = [float(np.mean(p.collision_intensity)) for p in result.predictions]
+    assert all(p.stopped for p in result.predictions) and max(icp) < 0.05
+
+
+def test_straight_scrapes_walls_and_the_simulator_measures_it(demo_eval_run):
+    sim = Simulator(demo_eval_run, BLIND)
+    result = rollout(sim, built_in("straight"), sim.order, batch=len(sim.order))
+    icp = np.array([np.mean(p.collision_intensity) for p in result.predictions])
+    sr = np.array([s.success for s in sim.slots])
+    assert 0.0 < sr.mean() < 1.0
+    assert (icp > 0).mean() >= 0.25  # a quarter of its episodes pushed into colliders (measured, not replayed)
+    assert icp.max() > 0.3 and icp.mean() > 0.05  # measured 0.359 and 0.066: turn actions (c = 0) dilute the mean
+    assert all(p.intensity_source == "simulator" for p in result.predictions)
+
+
+def test_a_policy_that_only_turns_scores_the_smoothness_of_15_degree_turns(demo_eval_run):
+    env = NavEnv(demo_eval_run, BLIND.model_copy(update={"max_steps": 12}))
+    env.reset(seed=1)
+    for _ in range(12):
+        env.step(Action.TURN_RIGHT)
+    yaw = np.array(env.prediction().poses)[:, 3]
+    assert np.allclose(np.diff(np.unwrap(yaw)), -np.radians(15), atol=1e-6)
+    assert path_smoothness(yaw) == pytest.approx(1 - 15 / 180, abs=1e-6)  # PS penalises the turn per step
+
+
+def test_vectorised_equals_sequential_byte_for_byte(demo_eval_run):
+    cfg = EnvConfig(width=32, height=24, observations=("rgb", "depth"), max_steps=25)
+    ids = Simulator(demo_eval_run, cfg).order[:4]
+    together = rollout(Simulator(demo_eval_run, cfg, threads=2), RandomWalk(seed=5), ids, batch=4, sheet=4)
+    alone = rollout(Simulator(demo_eval_run, cfg), RandomWalk(seed=5), ids, batch=1, sheet=4)
+    assert [p.model_dump_json() for p in together.predictions] == [p.model_dump_json() for p in alone.predictions]
+    for a, b in zip(together.views, alone.views):
+        assert [f.tobytes() for f in a.frames + [a.last]] == [f.tobytes() for f in b.frames + [b.last]]
+    assert together.steps == alone.steps > 4
+    vec = VectorNavEnv(demo_eval_run, cfg)
+    obs, _ = vec.reset(ids[:2])
+    results = vec.step([Action.MOVE_FORWARD, Action.TURN_LEFT])
+    single = NavEnv(demo_eval_run, cfg)
+    single.reset(options={"episode_id": ids[1]})
+    o, *_ = single.step(Action.TURN_LEFT)
+    assert results[1].observation["rgb"].tobytes() == o["rgb"].tobytes()
+    assert results[1].observation["depth"].tobytes() == o["depth"].tobytes()
+
+
+class _Policy(BaseHTTPRequestHandler):
+    """Moves forward twice, then stops; records what it was sent."""
+
+    seen: list[dict] = []
+
+    def do_POST(self):  # noqa: N802 - http.server's name
+        body = json.loads(self.rfile.read(int(self.headers["Content-Length"])))
+        _Policy.seen.append(body)
+        reply = json.dumps({"action": "MOVE_FORWARD" if body["step"] < 2 else "STOP"}).encode()
+        self.send_response(200)
+        self.send_header("Content-Type", "application/json")
+        self.send_header("Content-Length", str(len(reply)))
+        self.end_headers()
+        self.wfile.write(reply)
+
+    def log_message(self, *args):
+        pass
+
+
+@pytest.fixture
+def policy_server():
+    server = ThreadingHTTPServer(("127.0.0.1", 0), _Policy)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    _Policy.seen = []
+    try:
+        yield f"http://127.0.0.1:{server.server_address[1]}/act"
+    finally:
+        server.shutdown()
+        thread.join(timeout=10)
+
+
+def test_an_http_policy_server_drives_an_episode(demo_eval_run, policy_server, tmp_path, run_cli):
+    out = tmp_path / "p.jsonl"
+    code, stdout, err = run_cli("rollout", "--run", demo_eval_run, "--policy", policy_server, "--out", out,
+                                "--episodes", "1", "--width", "32", "--height", "24", "--obs", "rgb,depth")
+    assert code == 0, err
+    (row,) = [json.loads(line) for line in out.read_text().splitlines()]
+    assert len(row["poses"]) == 3 and row["stopped"] and row["intensity_source"] == "simulator"
+    assert [b["step"] for b in _Policy.seen] == [0, 1, 2]
+    first = _Policy.seen[0]
+    assert first["episode_id"] == row["episode_id"] and first["instruction"] and first["pose"] == row["poses"][0]
+    assert decode_image(first["observations"]["rgb"]).shape == (24, 32, 3)
+    depth = decode_image(first["observations"]["depth"])
+    assert depth.shape == (24, 32) and depth.dtype == np.float32 and depth.max() > 0
+    assert (tmp_path / "p_contact_sheet.png").is_file()
+    assert stdout.startswith("rollout http://127.0.0.1:")
+    step = np.hypot(*(np.array(row["poses"][1][:2]) - row["poses"][0][:2]))
+    assert step == pytest.approx(0.25, abs=1e-5) or row["collision_intensity"][1] > 0
+
+
+def test_rollout_predictions_are_scored_as_measured(demo_eval_run, tmp_path, run_cli):
+    out = tmp_path / "s.jsonl"
+    assert run_cli("rollout", "--run", demo_eval_run, "--policy", "straight", "--out", out, "--obs", "none")[0] == 0
+    assert not (tmp_path / "s_contact_sheet.png").exists()
+    res = tmp_path / "r.json"
+    code, stdout, _ = run_cli("evaluate", "--run", demo_eval_run, "--predictions", out, "--out", res)
+    assert code == 0
+    data = json.loads(res.read_text())
+    assert data["icp_source"] == {"measured": data["episodes"], "self-reported": 0, "derived": 0}
+    assert f"ICP from c(t) measured in {data['episodes']} episodes" in stdout
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--policy", "nope"), "error: --policy: 'nope' is neither an http(s):// URL nor one of oracle, straight, random"),
+    (("--obs", "rgb,colour"), "error: --obs: 'colour' is not one of rgb, depth, instance (or none)"),
+    (("--width", "0"), "error: --width: "),
+])
+def test_bad_options_are_one_line_and_write_nothing(demo_eval_run, tmp_path, run_cli, args, message):
+    out = tmp_path / "p.jsonl"
+    code, stdout, err = run_cli("rollout", "--run", demo_eval_run, "--out", out, *args)
+    assert code == 2 and err.startswith(message) and len(err.strip().splitlines()) == 1, err
+    assert not list(tmp_path.iterdir())
+
+
+def test_an_unreachable_policy_server_fails_on_one_line(demo_eval_run, tmp_path, run_cli):
+    out = tmp_path / "p.jsonl"
+    code, _, err = run_cli("rollout", "--run", demo_eval_run, "--out", out, "--obs", "none", "--episodes", "1",
+                           "--policy", "http://127.0.0.1:9/act")
+    assert code == 1 and err.startswith("error: policy http://127.0.0.1:9/act (episode ") and len(err.splitlines()) == 1
+    assert not list(tmp_path.iterdir())
