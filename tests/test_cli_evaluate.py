@@ -181,3 +181,20 @@ def test_splits_are_scored_apart_and_predictions_of_other_splits_are_left_out(de
     assert code == 2 and err.strip() == f"error: {run}: no episodes in split 'test'"
     code, _, err = run_cli("evaluate", "--run", run, "--predictions", pred, "--split", "dev")
     assert code == 2 and "'dev' is not a split (one of train, val_seen, val_unseen, test)" in err
+
+
+def test_traces_that_scraped_walls_get_a_derived_icp_well_above_0(demo_eval_run, tmp_path, run_cli):
+    from sagebench.stages.baseline import BaselineConfig, run_baseline
+
+    own = tmp_path / "straight.jsonl"
+    run_baseline(demo_eval_run, own, BaselineConfig(agent_name="straight"))
+    rows = _lines(own)
+    bare = _write(tmp_path / "bare.jsonl", [{k: v for k, v in r.items() if k != "collision_intensity"} for r in rows])
+    out = tmp_path / "r.json"
+    code, stdout, _ = run_cli("evaluate", "--run", demo_eval_run, "--predictions", bare, "--out", out)
+    assert code == 0
+    res = json.loads(out.read_text())
+    assert res["icp_source"]["derived"] == len(rows)
+    # measured 0.159 (its own c(t): 0.32): replaying reached poses alone gave 0.00, contact within 1 cm finds it
+    assert res["overall"]["icp"] > 0.1
+    assert f"ICP from c(t) derived in {len(rows)} episodes" in stdout and "within 0.01 m of a collider" in stdout

@@ -8,7 +8,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from sagebench.evaluation.intensity import STEP_REPLAY, blocked_fraction, replay_intensity
+from sagebench.evaluation.intensity import STEP_REPLAY, blocked_fraction, contact_share, replay_intensity
 from sagebench.replay.physics import build_replay_model, replay_one
 
 
@@ -68,3 +68,18 @@ def test_batched_steps_agree_with_one_plain_replay_per_step(rm):
         plain.append(float(blocked_fraction(a[None], b[None], end[None], min_step=rm.config.waypoint_tolerance)[0]))
     np.testing.assert_allclose(c, plain, atol=1e-12)
     assert (c > 0).any()  # the walk crosses the wall at x = 2.95
+
+
+def test_contact_share_counts_positions_within_the_contact_distance(rm):
+    # the agent (radius 0.2, its 32-gon up to 1 mm wider) beside the wall face x = 2.95: clear at a gap of 1.5 cm,
+    # touching at 0.5 cm (CONTACT_DISTANCE 1 cm); a step that stays put counts its one pose
+    clear, touch = 2.95 - 0.2 - 0.015, 2.95 - 0.2 - 0.005
+    still = np.array([[clear, -2.0, 0, 0], [clear, -2.0, 0, 1.0], [touch, -2.0, 0, 1.0], [touch, -2.0, 0, 2.0]])
+    (c,) = contact_share(rm, [still])
+    assert c.tolist() == [0.0, 0.0, pytest.approx(0.5), 1.0]  # start; turn in the clear; half the move; pressed
+    # along the wall for 1 m (51 positions 2 cm apart, all touching), then 0.19 m away from it (1 of 11 touches)
+    along = np.array([[touch, -2.0, 0, 0], [touch, -1.0, 0, 0], [touch - 0.19, -1.0, 0, 0]])
+    (c,) = contact_share(rm, [along])
+    assert c[1] == 1.0 and c[2] == pytest.approx(1 / 11)
+    free = np.array([[0.0, -2.0, 0, 0], [0.5, -2.5, 0, 0]])
+    assert contact_share(rm, [free])[0].tolist() == [0.0, 0.0]

@@ -14,22 +14,34 @@ The baseline agents measure c(t) while they drive. For predictions without `coll
 towards pose t, already facing it) in one `replay_batch`, so a step into a wall scores about 1 and a step
 along free floor 0, whatever the steps before it did. Poses closer together than the allowance register a
 wall they pass through by the steps that start inside it (the replay pushes the agent out: c = 1).
+
+Replaying reached poses rarely blocks anything (an agent that scraped along a wall reached every pose it
+reports), so evaluate also derives contact: `contact_share` is the share of the positions along a step (its
+start, its end and every SAMPLE_SPACING between) where the agent's cylinder comes within CONTACT_DISTANCE
+(0.01 m) of a collider, and a derived c(t) is the larger of the two. A step that stays where it is counts its
+one pose: an agent pressed against a wall scores 1 there. Paths planned on the navigable map keep at least
+0.02 m from the colliders (the demo's oracle: 0.020 m at its closest), so following them costs nothing.
 """
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 
+import mujoco
 import numpy as np
 
-from sagebench.replay.physics import ReplayConfig, ReplayModel, replay_batch
+from sagebench.replay.physics import AGENT_GEOM, ReplayConfig, ReplayModel, replay_batch
 
 # Replay settings for single agent steps: a step ends within 5 mm of its target (not 2 cm: the deadbeat drive
 # lands on it exactly, so short steps do not fall short), a blocked step gives up after 0.5 s without progress
 # (not 2 s), and the time limit's slack is 1 s, since a step is short.
 STEP_REPLAY = ReplayConfig(stall_time=0.5, time_slack=1.0, waypoint_tolerance=0.005)
+CONTACT_DISTANCE = 0.01  # m: an agent cylinder this close to a collider touches it (derived c(t))
+SAMPLE_SPACING = 0.02  # m between the positions checked along a step
 ICP_NOTE = ("measured: c(t) from sagebench rollout's simulator; self-reported: the agent's own; derived: evaluate "
-            "replayed each step from pose t-1 towards pose t and took the share of the motion contact blocked")
+            "replayed each step from pose t-1 towards pose t, c(t) = the larger of the share of the motion contact "
+            f"blocked and the share of the step within {CONTACT_DISTANCE} m of a collider")
 ARRIVAL_TOLERANCE = 0.05  # m, one map cell: a step that ended this close to its target was not blocked (a brush)
 
 
@@ -65,3 +77,31 @@ def replay_intensity(rm: ReplayModel, poses: Sequence[np.ndarray], *, threads: i
         c[moving] = blocked_fraction(starts[moving], targets[moving], end, min_step=tol)
     bounds = np.cumsum([0] + [len(s) - 1 for s in seqs])
     return [np.concatenate([[0.0], c[bounds[i]: bounds[i + 1]]]) for i in range(len(seqs))]
+
+
+def contact_share(rm: ReplayModel, poses: Sequence[np.ndarray], *, distance: float = CONTACT_DISTANCE,
+                  spacing: float = SAMPLE_SPACING) -> list[np.ndarray]:
+    """[T_i] per pose sequence [T_i, >=2]: for each step (0 for row 0) the share of its positions where the agent's
+    cylinder is within `distance` of a collider (module docstring)."""
+    model = copy.copy(rm.model)
+    g = model.geom(AGENT_GEOM).id
+    model.geom_margin[g] = model.geom_gap[g] = distance  # contacts reported (at least) this far out, exact dist
+    data = mujoco.MjData(model)
+    q = list(rm.qpos)
+
+    def touching(xy: np.ndarray) -> bool:
+        data.qpos[q] = xy[0], xy[1], 0.0
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_collision(model, data)
+        return any(c.dist <= distance for c in data.contact[: data.ncon])
+
+    out = []
+    for seq in poses:
+        xy = np.asarray(seq, dtype=np.float64)[:, :2]
+        c = np.zeros(len(xy))
+        for t in range(1, len(xy)):
+            n = int(np.ceil(np.linalg.norm(xy[t] - xy[t - 1]) / spacing))
+            points = xy[t - 1] + (xy[t] - xy[t - 1]) * np.linspace(0.0, 1.0, n + 1)[:, None] if n else xy[t][None]
+            c[t] = np.mean([touching(p) for p in points])
+        out.append(c)
+    return out

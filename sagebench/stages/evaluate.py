@@ -20,7 +20,7 @@ from sagebench.config import AgentConfig, from_options
 from sagebench.episodes.load import load_episodes
 from sagebench.episodes.splits import SPLITS
 from sagebench.errors import ConfigError, DataError
-from sagebench.evaluation.intensity import ICP_NOTE, STEP_REPLAY, replay_intensity
+from sagebench.evaluation.intensity import ICP_NOTE, STEP_REPLAY, contact_share, replay_intensity
 from sagebench.evaluation.predictions import Prediction, match_episodes, read_predictions
 from sagebench.evaluation.scoring import (
     DISTANCE_USED, ICP_SOURCES, METRIC_NAMES, Episode, EpisodeScore, Summary, icp_source, missing_metrics,
@@ -170,8 +170,9 @@ def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = Evaluate
     for sid in ui.track(need_replay, "replaying poses"):
         ids = [e.episode_id for e in episodes if e.scene_id == sid and e.episode_id in matched
                and matched[e.episode_id].collision_intensity is None]
-        cs = replay_intensity(models[sid], [np.asarray(matched[i].poses) for i in ids], threads=config.workers)
-        intensity.update(zip(ids, cs))
+        poses = [np.asarray(matched[i].poses) for i in ids]
+        blocked = replay_intensity(models[sid], poses, threads=config.workers)
+        intensity.update((i, np.maximum(b, near)) for i, b, near in zip(ids, blocked, contact_share(models[sid], poses)))
     scores = []
     for e in episodes:
         p = matched.get(e.episode_id)
