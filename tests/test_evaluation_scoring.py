@@ -32,7 +32,7 @@ def test_means_overall_per_level_and_per_type():
     def score(eid, level, kind, sr, icp):
         m = EpisodeMetrics(ne=1.0, ne_straight=1.0, sr=sr, osr=sr, spl=sr, ndtw=0.5, sdtw=sr / 2, csr=1.0, icp=icp, ps=1.0,
                            path_length=2.0)
-        return EpisodeScore(_episode(eid, level, kind), m, missing=False, replayed=False)
+        return EpisodeScore(_episode(eid, level, kind), m, missing=False, icp_source="self-reported")
 
     s = summarise_scores([score("a", "low", "Base_Action", 1, 0.0), score("b", "low", "Single_Goal", 0, 0.3),
                           score("c", "high", "Area_Based", 1, 0.6)])
