@@ -111,9 +111,9 @@ def test_removing_episodes_never_improves_any_mean(runs, data):
         e = _episode(f"e{i}")
         p = _prediction([(0.5, 1.0), *xy], stopped, f"e{i}")
         scores.append(EpisodeScore(e, score_prediction(e, p, np.asarray(c[:len(xy) + 1] + [0] * 6)[:len(xy) + 1],
-                                                       on_foot=field), missing=False, replayed=False))
+                                                       on_foot=field), missing=False, icp_source="self-reported"))
     dropped = data.draw(st.sets(st.integers(0, len(runs) - 1)))
-    with_missing = [EpisodeScore(s.episode, missing_metrics(field), missing=True, replayed=False)
+    with_missing = [EpisodeScore(s.episode, missing_metrics(field), missing=True, icp_source="missing")
                     if i in dropped else s for i, s in enumerate(scores)]
     full, partial = summarise_scores(scores).overall, summarise_scores(with_missing).overall
     for m in METRIC_NAMES:
