@@ -327,7 +327,12 @@ def test_ctrl_c_stops_a_cold_export_and_a_rerun_reuses_every_finished_piece(tmp_
         "objects": objects}))
     write_normalised_scene(load_scene(src), run / "scenes" / "six")
     args = ["export-usd", str(run), "--cache-dir", str(cache), "--colliders", "quality", "--coacd-max-hulls", "8"]
-    proc = subprocess.Popen([sys.executable, "-m", "sagebench", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    def as_from_a_terminal() -> None:  # a worker of the test runner may hand down SIGINT blocked or ignored
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+    proc = subprocess.Popen([sys.executable, "-m", "sagebench", *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, preexec_fn=as_from_a_terminal)
     try:
         for _ in range(2400):  # up to 2 minutes for the first piece on a busy machine
             if any(cache.rglob("*.npz")) or proc.poll() is not None:
