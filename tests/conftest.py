@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from fake_llm import FakeLLM
+
 from sagebench.cli import main
 from sagebench.ui import SETTINGS
 
@@ -87,3 +89,17 @@ def demo_eval_run(demo_built_run, tmp_path_factory) -> Path:
     gen_trajectories(run, GenTrajectoriesConfig(per_scene=8, seed=0))
     export_usd(run, cache_dir=tmp_path_factory.mktemp("eval_coacd_cache"))
     return run
+
+
+@pytest.fixture
+def fake_llm():
+    """Start fake OpenAI-compatible servers on 127.0.0.1 (start(respond) -> server); all closed after the test."""
+    servers: list[FakeLLM] = []
+
+    def start(respond):
+        servers.append(FakeLLM(respond))
+        return servers[-1]
+
+    yield start
+    for s in servers:
+        s.close()

@@ -27,19 +27,6 @@ from sagebench.instructions.prompt import build_prompt, estimate_tokens, parse_a
 BOUND_S = 20.0  # far above what any call here takes
 
 
-@pytest.fixture
-def fake_llm():
-    servers: list[FakeLLM] = []
-
-    def start(respond):
-        servers.append(FakeLLM(respond))
-        return servers[-1]
-
-    yield start
-    for s in servers:
-        s.close()
-
-
 def goal_answer(prompt: str) -> Reply:
     """A grounded answer: go to the goal by the unique name the prompt gives, voicing a need it serves when
     the type asks for one (the need from scenarios.toml, found by the goal's category or room type in the map)."""

@@ -12,7 +12,7 @@ from datetime import datetime, timezone
 from email.utils import format_datetime
 
 import pytest
-from fake_llm import FakeLLM, Reply, answer, bounded, completion
+from fake_llm import Reply, answer, bounded, completion
 
 from sagebench.instructions.llm_client import (
     ANSWER_SCHEMA,
@@ -26,19 +26,6 @@ from sagebench.instructions.llm_client import (
 )
 
 BOUND_S = 10.0  # every call below is expected to take well under a second or two
-
-
-@pytest.fixture
-def fake_llm():
-    servers: list[FakeLLM] = []
-
-    def start(respond):
-        servers.append(FakeLLM(respond))
-        return servers[-1]
-
-    yield start
-    for s in servers:
-        s.close()
 
 
 def config(tmp_path, url, **kw) -> LLMConfig:
