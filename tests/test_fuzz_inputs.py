@@ -91,6 +91,12 @@ def assert_refused(run_cli, args: list, where: Path, expect: str) -> None:
     assert snapshot(where) == before
 
 
+def assert_scene_refused(run_cli, scene: Path, where: Path, expect: str, check_expect: str | None = None) -> None:
+    """check-scene refuses what build-scene refuses (their parity); check_expect where its line differs."""
+    assert_refused(run_cli, ["check-scene", scene], where, expect if check_expect is None else check_expect)
+    assert_refused(run_cli, ["build-scene", scene, "--out", where / "run"], where, expect)
+
+
 # ---------------------------------------------------------------- scene.json: every leaf, four ways
 
 
@@ -255,8 +261,7 @@ def test_damaged_scene_json(text, expect, tiny_scene, run_cli, tmp_path):
     scene = tmp_path / "scene"
     shutil.copytree(tiny_scene, scene)
     (scene / "scene.json").write_text(text)
-    assert_refused(run_cli, ["check-scene", scene], tmp_path, expect)
-    assert_refused(run_cli, ["build-scene", scene, "--out", tmp_path / "run"], tmp_path, expect)
+    assert_scene_refused(run_cli, scene, tmp_path, expect)
 
 
 # ---------------------------------------------------------------- meshes: each file, six ways
@@ -292,8 +297,7 @@ def test_damaged_mesh(name, how, tiny_scene, run_cli, tmp_path):
     damage, expect = MESH_DAMAGE[how]
     damage(scene / name)
     field = f"scene.json: objects[{MESHES[name][1]}].mesh: "
-    assert_refused(run_cli, ["check-scene", scene], tmp_path, field)
-    assert_refused(run_cli, ["build-scene", scene, "--out", tmp_path / "run"], tmp_path, expect)
+    assert_scene_refused(run_cli, scene, tmp_path, expect, field)
 
 
 GLTF_CASES = {
@@ -316,8 +320,7 @@ def test_gltf_buffers_must_stay_in_the_scene(case, tiny_scene, run_cli, tmp_path
     if write_it:
         (scene / "meshes" / "table.bin").write_bytes(data)
     (scene / "scene.json").write_text(json.dumps(_obj(2, mesh="meshes/table.gltf")))
-    assert_refused(run_cli, ["check-scene", scene], tmp_path, f"scene.json: objects[2].mesh: {expect}")
-    assert_refused(run_cli, ["build-scene", scene, "--out", tmp_path / "run"], tmp_path, expect)
+    assert_scene_refused(run_cli, scene, tmp_path, expect, f"scene.json: objects[2].mesh: {expect}")
 
 
 def test_gltf_buffers_are_copied_into_the_run(tiny_scene, run_cli, tmp_path):
@@ -433,8 +436,7 @@ def test_damaged_trained_gaussians(data, expect, tiny_scene, run_cli, tmp_path):
     scene = tmp_path / "scene"
     shutil.copytree(tiny_scene, scene)
     (scene / "gaussians.ply").write_bytes(data)
-    assert_refused(run_cli, ["check-scene", scene], tmp_path, expect)
-    assert_refused(run_cli, ["build-scene", scene, "--out", tmp_path / "run"], tmp_path, expect)
+    assert_scene_refused(run_cli, scene, tmp_path, expect)
 
 
 def test_a_trained_ply_link_leaving_the_scene_is_refused(tiny_scene, run_cli, tmp_path):
@@ -443,8 +445,7 @@ def test_a_trained_ply_link_leaving_the_scene_is_refused(tiny_scene, run_cli, tm
     (tmp_path / "elsewhere.ply").write_bytes(GOOD_PLY)
     (scene / "gaussians.ply").symlink_to(tmp_path / "elsewhere.ply")
     expect = "gaussians.ply: a link that leaves the scene directory"
-    assert_refused(run_cli, ["check-scene", scene], tmp_path, expect)
-    assert_refused(run_cli, ["build-scene", scene, "--out", tmp_path / "run"], tmp_path, expect)
+    assert_scene_refused(run_cli, scene, tmp_path, expect)
 
 
 # ---------------------------------------------------------------- a built run: outputs, predictions, run.toml
