@@ -19,11 +19,12 @@ from sagebench.fileio import is_temporary
 from sagebench.pipeline.manifest import hash_run
 from sagebench.scene.synth import write_synth_scene
 from sagebench.versions import output_versions
+from tests.test_collider_convex import u_prism
 
 CONFIG = """scenes = ["scenes/*"]
 out = "{out}"
 seed = 0
-cache_dir = "cache"
+cache_dir = "cache-{out}"
 [gen_trajectories]
 per_scene = 20
 [validate]
@@ -31,11 +32,24 @@ frames_per_scene = 1
 """
 
 
+def _add_planter(scene: Path, width: float) -> None:
+    """A U-shaped planter in the scene's first room: one concave piece for the run to decompose."""
+    spec = json.loads((scene / "scene.json").read_text())
+    u_prism(width).export(scene / "meshes" / "planter.obj")
+    (x0, y0), (x1, y1) = np.min(spec["rooms"][0]["polygon"], axis=0), np.max(spec["rooms"][0]["polygon"], axis=0)
+    spec["objects"].append({"instance_id": max(o["instance_id"] for o in spec["objects"]) + 1, "category": "planter",
+                            "mesh": "meshes/planter.obj", "room_id": spec["rooms"][0]["id"],
+                            "transform": {"translation": [x0 + 0.3, y0 + 0.3, 0.0]}})
+    (scene / "scene.json").write_text(json.dumps(spec))
+
+
 @pytest.fixture(scope="module")
 def workspace(tmp_path_factory) -> Path:
+    """Two demo apartments, each with a planter of its own width (two concave pieces in the run)."""
     root = tmp_path_factory.mktemp("runs")
-    write_synth_scene(root / "scenes" / "a", seed=0)
-    write_synth_scene(root / "scenes" / "b", seed=1)
+    for name, seed, width in (("a", 0, 0.6), ("b", 1, 0.7)):
+        write_synth_scene(root / "scenes" / name, seed=seed)
+        _add_planter(root / "scenes" / name, width)
     return root
 
 
@@ -74,17 +88,74 @@ def test_manifest_lists_every_output(serial_run):
     assert manifest["failed"] == {}
 
 
-def test_two_workers_give_the_same_manifest(workspace, serial_run, run_cli):
-    code, out, err = run_cli("-q", "run", _config(workspace, "pool"), "--workers", "2")
-    assert code == 0, out + err
-    assert _manifest(workspace / "pool") == _manifest(serial_run)
+@pytest.fixture
+def dispatched(monkeypatch) -> list[tuple[str, object, object]]:
+    """Every task the run's executor is given: (function name, argument, its result), in submission order."""
+    from sagebench.pipeline import run as run_mod
+
+    seen: list[list] = []
+    make = run_mod.make_executor
+
+    def spying(*args):
+        executor = make(*args)
+        submit, wait_any = executor.submit, executor.wait_any
+
+        def spy_submit(fn, arg, **kw):
+            handle = submit(fn, arg, **kw)
+            seen.append([fn.__name__, arg, handle, None])
+            return handle
+
+        def spy_wait(pending):
+            got = wait_any(pending)
+            for handle, result in got:
+                for row in seen:
+                    if row[2] is handle:
+                        row[3] = result
+            return got
+
+        executor.submit, executor.wait_any = spy_submit, spy_wait
+        return executor
+
+    monkeypatch.setattr(run_mod, "make_executor", spying)
+    return seen
 
 
-def test_ray_gives_the_same_manifest(workspace, serial_run, run_cli):
-    pytest.importorskip("ray")
-    code, out, err = run_cli("-q", "run", _config(workspace, "ray"), "--executor", "ray", "--workers", "2")
+def _pieces(seen) -> list:
+    """The piece tasks the run dispatched: (task, outcome) each."""
+    return [(arg, result) for name, arg, _, result in seen if name == "run_piece"]
+
+
+def test_serial_run_decomposes_each_piece_as_a_task(serial_run):
+    pieces = [o["concave_pieces"] for sid in ("demo_apartment_0", "demo_apartment_1") for o in json.loads(
+        (serial_run / "scenes" / sid / "colliders" / "colliders.json").read_text())["objects"] if o["concave_pieces"]]
+    assert len(pieces) == 2 and all(len(p) == 1 for p in pieces)  # one planter, one piece each
+
+
+@pytest.mark.parametrize("executor", ["local", "ray"])
+def test_pieces_are_spread_over_the_executor_with_the_same_outputs(workspace, serial_run, run_cli, dispatched,
+                                                                   executor):
+    """Two local workers or Ray: the manifest of the serial run, byte for byte, with each scene's concave piece
+    dispatched as a task of its own (one piece each, run in a worker process) before the scene's export."""
+    if executor == "ray":
+        pytest.importorskip("ray")
+    name = "pool" if executor == "local" else "ray"
+    code, out, err = run_cli("-q", "run", _config(workspace, name), "--executor", executor, "--workers", "2")
     assert code == 0, out + err
-    assert _manifest(workspace / "ray") == _manifest(serial_run)
+    assert _manifest(workspace / name) == _manifest(serial_run)
+    pieces = _pieces(dispatched)
+    assert sorted(t.scene_id for t, _ in pieces) == ["demo_apartment_0", "demo_apartment_1"]
+    assert len({t.key for t, _ in pieces}) == 2 and all(o.method and not o.error for _, o in pieces)
+    assert all(int(o.worker.rsplit(":", 1)[1]) != os.getpid() for _, o in pieces)
+    names = [n for n, *_ in dispatched]
+    assert names.count("plan_export") == 2 and names.count("run_task") == 8
+    at = {(n, arg.scene_id, getattr(arg, "stage", "")): i for i, (n, arg, *_) in enumerate(dispatched)}
+    for sid in ("demo_apartment_0", "demo_apartment_1"):  # the export finds its piece done
+        assert at[("run_piece", sid, "")] < at[("run_task", sid, "export_usd")]
+    assert re.search(r"collider pieces\s+ran\s+2\b", out), out
+    index = {p["cache_key"] for sid in ("demo_apartment_0", "demo_apartment_1") for o in json.loads(
+        (workspace / name / "scenes" / sid / "colliders" / "colliders.json").read_text())["objects"]
+             for p in o["concave_pieces"]}
+    assert index == {t.key for t, _ in pieces}
 
 
 def _stage_counts(out: str) -> dict[str, tuple[int, int, int]]:

@@ -128,6 +128,11 @@ class PartCache:
             ui.warn(f"ignoring unreadable cache entry {path}")
             return None
 
+    def has(self, key: str) -> bool:
+        """Whether a result for `key` is on disk (without reading it)."""
+        path = self._path(key)
+        return path is not None and path.is_file()
+
     def put(self, result: PieceResult) -> None:
         path = self._path(result.key)
         if path is not None:

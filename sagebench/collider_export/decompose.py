@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sagebench.collider_export.coacd_cache import PartCache, PieceResult
-from sagebench.collider_export.convex import ConvexPart, merge_parts, split_convex, weld
+from sagebench.collider_export.convex import ConvexPart, ConvexSplit, merge_parts, split_convex, weld
 from sagebench.collider_export.methods import LADDERS, ColliderSettings, agent_band
 from sagebench.collider_export.pieces import Piece, decompose_pieces
 
@@ -42,6 +42,35 @@ def decompose_meshes(
     with more than WHOLE_MESH_FACTOR times that many pieces (a plant of a thousand leaves) becomes one voxel
     collider of the whole mesh within the budget instead.
     """
+    plan = plan_pieces(meshes, settings, convex_tolerance=convex_tolerance)
+    results = iter(decompose_pieces(plan.jobs, settings, cache=cache, workers=workers, floor_height=floor_height))
+    out: dict[str, MeshColliders] = {}
+    for name, split in plan.splits.items():
+        if name in plan.over:
+            result = next(results)
+            out[name] = MeshColliders(list(result.parts), 0, [result], whole=True)
+            continue
+        pieces = [next(results) for _ in split.concave]
+        parts = list(split.parts) + [p for r in pieces for p in r.parts]
+        kept = merge_parts(parts, settings.max_parts, agent_band(floor_height)) if len(parts) > settings.max_parts else parts
+        exact = len(split.parts) if kept is parts else 0
+        out[name] = MeshColliders(kept, exact, pieces, merged=len(parts) - len(kept))
+    return {name: out[name] for name in meshes}
+
+
+@dataclass(frozen=True)
+class PiecePlan:
+    """How named meshes split: exact parts and concave pieces per mesh, the meshes too split up to decompose
+    piece by piece, and the jobs for decompose_pieces (mesh order, each mesh's pieces in order)."""
+
+    splits: dict[str, ConvexSplit]
+    over: frozenset[str]
+    jobs: list[Piece]
+
+
+def plan_pieces(meshes: Mapping[str, tuple[np.ndarray, np.ndarray]], settings: ColliderSettings, *,
+                convex_tolerance: float = 0.002) -> PiecePlan:
+    """The pieces decompose_meshes runs, without running them (a run spreads them over its executor)."""
     splits = {name: split_convex(v, f, tolerance=convex_tolerance) for name, (v, f) in meshes.items()}
     over = {name for name, s in splits.items()
             if len(s.parts) + len(s.concave) > WHOLE_MESH_FACTOR * settings.max_parts}
@@ -53,16 +82,4 @@ def decompose_meshes(
         else:
             jobs += [Piece(f"{name} (concave piece {k})", pv, pf, LADDERS[settings.mode])
                      for k, (pv, pf) in enumerate(split.concave)]
-    results = iter(decompose_pieces(jobs, settings, cache=cache, workers=workers, floor_height=floor_height))
-    out: dict[str, MeshColliders] = {}
-    for name, split in splits.items():
-        if name in over:
-            result = next(results)
-            out[name] = MeshColliders(list(result.parts), 0, [result], whole=True)
-            continue
-        pieces = [next(results) for _ in split.concave]
-        parts = list(split.parts) + [p for r in pieces for p in r.parts]
-        kept = merge_parts(parts, settings.max_parts, agent_band(floor_height)) if len(parts) > settings.max_parts else parts
-        exact = len(split.parts) if kept is parts else 0
-        out[name] = MeshColliders(kept, exact, pieces, merged=len(parts) - len(kept))
-    return {name: out[name] for name in meshes}
+    return PiecePlan(splits, frozenset(over), jobs)

@@ -61,8 +61,10 @@ def decompose_pieces(
     cache: PartCache,
     workers: int = 1,
     floor_height: float = 0.0,
+    progress: bool = True,
 ) -> list[PieceResult]:
-    """A result per piece, in input order; equal pieces run once, cached ones are read back."""
+    """A result per piece, in input order; equal pieces run once, cached ones are read back. `progress`
+    False leaves the progress lines to the caller (a run that hands out pieces one by one counts them itself)."""
     keys = [piece_key(p, settings, floor_height) for p in pieces]
     done: dict[str, PieceResult] = {}
     todo: dict[str, int] = {}
@@ -76,18 +78,19 @@ def decompose_pieces(
             todo[key] = i
     order = sorted(todo.values(), key=lambda i: -len(pieces[i].faces))  # the biggest set the pace: start them first
     if order:
-        _Scheduler(pieces, keys, settings, cache, workers, floor_height).run(order, done)
+        _Scheduler(pieces, keys, settings, cache, workers, floor_height, progress).run(order, done)
     return [done[k] for k in keys]
 
 
 class _Scheduler:
-    def __init__(self, pieces, keys, settings: ColliderSettings, cache: PartCache, workers: int, floor_height: float):
+    def __init__(self, pieces, keys, settings: ColliderSettings, cache: PartCache, workers: int, floor_height: float,
+                 progress: bool):
         self.pieces, self.keys, self.settings, self.cache = pieces, keys, settings, cache
         self.workers, self.floor_height = max(1, workers), floor_height
         self.ctx = multiprocessing.get_context("forkserver")
         self.ctx.set_forkserver_preload(["sagebench.collider_export.pieces"])
         self.running: dict[Connection, _Run] = {}
-        self.progress = _Progress()
+        self.progress = PieceProgress(quiet=not progress)
 
     def run(self, todo: list[int], done: dict[str, PieceResult]) -> None:
         queue = list(todo)
@@ -225,11 +228,11 @@ def _work(conn: Connection, vertices: np.ndarray, faces: np.ndarray, methods: tu
     conn.close()
 
 
-class _Progress:
+class PieceProgress:
     """`colliders: 12/40 pieces, slowest sofa (concave piece 2) 31 s, about 40 s left` on stderr every few seconds."""
 
-    def __init__(self):
-        self.total = 0
+    def __init__(self, total: int = 0, *, quiet: bool = False):
+        self.total, self.quiet = total, quiet
         self.finished: list[float] = []
         self.slowest: tuple[str, float] = ("", 0.0)
         self.start = time.monotonic()
@@ -242,12 +245,13 @@ class _Progress:
 
     def tick(self, running: dict[str, float]) -> None:
         now = time.monotonic()
-        if now - self.last >= PROGRESS_EVERY_S:
+        if not self.quiet and now - self.last >= PROGRESS_EVERY_S:
             self.last = now
             ui.info(self.line(running))
 
     def finish(self) -> None:
-        ui.info(self.line({}))
+        if not self.quiet:
+            ui.info(self.line({}))
 
     def line(self, running: dict[str, float]) -> str:
         n = len(self.finished)

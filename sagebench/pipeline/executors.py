@@ -1,31 +1,44 @@
-"""Where scene-stage tasks run: in this process, a local process pool, or Ray. Outputs never depend on which."""
+"""Where a run's tasks (a stage of a scene, a collider piece) run: in this process, a local process pool, or
+Ray. Outputs never depend on which."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from typing import Any, Protocol
+from typing import Any, Protocol, TypeVar
 
 from sagebench.errors import ConfigError
-from sagebench.pipeline.stages import STAGES, Outcome, Task, run_task
+
+T = TypeVar("T")
 
 
 class Executor(Protocol):
-    def submit(self, task: Task) -> Any: ...
+    capacity: int  # tasks it runs at once: what a run keeps in flight to start the biggest pieces first
 
-    def wait_any(self, pending: list[Any]) -> list[tuple[Any, Outcome]]: ...
+    def submit(self, fn: Callable[[Any], T], arg: Any, *, cpus: int = 1) -> Any: ...
+
+    def wait_any(self, pending: list[Any]) -> list[tuple[Any, Any]]: ...
 
     def close(self) -> None: ...
+
+
+class _Ran:
+    """The handle of a task the inline executor ran: one object per task, even for equal results."""
+
+    def __init__(self, result: Any):
+        self.result = result
 
 
 class InlineExecutor:
     """Runs each task when submitted, in this process (one worker: simplest to debug, no pickling)."""
 
-    def submit(self, task: Task) -> Outcome:
-        return run_task(task)
+    capacity = 1
 
-    def wait_any(self, pending: list[Outcome]) -> list[tuple[Outcome, Outcome]]:
-        return [(p, p) for p in pending]
+    def submit(self, fn: Callable[[Any], T], arg: Any, *, cpus: int = 1) -> _Ran:
+        return _Ran(fn(arg))
+
+    def wait_any(self, pending: list[_Ran]) -> list[tuple[_Ran, Any]]:
+        return [(p, p.result) for p in pending]
 
     def close(self) -> None:
         pass
@@ -39,11 +52,12 @@ class PoolExecutor:
 
         # spawn: forking a process that has started numba or MuJoCo threads is not safe
         self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+        self.capacity = workers
 
-    def submit(self, task: Task) -> Future:
-        return self._pool.submit(run_task, task)
+    def submit(self, fn: Callable[[Any], T], arg: Any, *, cpus: int = 1) -> Future:
+        return self._pool.submit(fn, arg)
 
-    def wait_any(self, pending: list[Future]) -> list[tuple[Future, Outcome]]:
+    def wait_any(self, pending: list[Future]) -> list[tuple[Future, Any]]:
         done, _ = wait(pending, return_when=FIRST_COMPLETED)
         return [(f, f.result()) for f in done]
 
@@ -52,8 +66,8 @@ class PoolExecutor:
 
 
 class RayExecutor:
-    """One Ray task per scene and stage, asking for the CPUs the stage uses; with no address a local Ray
-    starts and stops with the run. Worker logs stay on the workers: warnings come back in the outcomes."""
+    """One Ray task per submitted task, asking for the CPUs it uses; with no address a local Ray starts and
+    stops with the run. Worker logs stay on the workers: warnings come back in the outcomes."""
 
     def __init__(self, address: str | None):
         try:
@@ -64,12 +78,16 @@ class RayExecutor:
         self._started = not ray.is_initialized()
         if self._started:
             ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False)
-        self._remote: Callable = ray.remote(run_task)
+        self._remote: dict[Callable, Any] = {}
+        self.capacity = max(1, int(ray.cluster_resources().get("CPU", 1)))
 
-    def submit(self, task: Task) -> Any:
-        return self._remote.options(num_cpus=STAGES[task.stage].cpus(task)).remote(task)
+    def submit(self, fn: Callable[[Any], T], arg: Any, *, cpus: int = 1) -> Any:
+        remote = self._remote.get(fn)
+        if remote is None:
+            remote = self._remote[fn] = self._ray.remote(fn)
+        return remote.options(num_cpus=cpus).remote(arg)
 
-    def wait_any(self, pending: list[Any]) -> list[tuple[Any, Outcome]]:
+    def wait_any(self, pending: list[Any]) -> list[tuple[Any, Any]]:
         done, _ = self._ray.wait(pending, num_returns=1)
         return [(ref, self._ray.get(ref)) for ref in done]
 

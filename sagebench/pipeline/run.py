@@ -6,7 +6,6 @@ from __future__ import annotations
 import os
 import time
 from collections import defaultdict
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,9 +14,11 @@ from sagebench.episodes.card import card_text
 from sagebench.errors import ConfigError
 from sagebench.pipeline.config import RunConfig, resolve_scenes
 from sagebench.pipeline.executors import make_executor
+from sagebench.pipeline.pieces import PieceOutcome
+from sagebench.pipeline.schedule import RunScheduler
 from sagebench.pipeline.manifest import sha256_file, write_manifest
 from sagebench.fileio import remove_temporaries, write_text
-from sagebench.pipeline.stages import STAGES, Outcome, Task
+from sagebench.pipeline.stages import STAGES, Outcome
 from sagebench.run_layout import BASELINES, DATASET_CARD, OUTPUT_ROOTS, SCENE_FILE, SHARDS, STAMPS, run_episodes_dir, stage_files
 from sagebench.run_lock import run_lock
 from sagebench.scene.loader import parse_spec
@@ -28,6 +29,7 @@ class RunSummary:
     run_dir: Path
     scenes: list[str]
     outcomes: list[Outcome] = field(default_factory=list)
+    pieces: list[PieceOutcome] = field(default_factory=list)  # collider pieces run as tasks of their own
     episodes: int = 0
     wall_seconds: float = 0.0
 
@@ -56,6 +58,9 @@ class RunSummary:
             lines.append(f"  {name:<17} ran {count('ran'):>3}  skipped {count('skipped'):>3}  failed "
                          f"{count('failed') + sum(o.status == 'ran' and not o.ok for o in got):>3}  "
                          f"{sum(o.seconds for o in got):8.1f} s")
+        if self.pieces:
+            lines.append(f"  {'collider pieces':<17} ran {len(self.pieces):>3}  (a task each)"
+                         f"{sum(p.seconds for p in self.pieces):19.1f} s")
         for sid, o in sorted(self.failed.items()):
             lines.append(f"  FAILED {sid} at {o.stage}: {o.message}")
         return lines
@@ -84,12 +89,13 @@ def _run_locked(config: RunConfig, config_path: Path, sources: dict[str, Path], 
     summary = RunSummary(run_dir=run_dir, scenes=sorted(sources))
     executor = make_executor(config.executor, config.workers, config.ray_address)
     try:
-        tasks = _schedule(executor, sources, run_dir, settings, config.cache_dir)
-        for outcome in ui.track(tasks, "scenes x stages", total=len(sources) * len(STAGES)):
+        scheduler = RunScheduler(executor, sources, run_dir, settings, config.cache_dir)
+        for outcome in ui.track(scheduler.outcomes(), "scenes x stages", total=len(sources) * len(STAGES)):
             summary.outcomes.append(outcome)
             ui.info(f"{outcome.status:>7} {outcome.stage} {outcome.scene_id}: {outcome.message}")
             for message in outcome.warnings:
                 ui.warn(f"{outcome.scene_id} {outcome.stage}: {message}")
+        summary.pieces = scheduler.pieces
     finally:
         executor.close()
     summary.episodes = _count_episodes(run_dir, summary.scenes)
@@ -99,37 +105,6 @@ def _run_locked(config: RunConfig, config_path: Path, sources: dict[str, Path], 
                    failed={sid: {"stage": o.stage, "message": o.message} for sid, o in summary.failed.items()})
     write_text(run_dir / DATASET_CARD, card_text(run_dir))
     return summary
-
-
-def _schedule(executor, sources: dict[str, Path], run_dir: Path, settings: dict, cache_dir: Path | None
-              ) -> Iterator[Outcome]:
-    """Submit each stage of each scene once the stages it comes after succeeded; yield outcomes as they end."""
-    done: dict[tuple[str, str], Outcome] = {}
-    pending: dict[object, tuple[str, str]] = {}
-    order: list[object] = []
-
-    def submit_ready(sid: str) -> None:
-        for name, stage in STAGES.items():
-            key = (sid, name)
-            if key in done or key in pending.values():
-                continue
-            if all((sid, a) in done and done[(sid, a)].status != "failed" for a in stage.after):
-                task = Task(name, sid, sources[sid], run_dir, settings[name], cache_dir)
-                handle = executor.submit(task)
-                pending[id(handle)] = key
-                order.append(handle)
-
-    for sid in sorted(sources):
-        submit_ready(sid)
-    while order:
-        for handle, outcome in executor.wait_any(order):
-            order.remove(handle)
-            key = pending.pop(id(handle))
-            done[key] = outcome
-            yield outcome
-            if outcome.status == "failed":
-                continue
-            submit_ready(key[0])
 
 
 def _scene_ids(dirs: list[Path], config_path: Path) -> dict[str, Path]:

@@ -18,9 +18,10 @@ import trimesh
 from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench import ui
-from sagebench.collider_export.coacd_cache import PartCache, coacd_version
+from sagebench.collider_export.coacd_cache import PartCache, PieceResult, coacd_version
 from sagebench.collider_export.convex import hull_part
-from sagebench.collider_export.decompose import MeshColliders, decompose_meshes
+from sagebench.collider_export.decompose import MeshColliders, decompose_meshes, plan_pieces
+from sagebench.collider_export.pieces import Piece, decompose_pieces
 from sagebench.collider_export.methods import ColliderSettings
 from sagebench.collider_export.mjcf_writer import MjcfBody, mjcf_text, scene_body
 from sagebench.collider_export.quality import ColliderQuality, measure_objects
@@ -117,8 +118,29 @@ def export_usd(
 ) -> list[ExportResult]:
     """Export every scene of the run (or `scene_id`); CoACD results are cached in `cache_dir`
     (default: the user cache directory)."""
-    cache = PartCache(default_cache_dir() if cache_dir is None else cache_dir)
+    cache = part_cache(cache_dir)
     return [export_scene(d, config=config, cache=cache) for d in scene_dirs(run_dir, scene_id)]
+
+
+def part_cache(cache_dir: Path | None) -> PartCache:
+    """The piece cache in `cache_dir`, or in the user cache directory when None."""
+    return PartCache(default_cache_dir() if cache_dir is None else cache_dir)
+
+
+def scene_pieces(run_dir: Path, scene_id: str, config: ExportConfig) -> tuple[list[Piece], float]:
+    """The concave pieces export_scene would decompose for the scene, and the floor height they are measured
+    from (so a run can spread them over its executor and export the scene from the cache)."""
+    (scene_dir,) = scene_dirs(run_dir, scene_id)
+    scene = load_scene(scene_dir)
+    plan = plan_pieces(_local_meshes(scene), config.colliders, convex_tolerance=config.convex_tolerance)
+    return plan.jobs, scene.spec.floor_height
+
+
+def decompose_piece(piece: Piece, config: ExportConfig, floor_height: float, cache_dir: Path | None) -> PieceResult:
+    """One piece as export_scene would make it (its methods, time budget, cache), without progress lines."""
+    (result,) = decompose_pieces([piece], config.colliders, cache=part_cache(cache_dir), floor_height=floor_height,
+                                 progress=False)
+    return result
 
 
 def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> ExportResult:
