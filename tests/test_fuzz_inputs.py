@@ -198,6 +198,14 @@ MEANING_CASES: list[tuple[str, dict | str, str]] = [
      "objects[4].transform: the object is 53.8 m outside every room"),
     ("object-below-rooms", _obj(4, transform={"translation": [5.0, -30.0, 0.9]}), "outside every room"),
     ("room-zero-area", _room([[0.0, 0.0], [6.0, 0.0], [3.0, 0.0]]), "rooms[0].polygon: the floor outline"),
+    ("no-rooms-no-floor", _top(rooms=[], objects=[{k: v for k, v in o.items() if k != "room_id"}
+                                                  for o in SPEC["objects"][1:]]),
+     "scene.json: rooms: no rooms and no floor meshes: cannot tell where the floor is"),
+    ("no-rooms-floor-edge-on", _top(rooms=[], objects=[
+        {k: v for k, v in o.items() if k != "room_id"} | ({"transform": {  # a 6 m x 4 m x 0.1 mm plate on its side
+            "translation": [3.0, 2.0, 0.0], "rotation_wxyz": [0.7071068, 0.7071068, 0.0, 0.0],
+            "scale": [1.0, 1.0, 1e-3]}} if i == 0 else {})
+        for i, o in enumerate(SPEC["objects"])]), "scene.json: rooms: no rooms and no floor meshes"),
     ("room-sliver", _room([[0.0, 0.0], [6.0, 0.0], [6.0, 0.001]]), "rooms[0].polygon: the floor outline encloses 0.003"),
     ("room-bowtie", _room([[0.0, 0.0], [6.0, 4.0], [6.0, 0.0], [0.0, 4.0]]),
      "rooms[0].polygon: the floor outline is not a simple polygon (Self-intersection"),

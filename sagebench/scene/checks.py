@@ -20,6 +20,7 @@ FLOOR_TOLERANCE_M = 1.0  # the floor may lie this far outside the geometry's hei
 HINGE_TOLERANCE_M = 0.5  # a door's hinge axis lies within this of its closed leaf's footprint box
 OUTSIDE_ROOMS_M = 5.0  # an object's footprint box lies within this of some room polygon
 MIN_ROOM_AREA_M2 = 0.01  # a room polygon encloses at least this floor area
+NO_FLOOR = "no rooms and no floor meshes: cannot tell where the floor is"
 
 
 def check_world_bounds(bounds: dict[int, np.ndarray], spec: SceneSpec, units: str, spec_path: Path) -> None:
@@ -55,6 +56,20 @@ def check_rooms(rooms: list[Room], spec_path: Path) -> None:
         if poly.area < MIN_ROOM_AREA_M2:
             raise SceneError(f"the floor outline encloses {poly.area:.3g} m^2 (at least {MIN_ROOM_AREA_M2:g} m^2)",
                              path=spec_path, field=f"rooms[{j}].polygon")
+
+
+def check_floor_known(spec: SceneSpec, floor_triangles: list[np.ndarray], spec_path: Path) -> None:
+    """Without rooms the floor meshes are the plan (topdown.builder.floor_plan): seen from above their triangles
+    must cover at least a room's MIN_ROOM_AREA_M2 (a floor mesh seen edge-on covers none).
+    floor_triangles: [F, 3, 3] world triangles (m) of each floor-kind object."""
+    if spec.rooms:
+        return
+    area = 0.0
+    for tri in floor_triangles:
+        u, v = tri[:, 1, :2] - tri[:, 0, :2], tri[:, 2, :2] - tri[:, 0, :2]
+        area += 0.5 * float(np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]).sum())
+    if not area >= MIN_ROOM_AREA_M2:
+        raise SceneError(NO_FLOOR, path=spec_path, field="rooms")
 
 
 def check_hinge(door: Door, closed_bounds: np.ndarray, spec_path: Path, field: str) -> None:

@@ -17,7 +17,8 @@ import numpy as np
 from sagebench.config import from_options
 from sagebench.fileio import dumps_json, staged_dir, write_bytes
 from sagebench.run_layout import GAUSSIANS, SEMANTIC_MAP, TOPDOWN, TOPDOWN_PNG, run_scene_dir
-from sagebench.scene.loader import LoadedScene, load_scene, write_normalised_scene
+from sagebench.scene.checks import check_floor_known
+from sagebench.scene.loader import SCENE_FILE, LoadedScene, load_scene, write_normalised_scene
 from sagebench.topdown.config import TopdownConfig
 
 if TYPE_CHECKING:
@@ -78,6 +79,8 @@ class CheckedScene:
 def check_scene(scene_dir: Path, config: TopdownConfig | None = None) -> CheckedScene:
     """Everything build-scene refuses, without building: `check-scene` and `build-scene` both call this."""
     scene = load_scene(scene_dir)  # a bad scene.json is refused before the map and splat code is even imported
+    check_floor_known(scene.spec, [np.asarray(scene.meshes[o.instance_id].triangles) for o in scene.spec.objects
+                                   if o.kind == "floor"], scene_dir / SCENE_FILE)
     from sagebench.splats.scene import trained_gaussians
     from sagebench.topdown.builder import scene_grid
 

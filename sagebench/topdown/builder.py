@@ -11,6 +11,7 @@ import shapely
 from shapely.geometry.base import BaseGeometry
 
 from sagebench.errors import ConfigError, SceneError
+from sagebench.scene.checks import NO_FLOOR
 from sagebench.scene.loader import SCENE_FILE, LoadedScene
 from sagebench.topdown.config import TopdownConfig
 from sagebench.topdown.footprints import footprint, mesh_parts
@@ -159,8 +160,7 @@ def floor_plan(scene: LoadedScene, footprints: dict[int, BaseGeometry], wall_gap
         shapes = [footprints[o.instance_id] for o in spec.objects if o.kind == "floor"]
     plan = shapely.union_all(shapes)
     if plan.is_empty or plan.area <= 0:
-        raise SceneError("no rooms and no floor meshes: cannot tell where the floor is", path=scene.source_dir / SCENE_FILE,
-                         field="rooms")
+        raise SceneError(NO_FLOOR, path=scene.source_dir / SCENE_FILE, field="rooms")
     if wall_gap > 0:
         plan = plan.buffer(wall_gap / 2, join_style="mitre").buffer(-wall_gap / 2, join_style="mitre")
     return plan
