@@ -9,7 +9,9 @@ import pytest
 import trimesh
 
 from sagebench.collider_export.convex import hull_part
-from sagebench.collider_export.quality import band_in_mesh_frame, measure, measure_placed
+from sagebench.collider_export.quality import (
+    _distances, _inside, band_in_mesh_frame, inside_reference, measure, measure_placed, part_planes,
+)
 
 # an L: [0,2]x[0,1] plus [0,1]x[1,2], 1 m tall; its hull adds the triangle (1,1) (2,1) (1,2), 0.5 m^2 x 1 m
 L_SHAPE = trimesh.creation.extrude_triangulation(
@@ -74,3 +76,24 @@ def test_band_in_mesh_frame_and_placed_measures_agree():
     # tilted onto its side: measured in world coordinates, where the L is 2 m tall and 1 m deep
     on_side = measure_placed(L_SHAPE.vertices, L_SHAPE.faces, parts, tilt, 0.0)
     assert on_side.band_over_cm == pytest.approx(0.0, abs=1.0)  # its shadow in the band is a full rectangle
+
+
+def test_inside_agrees_with_every_point_against_every_plane():
+    rng = np.random.default_rng(3)
+    sphere = trimesh.creation.icosphere(subdivisions=3)  # 1280 planes, like a detailed hull part
+    planes = part_planes(hull_part(sphere.vertices))
+    points = rng.uniform(-1.2, 1.2, size=(4000, 3))
+    margin = (points @ planes[:, :3].T - planes[:, 3]).max(axis=1)
+    clear = np.abs(margin - 1e-9) > 1e-12  # the two sum in different orders: leave out points on a plane
+    assert np.array_equal(_inside(points, planes)[clear], inside_reference(points, planes)[clear])
+    assert 0.2 < _inside(points, planes).mean() < 0.4  # both sides are exercised (the ball is 0.24 of the cube)
+    beyond_each = planes[:, :3] * (planes[:, 3:] + 1e-3)  # just past each plane, on its normal: outside it alone
+    assert not _inside(beyond_each, planes).any() and _inside(0.99 * beyond_each, planes).all()
+
+
+def test_distances_agree_with_trimesh_closest_point():
+    rng = np.random.default_rng(4)
+    mesh = trimesh.util.concatenate([L_SHAPE, trimesh.creation.icosphere(2).apply_translation((3, 0, 0.5))])
+    points = np.concatenate([rng.uniform(-1, 4, size=(500, 3)), mesh.vertices[:20], mesh.triangles_center[:20]])
+    _, expected, _ = trimesh.proximity.closest_point(mesh, points)
+    np.testing.assert_allclose(_distances(mesh, points), expected, rtol=0, atol=1e-12)

@@ -17,6 +17,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 import trimesh
 from scipy import ndimage
@@ -107,7 +108,27 @@ def part_planes(part: ConvexPart) -> np.ndarray:
 
 
 def _inside(points: np.ndarray, planes: np.ndarray, eps: float = 1e-9) -> np.ndarray:
-    """[N] bool: inside the convex part or on its boundary (within eps of it)."""
+    """[N] bool: inside the convex part (planes [F, 4]) or on its boundary (within eps of it). Each point stops at
+    the first plane it is outside of, so a part of thousands of faces costs little for points far from it."""
+    out = np.empty(len(points), dtype=bool)
+    _inside_kernel(np.ascontiguousarray(points, dtype=np.float64), np.ascontiguousarray(planes, dtype=np.float64),
+                   float(eps), out)
+    return out
+
+
+@numba.njit(cache=True)
+def _inside_kernel(points: np.ndarray, planes: np.ndarray, eps: float, out: np.ndarray) -> None:
+    for i in range(points.shape[0]):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        out[i] = True
+        for j in range(planes.shape[0]):
+            if not (planes[j, 0] * x + planes[j, 1] * y + planes[j, 2] * z - planes[j, 3] <= eps):
+                out[i] = False
+                break
+
+
+def inside_reference(points: np.ndarray, planes: np.ndarray, eps: float = 1e-9) -> np.ndarray:
+    """`_inside` the plain way: every point against every plane [N, F]."""
     return np.all(points @ planes[:, :3].T - planes[:, 3] <= eps, axis=1)
 
 
@@ -143,11 +164,26 @@ def sample_surface(vertices: np.ndarray, faces: np.ndarray, n: int,
 
 
 def _distances(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
-    """Exact distance [N] from each point to the mesh's surface."""
+    """Exact distance [N] from each point to the mesh's surface: the nearest of the triangle corners and centres
+    bounds it, and only the triangles whose boxes come within that bound are measured (an R-tree bulk-loaded
+    from arrays; trimesh.proximity.closest_point does the same search from corners alone, on a tree it builds
+    point by point in Python)."""
+    import rtree
+    from scipy.spatial import cKDTree
+
+    points = np.asarray(points, dtype=np.float64)
     if len(points) == 0:
         return np.zeros(0)
-    _, dist, _ = trimesh.proximity.closest_point(mesh, points)
-    return np.asarray(dist, dtype=np.float64)
+    tri = np.asarray(mesh.vertices, dtype=np.float64)[np.asarray(mesh.faces)]  # [T, 3, 3]
+    tree = rtree.index.Index((np.arange(len(tri), dtype=np.int64), tri.min(axis=1), tri.max(axis=1)),
+                             properties=rtree.index.Property(dimension=3))
+    bound = cKDTree(np.concatenate([tri.reshape(-1, 3), tri.mean(axis=1)])).query(points)[0][:, None] + 1e-9
+    ids, counts = tree.intersection_v(points - bound, points + bound)
+    counts = counts.astype(np.int64)
+    owner = np.repeat(np.arange(len(points)), counts)
+    gap = points[owner] - trimesh.triangles.closest_point(tri[ids], points[owner])
+    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    return np.sqrt(np.minimum.reduceat(np.einsum("ij,ij->i", gap, gap), start))
 
 
 def outside_volume(source: trimesh.Trimesh, parts: Sequence[ConvexPart], planes: list[np.ndarray],
@@ -247,10 +283,13 @@ def rasterise(polygons: list[np.ndarray], lo: np.ndarray, pitch: float, shape: t
 
     shift = 8
     image = np.zeros(shape, dtype=np.uint8)
+    if not len(polygons):
+        return image.astype(bool)
     scale = float(1 << shift) / pitch
-    for poly in polygons:
-        px = np.round((poly - lo) * scale - (1 << shift) / 2).astype(np.int32)
-        cv2.fillConvexPoly(image, px, 1, lineType=cv2.LINE_8, shift=shift)
+    ends = np.cumsum([len(p) for p in polygons])
+    px = np.round((np.concatenate(polygons) - lo) * scale - (1 << shift) / 2).astype(np.int32)  # all at once
+    for poly in np.split(px, ends[:-1]):
+        cv2.fillConvexPoly(image, poly, 1, lineType=cv2.LINE_8, shift=shift)
     return image.astype(bool)
 
 
