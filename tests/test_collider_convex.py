@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
+from scipy.spatial import ConvexHull
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -88,6 +89,22 @@ def test_hull_part_is_closed_and_outward():
     part = hull_part(np.random.default_rng(0).normal(size=(50, 3)))
     mesh = trimesh.Trimesh(part.vertices, part.faces)
     assert mesh.is_watertight and mesh.volume > 0 and np.isclose(mesh.volume, part.volume)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_hull_part_of_a_long_thin_cloud_faces_outward(seed):
+    # like a voxel box of a bed's rail: 1.1 m long, a few cm across, thousands of points, many coplanar (on
+    # the real one, 155,000 lattice points, trimesh's hull wound faces inward and then needed networkx)
+    rng = np.random.default_rng(seed)
+    pts = rng.random((20000, 3)) * [1.1, 0.043, 0.057]
+    pts[: len(pts) // 2, rng.integers(0, 3)] = 0.0  # half of them on one face: many coplanar points
+    part = hull_part(pts)
+    normals = np.cross(*(part.vertices[part.faces[:, k]] - part.vertices[part.faces[:, 0]] for k in (1, 2)))
+    area = np.linalg.norm(normals, axis=1)
+    centre = part.vertices.mean(axis=0)
+    outward = np.einsum("ij,ij->i", normals, part.vertices[part.faces[:, 0]] - centre)
+    assert np.all(outward[area > 1e-12] > 0)
+    assert np.isclose(trimesh.Trimesh(part.vertices, part.faces, process=False).volume, ConvexHull(pts).volume)
 
 
 @st.composite

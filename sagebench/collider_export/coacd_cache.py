@@ -21,7 +21,7 @@ from sagebench import ui
 from sagebench.collider_export.convex import ConvexPart
 from sagebench.fileio import write_bytes
 
-CACHE_SUBDIR = "colliders-v2"
+CACHE_SUBDIR = "colliders-v3"  # bumped whenever a method's parts change for the same settings (v3: voxel hulls)
 
 
 class CoacdParams(BaseModel):
@@ -109,7 +109,7 @@ def _decode(data: bytes, key: str) -> PieceResult:
 
 
 class PartCache:
-    """Piece results on disk: CACHE_DIR/colliders-v2/<key[:2]>/<key>.npz, each written atomically when its
+    """Piece results on disk: CACHE_DIR/colliders-v3/<key[:2]>/<key>.npz, each written atomically when its
     piece is done (so an interrupted run keeps what it finished)."""
 
     def __init__(self, root: Path | None):

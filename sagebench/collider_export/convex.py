@@ -71,8 +71,23 @@ def hull_part(points: np.ndarray) -> ConvexPart:
         if extent < MIN_THICKNESS:
             shift = direction[None, :] * (MIN_THICKNESS - extent) / 2
             pts = np.concatenate([pts + shift, pts - shift])
-    hull = trimesh.convex.convex_hull(pts)
-    return ConvexPart(np.asarray(hull.vertices, dtype=np.float64), np.asarray(hull.faces, dtype=np.int64))
+    return ConvexPart(*oriented_hull(pts))
+
+
+def oriented_hull(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Qhull's hull of `points` [N, 3]: its vertices [V, 3] (in input order) and triangles [F, 3] wound
+    outward by qhull's own facet planes. (trimesh.convex.convex_hull winds by
+    the direction from the centroid, which turns faces inward on long thin hulls.)"""
+    hull = ConvexHull(points, qhull_options="QbB Pp Qt")
+    used = np.sort(hull.vertices)
+    index = np.zeros(len(points), dtype=np.int64)
+    index[used] = np.arange(len(used))
+    vertices = np.asarray(points, dtype=np.float64)[used]
+    faces = index[hull.simplices]
+    cross = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
+    inward = np.einsum("ij,ij->i", cross, hull.equations[:, :3]) < 0
+    faces[inward] = faces[inward][:, ::-1]
+    return vertices, faces
 
 
 def _principal_extents(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -56,8 +56,10 @@ def run_method(method: Method, vertices: np.ndarray, faces: np.ndarray, settings
     if method == "hull":
         return [hull_part(vertices)]
     if method == "voxel":
+        # the voxel footprint is a pitch coarse: a box within tolerance of it may reach half a cell farther
         return voxel_parts(vertices, faces, pitch=settings.voxel_pitch, max_parts=settings.max_parts,
-                           band=agent_band(floor_height))
+                           band=agent_band(floor_height),
+                           tolerance=max(settings.band_tolerance_cm / 100 - settings.voxel_pitch / 2, 0.0))
     closed = close_holes(vertices, faces)
     if closed is None:
         raise RuntimeError("its holes could not be closed")
