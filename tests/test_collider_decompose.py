@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+import pytest
 import trimesh
 
 from sagebench.collider_export.coacd_cache import PartCache
 from sagebench.collider_export.decompose import WHOLE_MESH_FACTOR, decompose_meshes
 from sagebench.collider_export.methods import ColliderSettings
+from sagebench.collider_export.quality import measure
+from sagebench.scene.furniture import Catalogue
 from tests.test_collider_convex import u_prism
 from tests.test_collider_pieces import inside_parts
 
@@ -56,3 +61,21 @@ def test_far_too_many_pieces_make_one_voxel_collider_of_the_whole_mesh(tmp_path)
     (mc,) = decompose_meshes({"m": (m.vertices, m.faces)}, ColliderSettings(max_parts=2), cache=PartCache(tmp_path)).values()
     assert mc.whole and [p.method for p in mc.pieces] == ["voxel"] and len(mc.parts) <= 2
     assert inside_parts(m.vertices, mc.parts, eps=1e-6).all()
+
+
+FIXTURE = Path(__file__).parent / "fixtures" / "sh3d_cc0"
+
+
+@pytest.mark.parametrize("max_parts", [32, 8])
+def test_real_catalogue_models_stay_within_2_cm_in_the_band_and_within_the_part_budget(tmp_path, max_parts):
+    # the seven CC0 Sweet Home 3D fixtures (open meshes, concave pieces, one voxelised), each scaled to its
+    # catalogue size and standing on the floor; at 8 parts four of them have parts merged
+    catalogue = Catalogue(FIXTURE)
+    meshes = {e.id: catalogue.load_model(e) for e in catalogue.entries}
+    out = decompose_meshes({k: (m.vertices, m.faces) for k, m in meshes.items()},
+                           ColliderSettings(mode="balanced", max_parts=max_parts), cache=PartCache(tmp_path))
+    for name, mc in out.items():
+        m = meshes[name]
+        assert len(mc.parts) <= max_parts, name
+        assert measure(m.vertices, m.faces, mc.parts).band_error_cm <= 2.0, name
+    assert sum(mc.merged > 0 for mc in out.values()) == (4 if max_parts == 8 else 0)
