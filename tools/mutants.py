@@ -34,7 +34,7 @@ MUTANTS = (
     Mutant("collider pieces cached only in memory", "sagebench/collider_export/pieces.py",
            "        self.cache.put(result)\n", "", ("tests/test_collider_pieces.py",)),
     Mutant("balanced keeps the first method whatever its band error", "sagebench/collider_export/methods.py",
-           'return mode == "quality" or error_cm <= settings.band_tolerance_cm', "return True",
+           "return error_cm <= settings.band_tolerance_cm", "return True",
            ("tests/test_collider_pieces.py",)),
     Mutant("voxel merge ignores the band footprint", "sagebench/collider_export/voxel.py",
            "        return excess * big + wv\n", "        return wv\n", ("tests/test_collider_voxel.py",)),

@@ -25,7 +25,14 @@ CACHE_SUBDIR = "colliders-v3"  # bumped whenever a method's parts change for the
 
 
 class CoacdParams(BaseModel):
-    """The CoACD settings sagebench exposes; every one of them is part of the cache key."""
+    """The CoACD settings sagebench exposes; every one of them is part of the cache key.
+
+    The search settings are cut from CoACD's own defaults (resolution 2000, 150 MCTS iterations of depth 3
+    over 20 nodes): on the 19 pieces of the real-furniture bench scene whose hull misses the agent band, this
+    took 44 CPU s against 157 s with 3 pieces over 40 s, for the same band errors (16 against 15 of them
+    within 2 cm) and median surface distance (0.9 against 1.1 cm); on 15 pieces drawn from the rest, 12
+    against 29 CPU s, same band errors and surface distances.
+    """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -35,8 +42,10 @@ class CoacdParams(BaseModel):
         default="auto", description="Manifold preprocessing; 'off' is much faster on clean watertight meshes."
     )
     preprocess_resolution: int = Field(default=50, gt=0)
-    resolution: int = Field(default=2000, gt=0, description="Sampling resolution of the concavity metric.")
-    mcts_iterations: int = Field(default=150, gt=0)
+    resolution: int = Field(default=1000, gt=0, description="Sampling resolution of the concavity metric.")
+    mcts_iterations: int = Field(default=60, gt=0, description="Monte Carlo tree search iterations per cut.")
+    mcts_max_depth: int = Field(default=2, gt=0, description="Cuts the tree search looks ahead.")
+    mcts_nodes: int = Field(default=10, gt=0, description="Candidate cutting planes per tree node.")
     seed: int = Field(default=0, ge=0)
 
 
@@ -81,6 +90,8 @@ def run_coacd(vertices: np.ndarray, faces: np.ndarray, params: CoacdParams) -> l
         preprocess_resolution=params.preprocess_resolution,
         resolution=params.resolution,
         mcts_iterations=params.mcts_iterations,
+        mcts_max_depth=params.mcts_max_depth,
+        mcts_nodes=params.mcts_nodes,
         seed=params.seed,
     )
     parts = [(np.asarray(v, dtype=np.float64), np.asarray(f, dtype=np.int64)) for v, f in out if len(f)]

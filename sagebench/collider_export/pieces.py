@@ -159,7 +159,7 @@ class _Scheduler:
                     ui.warn(f"{self.pieces[run.index].name}: {method} failed ({failure}); trying the next method")
                 else:
                     run.results.append((method, parts, error_cm))
-                    run.accepted = good_enough(self.settings.mode, error_cm, self.settings)
+                    run.accepted = good_enough(error_cm, self.settings)
             elif msg[0] == "end":
                 self._retire(conn)
                 self._finish(run, done)
@@ -222,7 +222,7 @@ def _work(conn: Connection, vertices: np.ndarray, faces: np.ndarray, methods: tu
             continue
         error = band_error_cm(vertices, faces, parts, floor_height)
         conn.send(("result", method, parts, error, None))
-        if good_enough(settings.mode, error, settings):
+        if good_enough(error, settings):
             break
     conn.send(("end",))
     conn.close()
