@@ -12,7 +12,7 @@ def test_builds_the_demo_scene(run_cli, demo_scene_dir, tmp_path):
     code, out, err = run_cli("-q", "build-scene", demo_scene_dir, "--out", tmp_path / "run", "--agent-radius", "0.25")
     assert code == 0, err
     assert out.startswith("build-scene demo_apartment_0: map ")
-    assert "5/5 rooms reachable from each other" in out
+    assert "5/5 rooms reachable (navigable floor outside the main region: " in out
     scene = tmp_path / "run" / "scenes" / "demo_apartment_0"
     assert {"meshes", "scene.json", "semantic_map.json", "topdown.npz", "topdown.png"} <= {p.name for p in scene.iterdir()}
     assert json.loads((scene / "semantic_map.json").read_text())["agent_radius"] == 0.25

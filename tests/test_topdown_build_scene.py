@@ -65,6 +65,28 @@ def two_rooms(root: Path, door_state: str) -> Path:
     return write_scene(root, [("a", _rect(0, 0, 3, 3)), ("b", _rect(3.1, 0, 6.1, 3))], objects)
 
 
+def office_behind_ajar_door(root: Path) -> Path:
+    """The issue's house in small: a hall [0,4]x[0,3] with a sofa and a table, and a 7.7 m^2 office
+    [4.1,6.9]x[0,2.75] with a desk and a chair, behind a 1 m doorway (y 1..2) whose leaf, hinged at y = 1 on
+    the office side, stands ajar 24 degrees into the office. The hall's region reaches past the leaf's hinge
+    into one office cell; the rest of the office is a region of its own (the gap at the leaf's tip is too
+    narrow for the agent). 24 degrees is where that happens: 22 leaves no office cell in the hall's region,
+    25 two."""
+    h = 2.4
+    walls = [_box((-0.1, -0.1, 0), (7.0, 0, h)), _box((-0.1, 3, 0), (7.0, 3.1, h)), _box((-0.1, 0, 0), (0, 3, h)),
+             _box((6.9, 0, 0), (7.0, 3, h)), _box((4.1, 2.75, 0), (6.9, 3.0, h)),
+             trimesh.util.concatenate([_box((4, 0, 0), (4.1, 1, h)), _box((4, 2, 0), (4.1, 3, h)),
+                                       _box((4, 1, 2.1), (4.1, 2, h))])]
+    things = [("sofa", "hall", (0.3, 2.2, 0), (2.0, 2.9, 0.8)), ("table", "hall", (2.6, 0.1, 0), (3.4, 0.6, 0.75)),
+              ("desk", "office", (5.0, 2.25, 0), (6.2, 2.75, 0.75)), ("chair", "office", (6.4, 0.0, 0), (6.9, 0.5, 0.9))]
+    objects = [_floor(0, 0, 4, 3), _floor(4.1, 0, 6.9, 2.75)]
+    objects += [{"category": "wall", "kind": "wall", "mesh": w} for w in walls]
+    objects += [{"category": c, "kind": "object", "room_id": room, "mesh": _box(lo, hi)} for c, room, lo, hi in things]
+    objects.append({"category": "door", "kind": "door", "mesh": _box((4.1, 1.0, 0), (4.14, 2.0, 2.05)),
+                    "door": {"state": "ajar", "hinge": [4.12, 1.0, 0.0], "ajar_deg": 24.0, "swing": -1}})
+    return write_scene(root, [("hall", _rect(0, 0, 4, 3)), ("office", _rect(4.1, 0, 6.9, 2.75))], objects)
+
+
 def one_room(root: Path, things: list[dict]) -> Path:
     return write_scene(root, [("r", _rect(0, 0, 4, 4))], [_floor(0, 0, 4, 4), *things])
 
@@ -95,9 +117,39 @@ def test_two_rooms_joined_by_a_door(tmp_path, state, connected):
     assert rooms["a"].reachable_rooms == (["b"] if connected else [])
     assert rooms["b"].reachable_rooms == (["a"] if connected else [])
     assert rooms["a"].navigable_area_m2 > 5 and rooms["b"].navigable_area_m2 > 5
-    assert res.rooms_in_largest_group == (2 if connected else 1)
+    assert res.rooms_reachable == (2 if connected else 1)
     door = next(i for i in sem.instances if i.kind == "door")
     assert door.door_state == state and door.blocks
+
+
+def test_an_office_touched_by_one_cell_of_the_main_region_is_unreachable_and_holds_no_goal(tmp_path):
+    res = build_scene(office_behind_ajar_door(tmp_path / "house"), tmp_path / "run")
+    arrays, sem = _load(res.out_dir)
+    rooms = {r.room_id: r for r in sem.rooms}
+    hall, office, cell = rooms["hall"], rooms["office"], RES * RES
+    main = sem.main_region
+    assert [r.region_id for r in sem.regions] == [1, 2] and main == hall.regions[0] == 1
+    assert office.regions == [1, 2]  # the main region does reach into the office ...
+    office_cells = office.navigable_area_m2 / cell
+    assert office_cells > 1500  # ... but the office's floor is elsewhere: 1 of its ~1600 navigable cells
+    assert office.unreachable_area_m2 == pytest.approx(office.navigable_area_m2 - cell, abs=1e-6)
+    assert not office.reachable and hall.reachable and hall.unreachable_area_m2 == 0
+    assert not sem.all_rooms_connected and res.rooms_reachable == 1
+    assert hall.reachable_rooms == [] and office.reachable_rooms == []
+    assert (f"1/2 rooms reachable (navigable floor outside the main region: office "
+            f"{office.unreachable_area_m2:.2f} of {office.navigable_area_m2:.2f} m^2 (unreachable))") in res.summary()
+
+    from sagebench.episodes.shards import read_episodes
+    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, gen_trajectories
+
+    [episodes] = gen_trajectories(tmp_path / "run", GenTrajectoriesConfig(per_scene=50, min_geodesic_m=1.0))
+    assert "left out (unreachable: most of the navigable floor outside the main region): rooms office" \
+        in episodes.summary()
+    rows = read_episodes(episodes.out_dir).to_pylist()
+    office_ids = {i.instance_id for i in sem.instances if i.room == "office" and i.kind in ("object", "door")}
+    assert len(office_ids) == 3 and episodes.trajectories > 0  # the desk, the chair and the door leaf
+    assert not office_ids & {r[k] for r in rows for k in ("start_instance_id", "goal_instance_id")}
+    assert "office" not in {r[k] for r in rows for k in ("start_room", "goal_room")}
 
 
 def test_table_top_blocks_at_default_band_and_only_legs_below_it(tmp_path):

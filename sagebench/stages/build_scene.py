@@ -25,6 +25,7 @@ if TYPE_CHECKING:
     from sagebench.render.gaussians import Gaussians
     from sagebench.splats.prune import PruneReport
     from sagebench.topdown.raster import Grid
+    from sagebench.topdown.semantic_map import RoomReach
 
 # build-scene's options and the TopdownConfig fields they set (their defaults and error names come from here)
 OPTIONS = {"--resolution": "resolution", "--band-min": "band_min", "--band-max": "band_max",
@@ -50,20 +51,28 @@ class BuildSceneResult:
     resolution: float
     navigable_area_m2: float
     rooms: int
-    rooms_in_largest_group: int  # rooms mutually reachable in the best-connected group
+    room_reach: tuple[RoomReach, ...]  # per room: reachable, navigable area and the part outside the main region
     all_rooms_connected: bool
     gaussians: int
     pruned: PruneReport | None
+
+    @property
+    def rooms_reachable(self) -> int:
+        """Rooms with more than half their navigable area in the main region."""
+        return sum(r.reachable for r in self.room_reach)
 
     def summary(self) -> str:
         h, w = self.shape
         prune = "" if self.pruned is None else (
             f" (pruned {self.pruned.fraction:.0%} of {self.pruned.count_before}: held-out PSNR "
             f"{self.pruned.psnr_db:.1f} dB)")
+        cut = [f"{r.room_id} {r.unreachable_area_m2:.2f} of {r.navigable_area_m2:.2f} m^2"
+               + ("" if r.reachable else " (unreachable)") for r in self.room_reach if r.unreachable_area_m2 > 0 or not r.reachable]
+        cut = f" (navigable floor outside the main region: {', '.join(cut)})" if cut else ""
         return (
             f"build-scene {self.scene_id}: map {w}x{h} cells at {self.resolution:g} m, "
-            f"navigable {self.navigable_area_m2:.1f} m^2, {self.rooms_in_largest_group}/{self.rooms} rooms "
-            f"reachable from each other, {self.gaussians} Gaussians{prune} -> {self.out_dir}"
+            f"navigable {self.navigable_area_m2:.1f} m^2, {self.rooms_reachable}/{self.rooms} rooms "
+            f"reachable{cut}, {self.gaussians} Gaussians{prune} -> {self.out_dir}"
         )
 
 
@@ -121,7 +130,6 @@ def _build(checked: CheckedScene, run_dir: Path, config: TopdownConfig) -> Build
         write_bytes(tmp / SEMANTIC_MAP, dumps_json(td.semantic.model_dump(mode="json")).encode())
         write_bytes(tmp / TOPDOWN_PNG, png)
         write_ply(tmp / GAUSSIANS, gaussians)
-    best = max((len(r.reachable_rooms) + 1 for r in td.semantic.rooms if r.regions), default=0)
     return BuildSceneResult(
         scene_id=scene.spec.scene_id,
         out_dir=out,
@@ -129,7 +137,7 @@ def _build(checked: CheckedScene, run_dir: Path, config: TopdownConfig) -> Build
         resolution=td.grid.resolution,
         navigable_area_m2=td.semantic.navigable_area_m2,
         rooms=len(scene.spec.rooms),
-        rooms_in_largest_group=best,
+        room_reach=tuple(td.semantic.rooms),
         all_rooms_connected=td.semantic.all_rooms_connected,
         gaussians=gaussians.count,
         pruned=pruned,

@@ -102,10 +102,14 @@ class SceneEpisodes:
     rows: int
     shards: list[Path]
     llm_summary: str | None = None  # what the chat model contributed, in llm mode
+    unreachable_rooms: tuple[str, ...] = ()  # rooms whose objects (and themselves) were no start or goal
 
     def summary(self) -> str:
         line = (f"gen-trajectories {self.scene_id}: {self.trajectories} trajectories, {self.rows} episode rows "
                 f"in {len(self.shards)} shard(s) -> {self.out_dir}")
+        if self.unreachable_rooms:
+            line += (f"\n  left out (unreachable: most of the navigable floor outside the main region): rooms "
+                     f"{', '.join(self.unreachable_rooms)} and the objects in them")
         return line if self.llm_summary is None else f"{line}\n  llm: {self.llm_summary}"
 
 
@@ -172,7 +176,8 @@ def generate_scene(scene_dir: Path, out_dir: Path, config: GenTrajectoriesConfig
                            grid.resolution, grid.origin)
         write_bytes(tmp / PREVIEW, png)
     return SceneEpisodes(spec.scene_id, out_dir, len(result.trajectories), len(rows),
-                         [out_dir / p.name for p in shards], None if instructor is None else instructor.summary())
+                         [out_dir / p.name for p in shards], None if instructor is None else instructor.summary(),
+                         unreachable_rooms(smap))
 
 
 def read_scene_inputs(scene_dir: Path) -> tuple[SceneSpec, SemanticMap, GridMap, np.ndarray]:
@@ -224,26 +229,33 @@ def scene_targets(spec: SceneSpec, smap: SemanticMap,
                   ctx: SceneContext | None = None) -> tuple[list[TargetSpec], dict[str, str]]:
     """Targets that can be named uniquely, and target key -> referring expression.
 
-    Objects and doors standing in the agent's height band (not ceiling lamps) and rooms.
+    Objects and doors standing in the agent's height band (not ceiling lamps) and rooms, except unreachable
+    rooms and what is in them (`unreachable_rooms`).
     """
     ctx = scene_context(spec, smap) if ctx is None else ctx
     top = smap.floor_height + smap.band_m[1]
+    cut_off = set(unreachable_rooms(smap))
     targets: list[TargetSpec] = []
     names: dict[str, str] = {}
     for inst in smap.instances:
         if (inst.kind not in TARGET_KINDS or inst.instance_id not in ctx.names or inst.min_z > top
-                or not inst.polygon.coordinates):
+                or not inst.polygon.coordinates or inst.room in cut_off):
             continue
         key = f"object:{inst.instance_id}"
         outlines = tuple(np.asarray(poly[0], dtype=np.float64) for poly in inst.polygon.coordinates)
         targets.append(TargetSpec(key, "object", inst.instance_id, inst.room, outlines))
         names[key] = ctx.names[inst.instance_id]
     for room in spec.rooms:
-        if room.id in ctx.room_names:
+        if room.id in ctx.room_names and room.id not in cut_off:
             key = f"room:{room.id}"
             targets.append(TargetSpec(key, "room", None, room.id, (np.asarray(room.polygon, dtype=np.float64),)))
             names[key] = ctx.room_names[room.id]
     return targets, names
+
+
+def unreachable_rooms(smap: SemanticMap) -> tuple[str, ...]:
+    """Rooms build-scene found unreachable (most of their navigable floor outside the main region)."""
+    return tuple(r.room_id for r in smap.rooms if not r.reachable)
 
 
 def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str, str],

@@ -110,13 +110,16 @@ def compute_topdown(scene: LoadedScene, config: TopdownConfig) -> Topdown:
         navigable_area_m2=_r(float(navigable.sum()) * cell),
         regions=[Region(region_id=k, area_m2=_r(n * cell), rooms=region_rooms[k])
                  for k, n in enumerate(reach.region_cells, start=1)],
+        main_region=reach.main_region,
         rooms=[
             RoomReach(
                 room_id=r.id,
                 type=r.type,
-                navigable_area_m2=_r(float((navigable & room_masks[r.id]).sum()) * cell),
+                navigable_area_m2=_r(reach.room_cells[r.id] * cell),
                 regions=list(reach.room_regions[r.id]),
-                reachable_rooms=list(reach.reachable[r.id]),
+                reachable=reach.room_reachable(r.id),
+                unreachable_area_m2=_r(reach.unreachable_cells(r.id) * cell),
+                reachable_rooms=list(reach.reachable_from(r.id)),
             )
             for r in spec.rooms
         ],

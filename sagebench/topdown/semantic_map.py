@@ -61,8 +61,12 @@ class RoomReach(_Model):
     room_id: str
     type: str
     navigable_area_m2: Annotated[float, Field(ge=0)]
-    regions: list[int]
-    reachable_rooms: list[str] = Field(description="Other rooms an agent can walk to from this one.")
+    regions: list[int] = Field(description="Regions with navigable cells in the room.")
+    reachable: bool = Field(description="More than half of the room's navigable area lies in the main region.")
+    unreachable_area_m2: Annotated[float, Field(ge=0, description="The room's navigable area outside the main region.")]
+    reachable_rooms: list[str] = Field(
+        description="Other rooms an agent can walk to from this one: one region holds more than half of each "
+                    "one's navigable area.")
 
 
 class SemanticMap(_Model):
@@ -75,10 +79,13 @@ class SemanticMap(_Model):
     floor_height: float
     band_m: XY = Field(description="World z range whose geometry blocks: floor + band_min .. floor + band_max.")
     agent_radius: Annotated[float, Field(gt=0)]
-    connectivity: Literal[8] = 8
+    connectivity: Literal[8] = Field(default=8, description="Regions join 8-connected steps that cut no blocked corner "
+                                                           "(the planner's), so cells touching only diagonally do not.")
     categories: list[str] = Field(description="Category id -> name; id 0 is 'background' (no object).")
     instances: list[MapInstance]
     navigable_area_m2: Annotated[float, Field(ge=0)]
     regions: list[Region]
+    main_region: Annotated[int, Field(ge=0, description="The largest region (lowest id among equals); 0 when "
+                                                        "nothing is navigable.")]
     rooms: list[RoomReach]
-    all_rooms_connected: bool
+    all_rooms_connected: bool = Field(description="Every room is reachable (see RoomReach.reachable).")
