@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Collection, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
+from shapely.geometry import Polygon
 
 from sagebench.instructions.execution import BlockedMap
 from sagebench.instructions.naming import ObjectInfo, RoomInfo, object_names, room_names
-from sagebench.instructions.relations import Layout, layout
+from sagebench.instructions.relations import Layout, layout, rooms_joined
 from sagebench.instructions.sight import SightMap
 
 Level = Literal["high", "low"]
@@ -50,18 +51,32 @@ class SceneContext:
 
 def make_context(objects: Sequence[ObjectInfo], rooms: Sequence[RoomInfo], room_polygons: Mapping[str, np.ndarray],
                  footprints: Mapping[int, Sequence[np.ndarray]], *, fixtures: Sequence[ObjectInfo] = (),
-                 type_mix: Mapping[str, float] | None = None, sight: SightMap | None = None) -> SceneContext:
+                 doors: Collection[int] = (), type_mix: Mapping[str, float] | None = None,
+                 sight: SightMap | None = None) -> SceneContext:
     """The context of a scene: names unique in the scene and within each room, relations from `footprints`.
 
     footprints: instance id -> exterior rings [K, 2] world metres, for the objects that may serve as
-    landmarks (leave out what hangs above the agent); type_mix: default all five types equally; sight:
-    the walls that hide objects from a path (none: every object near a path counts as seen).
+    landmarks (leave out what hangs above the agent); doors: instance ids of the objects that are doors,
+    which get the rooms they join (`relations.rooms_joined`; without a footprint, their annotated room);
+    type_mix: default all five types equally; sight: the walls that hide objects from a path (none:
+    every object near a path counts as seen).
     """
     lay = layout(footprints)
-    local = {r.id: object_names([o for o in objects if o.room_id == r.id], rooms, lay) for r in rooms}
+    floors = {r.id: Polygon(room_polygons[r.id]) for r in rooms if r.id in room_polygons}
+
+    def joined(o: ObjectInfo) -> tuple[str, ...]:
+        return rooms_joined(lay.geoms[lay.index(o.instance_id)], floors) if o.instance_id in lay else \
+            tuple(r for r in (o.room_id,) if r is not None)
+
+    objects = [replace(o, joins=joined(o)) if o.instance_id in doors else o for o in objects]
+    names = object_names(objects, rooms, lay)
+    # a door is in the walls of every room it joins, and its name is the same seen from each
+    local = {r.id: {**object_names([o for o in objects if o.room_id == r.id and o.joins is None], rooms, lay),
+                    **{o.instance_id: names[o.instance_id] for o in objects
+                       if r.id in (o.joins or ()) and o.instance_id in names}} for r in rooms}
     mix = {t: 1.0 for t in HIGH_LEVEL_TYPES} if type_mix is None else dict(type_mix)
     return SceneContext(tuple(objects), tuple(fixtures), tuple(rooms), dict(room_polygons),
-                        object_names(objects, rooms, lay), room_names(rooms, objects), local, lay, mix, sight)
+                        names, room_names(rooms, objects), local, lay, mix, sight)
 
 
 @dataclass(frozen=True)

@@ -20,17 +20,13 @@ import re
 from collections.abc import Iterable
 
 import numpy as np
-import shapely
-from shapely.geometry import Polygon
-
 from sagebench.instructions.base import SceneContext
 from sagebench.instructions.high_level import scenario_data
-from sagebench.instructions.naming import ObjectInfo, words
+from sagebench.instructions.naming import ObjectInfo, is_outside, words
 from sagebench.instructions.referents import Mention, Phrase, Reader, parse, vocabulary
 from sagebench.instructions.relations import NEXT_TO_M, between, nearest, side_as_seen
 
 MIN_WORDS, MAX_WORDS = 4, 30
-JOINS_M = 0.3  # a door "between the kitchen and the hall" reaches both floors this closely
 _ID = re.compile(r"[A-Za-z]_?\d|\d_|#\s*\d|\b(?:id|instance|object|room)\s*[:#=]?\s*\d", re.IGNORECASE)
 _COORD = re.compile(r"\d+\.\d+|\d+\s*,\s*-?\d+")
 _SNAKE = re.compile(r"\b[a-z]+_[a-z_]+\b", re.IGNORECASE)
@@ -49,14 +45,16 @@ class Grounder:
         self.room_type = {r.id: r.type for r in ctx.rooms}
         self.reader = Reader(ctx)
         self._values = {o.instance_id: self._attr_values(o) for o in self.things}
-        self._rooms_of = {o.instance_id: o.room_id for o in self.things}
-        self._floors = {r: Polygon(p) for r, p in ctx.room_polygons.items()}
+        # a door is in every room it joins; anything else in its annotated room
+        self._rooms_of = {o.instance_id: frozenset(o.joins if o.joins is not None else (o.room_id,)) - {None}
+                          for o in self.things}
+        self._joins = {o.instance_id: frozenset(o.joins) for o in self.things if o.joins is not None}
         needs, _ = scenario_data()
         self.needs = {n.name: n for n in needs}
         self._need_words = _need_words(needs, self.reader)
 
     def _attr_values(self, o: ObjectInfo) -> frozenset[str]:
-        vals = {self.reader.canonical(v) for v in o.attributes.values()}
+        vals = {self.reader.canonical(v) for v in o.attributes.values()} | ({"outside"} if is_outside(o) else set())
         return frozenset(vals | {w for v in vals for w in v.split()})
 
     def mentions(self, text: str) -> list[Mention]:
@@ -127,7 +125,7 @@ class Grounder:
             scope = self._scope(targets, dest, resolver)
             if scope is not None:
                 if dest.mention.kind == "object" and dest.room is None:
-                    cands = {i for i in cands if self._room_of(i) in scope}
+                    cands = {i for i in cands if self._rooms(i) & scope}
                 if not cands:
                     return [*out, f"there is no {dest.bare} in {scope_text(targets, dest)}"]
             if dest.mention.kind == "room" and goal_id is not None:
@@ -172,8 +170,9 @@ class Grounder:
         room = _scope_phrase(targets, dest)
         return None if room is None else resolver.resolve(room)
 
-    def _room_of(self, instance_id: int) -> str | None:
-        return self._rooms_of.get(instance_id)
+    def _rooms(self, instance_id: int) -> frozenset[str]:
+        """The rooms the thing is in: a door's are the rooms it joins."""
+        return self._rooms_of.get(instance_id, frozenset())
 
 
 def _scope_phrase(targets: list[tuple[Phrase, str]], dest: Phrase) -> Phrase | None:
@@ -211,7 +210,7 @@ class _Resolver:
                 inner = self.resolve(p.contains)
                 if not inner:
                     return set()
-                rooms = {r for r in rooms if any(g._room_of(i) == r for i in inner)}
+                rooms = {r for r in rooms if any(r in g._rooms(i) for i in inner)}
             if not rooms:
                 self.problems.append(f"there is no {p.bare} in this scene")
             return rooms
@@ -225,7 +224,7 @@ class _Resolver:
             rooms = self.resolve(p.room)
             if not rooms:
                 return set()
-            cands = [o for o in cands if o.room_id in rooms]
+            cands = [o for o in cands if g._rooms(o.instance_id) & rooms]
         ids = {o.instance_id for o in cands}
         if p.relation is not None and ids:
             marks = [self.resolve(lm) for lm in p.landmarks]
@@ -236,21 +235,15 @@ class _Resolver:
             self.problems.append(f"there is no {p.bare} in this scene")
         return ids
 
-    def _reaches(self, instance_id: int, room: str) -> bool:
-        """The object's footprint comes within JOINS_M of the room's floor (without one: it is in that room)."""
-        lay = self.g.ctx.layout
-        if instance_id not in lay or room not in self.g._floors:
-            return self.g._room_of(instance_id) == room
-        return float(shapely.distance(lay.geoms[lay.index(instance_id)], self.g._floors[room])) <= JOINS_M
-
     def _related(self, relation: str, cands: list[int], marks: list[set]) -> set[int]:
         """The candidates in `relation` to the landmarks; a relation the footprints cannot check narrows nothing."""
         lay = self.g.ctx.layout
         located = [c for c in cands if c in lay]
         idx = {c: lay.index(c) for c in located}
-        if relation == "joins":  # a door between two rooms: its footprint reaches both floors
+        if relation == "joins":  # a door between two rooms: it joins both (relations.rooms_joined)
             ra, rb = marks
-            return {c for c in cands if any(self._reaches(c, x) and self._reaches(c, y) for x in ra for y in rb if x != y)}
+            joins = self.g._joins
+            return {c for c in cands if c in joins and any({x, y} <= joins[c] for x in ra for y in rb if x != y)}
         lms = [[lay.index(i) for i in sorted(ms) if i in lay] for ms in marks]
         if not located or not all(lms):
             return set(cands)

@@ -8,6 +8,12 @@ Given footprints (a `relations.Layout`), an object no such rule singles out is n
 to a landmark that has a plain name: "the chair next to the stove" when no other chair is next to
 the stove, else "the nightstand closest to the wardrobe" when it is the closest chair by a clear
 margin. Things no rule singles out get no name; the sampler leaves them out.
+
+A door is named by the rooms it joins (`ObjectInfo.joins`), since it lies in the walls of both: "the
+door between the study and the kitchen", "the outside door in the living room" (it joins one room, to
+the outside or to unroomed space), "the outside door" (it joins none). When another door joins the same
+rooms, an adjective that only this one of them has is added ("the open door between ..."); else the
+door gets no name. Doors joining three or more rooms get none, and no door serves as a landmark.
 """
 
 from __future__ import annotations
@@ -29,6 +35,12 @@ class ObjectInfo:
     category: str  # snake_case, e.g. "dining_table"
     room_id: str | None
     attributes: dict[str, str] = field(default_factory=dict)  # colour, material, state ...
+    joins: tuple[str, ...] | None = None  # a door's rooms (relations.rooms_joined); None: not a door
+
+
+def is_outside(door: ObjectInfo) -> bool:
+    """A door joining fewer than two rooms leads outside (or to space no room covers)."""
+    return door.joins is not None and len(door.joins) < 2
 
 
 @dataclass(frozen=True)
@@ -51,17 +63,19 @@ def object_names(objects: Sequence[ObjectInfo], rooms: Sequence[RoomInfo], lay: 
     by_category: dict[str, list[ObjectInfo]] = {}
     for obj in objects:
         by_category.setdefault(obj.category, []).append(obj)
+    doors = [o for o in objects if o.joins is not None]
     out: dict[int, str] = {}
     for obj in objects:
-        name = _object_name(obj, by_category[obj.category], room_names_)
+        name = door_name(obj, doors, room_names_) if obj.joins is not None else \
+            _object_name(obj, by_category[obj.category], room_names_)
         if name is not None:
             out[obj.instance_id] = name
     if lay is None:
         return out
-    landmarks = {i: n for i, n in out.items() if " in " not in n}
     by_id = {o.instance_id: o for o in objects}
+    landmarks = {i: n for i, n in out.items() if " in " not in n and by_id[i].joins is None}
     for obj in objects:
-        if obj.instance_id not in out:
+        if obj.instance_id not in out and obj.joins is None:
             name = relational_name(obj, by_category[obj.category], lay, landmarks, by_id)
             if name is not None:
                 out[obj.instance_id] = name
@@ -96,6 +110,46 @@ def relational_name(obj: ObjectInfo, peers: Sequence[ObjectInfo], lay: Layout, l
     return None
 
 
+def door_place(door: ObjectInfo, rooms: dict[str, str]) -> tuple[str, str] | None:
+    """(noun, place) of a door from the rooms it joins: ("door", " between the study and the kitchen"),
+    ("outside door", " in the kitchen"), ("outside door", ""); None when a room has no name or it joins more than two."""
+    joins = door.joins or ()
+    if len(joins) > 2 or not all(r in rooms for r in joins):
+        return None
+    noun = words(door.category)
+    if len(joins) == 2:
+        return noun, f" between {rooms[joins[0]]} and {rooms[joins[1]]}"
+    return f"outside {noun}", "".join(f" in {rooms[r]}" for r in joins)
+
+
+def door_peers(door: ObjectInfo, doors: Sequence[ObjectInfo]) -> list[ObjectInfo]:
+    """The doors of its category that its place phrase fits too (those joining all its rooms; outside ones
+    for an outside door): the ones a name must tell it apart from, itself included."""
+    return [d for d in doors if d.category == door.category and set(door.joins or ()) <= set(d.joins or ())
+            and (is_outside(d) or not is_outside(door))]
+
+
+def door_name(door: ObjectInfo, doors: Sequence[ObjectInfo], rooms: dict[str, str]) -> str | None:
+    """"the [adjectives] door between A and B" (module docstring), unique among `doors`, else None."""
+    place = door_place(door, rooms)
+    if place is None:
+        return None
+    noun, where = place
+    peers = door_peers(door, doors)
+    adjectives = "" if len(peers) == 1 else _telling_adjectives(door, peers)
+    return None if adjectives is None else f"the {adjectives}{noun}{where}"
+
+
+def _telling_adjectives(obj: ObjectInfo, pool: Sequence[ObjectInfo]) -> str | None:
+    """"grey fabric ": the first attribute words (_ADJECTIVES) that only `obj` of `pool` has, else None."""
+    for keys in _ADJECTIVES:
+        if all(obj.attributes.get(k) for k in keys):
+            wanted = tuple(obj.attributes[k] for k in keys)
+            if sum(tuple(o.attributes.get(k) for k in keys) == wanted for o in pool) == 1:
+                return "".join(f"{words(v)} " for v in wanted)
+    return None
+
+
 def _object_name(obj: ObjectInfo, same: list[ObjectInfo], rooms: dict[str, str]) -> str | None:
     noun = words(obj.category)
     if len(same) == 1:
@@ -108,12 +162,9 @@ def _object_name(obj: ObjectInfo, same: list[ObjectInfo], rooms: dict[str, str])
         suffix = "" if place is None else f" in {rooms[place]}"
         if place is not None and len(pool) == 1:
             return f"the {noun}{suffix}"
-        for keys in _ADJECTIVES:
-            if not all(obj.attributes.get(k) for k in keys):
-                continue
-            wanted = tuple(obj.attributes[k] for k in keys)
-            if sum(tuple(o.attributes.get(k) for k in keys) == wanted for o in pool) == 1:
-                return f"the {' '.join(words(v) for v in wanted)} {noun}{suffix}"
+        adjectives = _telling_adjectives(obj, pool)
+        if adjectives is not None:
+            return f"the {adjectives}{noun}{suffix}"
     return None
 
 

@@ -3,6 +3,7 @@
 next to: footprints closer than NEXT_TO_M. between: the object's centre lies near the segment joining
 two others' centres, strictly inside it. nearest: the closest of a set to a landmark, by a clear margin.
 left/right as seen from a point: the sign of the turn from the landmark's bearing to the object's.
+A door joins the rooms whose floor lies within JOINS_M of its footprint (both sides of its wall).
 Rooms passed and objects passed along a path are what a person walking it would notice.
 """
 
@@ -22,6 +23,7 @@ BETWEEN_MAX_GAP_M = 1.5  # "between A and B": the object is this close to both
 BETWEEN_OFFSET = 0.3  # ... and its centre within this fraction of |AB| of the segment (at least 0.4 m)
 SIDE_MIN_DEG = 10.0  # left/right needs this much angle between the two bearings
 PASSED_M = 1.0  # objects within this of a path are "passed"
+JOINS_M = 0.3  # a door joins the rooms whose floor comes this close to its footprint (a wall is thinner)
 
 
 @dataclass(frozen=True)
@@ -85,6 +87,11 @@ def between(lay: Layout, i: int, a: int, b: int) -> bool:
     t = float(np.dot(p - pa, ab)) / length**2
     offset = abs(float(ab[0] * (p - pa)[1] - ab[1] * (p - pa)[0])) / length
     return 0.15 < t < 0.85 and offset <= max(0.4, BETWEEN_OFFSET * length)
+
+
+def rooms_joined(footprint: shapely.Geometry, floors: Mapping[str, shapely.Geometry]) -> tuple[str, ...]:
+    """Ids of the rooms whose floor lies within JOINS_M of a door's footprint, in `floors`' order."""
+    return tuple(rid for rid, floor in floors.items() if float(shapely.distance(footprint, floor)) <= JOINS_M)
 
 
 def side_as_seen(viewer: np.ndarray, landmark: np.ndarray, point: np.ndarray) -> str | None:

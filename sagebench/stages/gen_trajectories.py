@@ -215,7 +215,8 @@ def scene_context(spec: SceneSpec, smap: SemanticMap, type_mix: dict[str, float]
                   for i in smap.instances if i.kind in TARGET_KINDS and i.min_z <= top and i.polygon.coordinates}
     return make_context(objects, [RoomInfo(r.id, r.type) for r in spec.rooms],
                         {r.id: np.asarray(r.polygon, dtype=np.float64) for r in spec.rooms}, footprints,
-                        fixtures=fixtures, type_mix=type_mix)
+                        fixtures=fixtures, doors={i.instance_id for i in smap.instances if i.kind == "door"},
+                        type_mix=type_mix)
 
 
 def scene_sight(smap: SemanticMap, grid: GridMap, occupancy: np.ndarray) -> SightMap:
