@@ -128,10 +128,10 @@ def test_a_room_goal_is_not_met_by_any_text_saying_room(demo):
 
 def test_an_object_goal_is_not_met_by_its_category_alone(demo):
     ctx, g, ids, rooms, _ = demo
-    door = ids["the closed door"]
+    door = ids["the outside door in the living room"]
     assert sum(o.category == "door" for o in ctx.objects) == 7
     assert g.problems("Go to the door.", goal_id=door) == [
-        "the door could be any of 7 places; say which one is meant (the closed door)"]
+        "the door could be any of 7 places; say which one is meant (the outside door in the living room)"]
     assert g.problems("Walk to the closed door.", goal_id=door) == []
 
 
@@ -181,11 +181,11 @@ def test_every_template_passes_with_its_goal_and_fails_with_another(demo):
 
 def test_a_door_is_told_apart_by_the_rooms_it_joins(demo):
     ctx, g, ids, rooms, _ = demo
-    door = ids["the open door in the bathroom"]  # it stands between the kitchen and the bathroom
+    door = ids["the door between the kitchen and the bathroom"]
     assert g.problems("Go to the door between the kitchen and the bathroom.", goal_id=door) == []
     assert g.problems("Go to the door between the bathroom and the kitchen.", goal_id=door) == []
     assert g.problems("Go to the door between the kitchen and the living room.", goal_id=door) == [
         "it sends the robot to the door between the kitchen and the living room, but the goal is "
-        "the open door in the bathroom"]
+        "the door between the kitchen and the bathroom"]
     assert g.problems("Go to the door between the bedroom and the bathroom.", goal_id=door) == [
         "there is no door between the bedroom and the bathroom in this scene"]

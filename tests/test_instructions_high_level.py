@@ -5,7 +5,7 @@ from collections import Counter
 
 import numpy as np
 import pytest
-from shapely.geometry import shape
+from shapely.geometry import Point, Polygon, shape
 
 from sagebench.instructions import instructions_for
 from sagebench.instructions.base import HIGH_LEVEL_TYPES, TrajectoryText, make_context
@@ -179,7 +179,8 @@ def test_demo_names_are_unique_and_attribute_descriptions_fit_one_object(demo):
         words |= {w for w in ("leather", "metal", "glass", "plastic", "ceramic", "fabric", "cotton", "wool")
                   if f"made of {w}" in r["instruction_text"]}
         pool = [o for o in ctx.objects if o.category == goal.category
-                and (" in the " not in r["instruction_text"] or o.room_id == goal.room_id)]
+                and (" in the " not in r["instruction_text"] or o.room_id == goal.room_id)
+                and (" between the " not in r["instruction_text"] or set(goal.joins) <= set(o.joins))]
         fits = [o for o in pool if words <= {v.replace("_", " ") for v in o.attributes.values()}]
         assert fits == [goal], r["instruction_text"]
 
@@ -228,3 +229,23 @@ def test_scenario_and_delivery_data_reference_no_furniture_words():
         toks = re.findall(r"[a-z]+", phrase.lower())
         spans = {" ".join(toks[k:k + n]) for n in (1, 2) for k in range(len(toks))}
         assert not spans & nouns, (phrase, spans & nouns)
+
+
+def test_demo_door_endpoints_take_their_room_from_the_position_and_their_name_from_the_rooms_joined(demo):
+    ctx, _, rows, (spec, _, _, trajs, names) = demo
+    floors = {r.id: Polygon(r.polygon) for r in spec.rooms}
+    doors = {o.instance_id: o for o in ctx.objects if o.joins is not None}
+    ends = [(e, room, wp) for t in trajs for e, room, wp in ((t.start, t.start_room, t.waypoints[0, :2]),
+                                                             (t.goal, t.goal_room, t.waypoints[-1, :2]))
+            if e.instance_id in doors]
+    assert ends
+    for end, room, xy in ends:
+        door = doors[end.instance_id]
+        assert room == next((r for r in sorted(floors) if floors[r].covers(Point(*xy))), None)
+        assert room is None or room in door.joins  # the approach point is on either side, or in the doorway
+        where = " and ".join(ctx.room_names[r] for r in door.joins)
+        assert names[end.key].endswith(f" between {where}" if len(door.joins) == 2 else f" in {where}")
+    # the case: door goals approached from the side their annotation does not name
+    assert sum(room not in (None, doors[end.instance_id].room_id) for end, room, _ in ends) > 0
+    door_rows = [r for r in rows if r["goal_instance_id"] in doors or r["start_instance_id"] in doors]
+    assert not [r["instruction_text"] for r in door_rows if re.search(r"(open|ajar|closed) door in the", r["instruction_text"])]

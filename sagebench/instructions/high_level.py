@@ -22,7 +22,7 @@ from importlib import resources
 import numpy as np
 
 from sagebench.instructions.base import HIGH_LEVEL_TYPES, Instruction, SceneContext, TrajectoryText
-from sagebench.instructions.naming import ObjectInfo, words
+from sagebench.instructions.naming import ObjectInfo, door_peers, door_place, words
 from sagebench.instructions.relations import NEXT_TO_M, between, nearest, next_to, rooms_along, side_as_seen
 
 _MATERIAL_ADJ = {"wood": "wooden", "wool": "woollen"}
@@ -199,17 +199,23 @@ def attribute_based(ctx: SceneContext, text: TrajectoryText, rng: np.random.Gene
         return None
     goal = ctx.object(text.goal_id)
     peers = [o for o in ctx.objects if o.category == goal.category]
-    suffix = ""
+    noun, suffix = words(goal.category), ""
     if _distinguishing(goal, peers) is None:
-        local = [o for o in peers if o.room_id == goal.room_id]
-        if _distinguishing(goal, local) is None or goal.room_id not in ctx.room_names:
-            return None
-        suffix = f" in {ctx.room_names[goal.room_id]}"
+        if goal.joins is not None:  # a door is placed by the rooms it joins
+            place = door_place(goal, ctx.room_names)
+            local = door_peers(goal, peers)
+            if place is None or _distinguishing(goal, local) is None:
+                return None
+            noun, suffix = place
+        else:
+            local = [o for o in peers if o.room_id == goal.room_id]
+            if _distinguishing(goal, local) is None or goal.room_id not in ctx.room_names:
+                return None
+            suffix = f" in {ctx.room_names[goal.room_id]}"
     a = goal.attributes
     colour, material, state = (words(a[k]) if a.get(k) else None for k in ("colour", "material", "state"))
     if not (colour or material or state):
         return None
-    noun = words(goal.category)
     adj = " ".join(w for w in (state, colour, _MATERIAL_ADJ.get(material or "", material)) if w)
     descs = [f"the {adj} {noun}{suffix}"]
     if material and (colour or state) and not suffix:

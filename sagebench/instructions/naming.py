@@ -18,7 +18,7 @@ door gets no name. Doors joining three or more rooms get none, and no door serve
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -110,7 +110,7 @@ def relational_name(obj: ObjectInfo, peers: Sequence[ObjectInfo], lay: Layout, l
     return None
 
 
-def door_place(door: ObjectInfo, rooms: dict[str, str]) -> tuple[str, str] | None:
+def door_place(door: ObjectInfo, rooms: Mapping[str, str]) -> tuple[str, str] | None:
     """(noun, place) of a door from the rooms it joins: ("door", " between the study and the kitchen"),
     ("outside door", " in the kitchen"), ("outside door", ""); None when a room has no name or it joins more than two."""
     joins = door.joins or ()
@@ -129,7 +129,7 @@ def door_peers(door: ObjectInfo, doors: Sequence[ObjectInfo]) -> list[ObjectInfo
             and (is_outside(d) or not is_outside(door))]
 
 
-def door_name(door: ObjectInfo, doors: Sequence[ObjectInfo], rooms: dict[str, str]) -> str | None:
+def door_name(door: ObjectInfo, doors: Sequence[ObjectInfo], rooms: Mapping[str, str]) -> str | None:
     """"the [adjectives] door between A and B" (module docstring), unique among `doors`, else None."""
     place = door_place(door, rooms)
     if place is None:

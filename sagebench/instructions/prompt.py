@@ -64,13 +64,20 @@ def object_lines(ctx: SceneContext) -> list[tuple[int, str]]:
     for o in (*ctx.objects, *ctx.fixtures):
         name = ctx.names.get(o.instance_id, f"a {words(o.category)}")
         attrs = ", ".join(f"{k} {words(v)}" for k, v in sorted(o.attributes.items())) or "no attributes"
-        room = ctx.room_names.get(o.room_id or "", "no room")
+        room = f"in {ctx.room_names.get(o.room_id or '', 'no room')}" if o.joins is None else _joins_text(ctx, o.joins)
         pos = ""
         if o.instance_id in ctx.layout:
             x, y = ctx.layout.centroids[ctx.layout.index(o.instance_id)]
             pos = f", at ({x:.1f}, {y:.1f})"
-        out.append((o.instance_id, f"- {name}: {words(o.category)}; {attrs}; in {room}{pos}"))
+        out.append((o.instance_id, f"- {name}: {words(o.category)}; {attrs}; {room}{pos}"))
     return out
+
+
+def _joins_text(ctx: SceneContext, joins: tuple[str, ...]) -> str:
+    """Where a door is: "joins the study and the kitchen", "joins the kitchen to the outside"."""
+    rooms = [ctx.room_names.get(r, "a room") for r in joins]
+    return f"joins {' and '.join(rooms)}" if len(rooms) > 1 else f"joins {rooms[0]} to the outside" if rooms \
+        else "leads outside"
 
 
 def build_prompt(kind: str, text: TrajectoryText, budget_tokens: int | None = None) -> str:

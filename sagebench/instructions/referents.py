@@ -103,17 +103,23 @@ class Reader:
         heads: dict[str, set[str]] = {}
         for cat in categories:
             heads.setdefault(words(cat).split()[-1], set()).add(cat)
+        def canon(phrase: str) -> str:
+            return self._canon.get(phrase, phrase.replace(" ", "_"))
+
+        # a scene category or room type that is itself a synonym ("hallway") still matches what it names
+        same = {c: canon(words(c)) for c in categories | room_types}
         self._objects: dict[tuple[str, ...], frozenset[str]] = {}
         for phrase in {*vocab.objects, *(words(c) for c in categories)}:
-            canon = self._canon.get(phrase, phrase.replace(" ", "_"))
             generic = heads.get(phrase, set()) if " " not in phrase else set()
-            self._objects[tuple(phrase.split())] = frozenset({canon, *generic})
-        for phrase, canon in vocab.synonyms.items():
-            if canon in categories or phrase in vocab.objects:
-                self._objects.setdefault(tuple(phrase.split()), frozenset({canon}))
+            self._objects[tuple(phrase.split())] = frozenset(
+                {canon(phrase), *generic, *(c for c in categories if same[c] == canon(phrase))})
+        for phrase, value in vocab.synonyms.items():
+            if value in categories or phrase in vocab.objects:
+                self._objects.setdefault(tuple(phrase.split()), frozenset({value}))
         self._rooms: dict[tuple[str, ...], frozenset[str]] = {("room",): frozenset(room_types)}
         for phrase in {*vocab.rooms, *(words(t) for t in room_types)}:
-            self._rooms[tuple(phrase.split())] = frozenset({self._canon.get(phrase, phrase.replace(" ", "_"))})
+            self._rooms[tuple(phrase.split())] = frozenset({canon(phrase), *(t for t in room_types
+                                                                             if same[t] == canon(phrase))})
         values = {w for o in things for v in o.attributes.values() for w in words(v).lower().split()}
         self._attr_words = frozenset({*vocab.attributes, *values})
         self._longest = max(len(p) for p in [*self._objects, *self._rooms])
