@@ -11,6 +11,8 @@ import pytest
 import shapely
 import trimesh
 
+from meshes import wall_with_openings
+
 from sagebench.errors import ConfigError, SceneError
 from sagebench.scene import assets
 from sagebench.scene.loader import load_scene
@@ -152,6 +154,34 @@ def test_an_office_touched_by_one_cell_of_the_main_region_is_unreachable_and_hol
     assert "office" not in {r[k] for r in rows for k in ("start_room", "goal_room")}
 
 
+def test_a_wall_in_one_piece_keeps_its_doorway_free_and_unlabelled(tmp_path):
+    """Rooms a [0,3]x[0,3] and b [3.1,6.1]x[0,3] split by one connected wall mesh (x 3..3.1) with a doorway at
+    y 1..2, as building models author walls: the hull of the wall would span the doorway."""
+    wall = wall_with_openings(3.0, 0.1, 2.4, [(1.0, 2.0, 0.0, 2.1)])  # along +x, y 0..0.1
+    wall.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [0, 0, 1]))  # along +y, x -0.1..0
+    wall.apply_translation((3.1, 0, 0))
+    h = 2.4
+    outer = [_box((-0.1, -0.1, 0), (6.2, 0, h)), _box((-0.1, 3, 0), (6.2, 3.1, h)), _box((-0.1, 0, 0), (0, 3, h)),
+             _box((6.1, 0, 0), (6.2, 3, h))]
+    objects = [_floor(0, 0, 3, 3), _floor(3.1, 0, 6.1, 3), {"category": "wall", "kind": "wall", "mesh": wall}]
+    objects += [{"category": "wall", "kind": "wall", "mesh": w} for w in outer]
+    res = build_scene(write_scene(tmp_path / "w", [("a", _rect(0, 0, 3, 3)), ("b", _rect(3.1, 0, 6.1, 3))], objects),
+                      tmp_path / "run")
+    arrays, sem = _load(res.out_dir)
+    ox, oy = arrays["origin"]
+    h_, w_ = arrays["occupancy"].shape
+    xs, ys = ox + (np.arange(w_) + 0.5) * RES, oy + (np.arange(h_) + 0.5) * RES
+    in_wall_line = ((xs > 3.0) & (xs < 3.1))[None, :]
+    doorway = in_wall_line & ((ys > 1.0) & (ys < 2.0))[:, None]
+    solid = in_wall_line & (((ys > 0.0) & (ys < 1.0)) | ((ys > 2.0) & (ys < 3.0)))[:, None]
+    assert doorway.sum() == 2 * 20 and solid.sum() == 2 * 40
+    assert (arrays["instance"][doorway] == 0).all()
+    clear = doorway & ((ys - RES / 2 > 1.0 + 1e-9) & (ys + RES / 2 < 2.0 - 1e-9))[:, None]  # not touching the jambs
+    assert clear.sum() == 2 * 18 and not arrays["occupancy"][clear].any()
+    assert (arrays["instance"][solid] == 3).all() and arrays["occupancy"][solid].all()
+    assert sem.instances[2].area_m2 == pytest.approx(2 * 1.0 * 0.1) and sem.all_rooms_connected
+
+
 def test_table_top_blocks_at_default_band_and_only_legs_below_it(tmp_path):
     x, y, w, d, leg = 2.013, 2.017, 1.2, 0.8, 0.05
     table = assets.table(w, d, 0.75, (100, 100, 100), leg=leg)
@@ -258,6 +288,13 @@ def test_outputs_follow_the_contract(demo_built):
     for inst in sem.instances:
         geom = shapely.geometry.shape(inst.polygon.model_dump())
         assert math.isclose(geom.area, inst.area_m2, rel_tol=1e-3, abs_tol=1e-3)
+
+
+def test_demo_walls_label_only_cells_they_block(demo_built):
+    arrays, sem = _load(demo_built)
+    walls = np.isin(arrays["instance"], [i.instance_id for i in sem.instances if i.kind == "wall"])
+    assert walls.sum() > 1500
+    assert not (walls & (arrays["occupancy"] == 0)).any()  # no doorway painted as wall (the lintels' hulls did: 218)
 
 
 def test_demo_rooms_all_reachable_through_open_doors(demo_built):

@@ -7,9 +7,11 @@ import pytest
 import shapely
 import trimesh
 
+from meshes import prism, wall_with_openings
+
 from sagebench.scene import assets
 from sagebench.topdown.config import TopdownConfig
-from sagebench.topdown.footprints import footprint, footprint_reference, mesh_parts, sample_surface
+from sagebench.topdown.footprints import band_section, footprint, footprint_reference, mesh_parts, sample_surface
 
 DENSITY = TopdownConfig().sample_density
 
@@ -74,3 +76,44 @@ def test_a_turned_vertical_panel_is_widened_too():
     panel = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]], [[0, 1, 2], [0, 2, 3]], process=False)
     panel.apply_transform(trimesh.transformations.rotation_matrix(0.7, [0, 0, 1]))
     assert _fp(panel).area == pytest.approx(1.0 * 0.05, rel=0.05)
+
+
+# ---------------------------------------------------------------- walls: their cross-section in the band
+
+BAND = (0.05, 1.2)
+
+
+def test_a_wall_with_a_doorway_is_one_part_whose_band_section_leaves_the_doorway_free():
+    wall = wall_with_openings(6.0, 0.1, 2.4, [(2.0, 3.0, 0.0, 2.1)])
+    assert len(np.unique(mesh_parts(wall)[1])) == 1  # so the hull of its parts spans the doorway ...
+    assert _fp(wall).covers(shapely.box(2.0, 0.0, 3.0, 0.1).buffer(-0.01))
+    section = band_section(wall, *BAND, min_width=0.05)  # ... and its band section does not
+    exact = shapely.union(shapely.box(0.0, 0.0, 2.0, 0.1), shapely.box(3.0, 0.0, 6.0, 0.1))
+    assert section.symmetric_difference(exact).area < 1e-9
+    assert section.intersection(shapely.box(2.0, -1.0, 3.0, 1.0)).area == 0
+
+
+def test_a_window_above_the_band_floor_leaves_the_wall_under_it_solid():
+    wall = wall_with_openings(6.0, 0.2, 2.4, [(2.0, 3.0, 0.9, 2.0)])  # sill in the band: the wall blocks below it
+    assert band_section(wall, *BAND, min_width=0.05).symmetric_difference(shapely.box(0, 0, 6, 0.2)).area < 1e-9
+    assert band_section(wall, 0.95, 1.2, min_width=0.05).area == pytest.approx(5.0 * 0.2)  # a band above the sill
+
+
+def test_walls_round_a_room_cover_the_walls_not_the_room():
+    ring = shapely.box(0, 0, 4, 3).difference(shapely.box(0.1, 0.1, 3.9, 2.9))
+    walls = prism(ring, 2.4)
+    section = band_section(walls, *BAND, min_width=0.05)
+    assert section.symmetric_difference(ring).area < 1e-9
+
+
+def test_open_and_capless_walls_still_stand():
+    sheet = trimesh.Trimesh([[0, 0, 0], [3, 0, 0], [3, 0, 2.4], [0, 0, 2.4]], [[0, 1, 2], [0, 2, 3]], process=False)
+    assert band_section(sheet, *BAND, min_width=0.05).area == pytest.approx(3.0 * 0.05)  # widened like a panel
+    box = trimesh.creation.box(bounds=[(0, 0, 0), (2, 0.2, 2.4)])
+    no_bottom = trimesh.Trimesh(box.vertices, box.faces[box.face_normals[:, 2] > -0.5], process=False)
+    assert band_section(no_bottom, *BAND, min_width=0.05).area == pytest.approx(0.4)
+
+
+def test_a_wall_outside_the_band_has_no_band_section():
+    lintel = trimesh.creation.box(bounds=[(0, 0, 2.1), (1, 0.1, 2.4)])
+    assert band_section(lintel, *BAND, min_width=0.05).is_empty

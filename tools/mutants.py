@@ -154,6 +154,12 @@ MUTANTS = (
     Mutant("objects in unreachable rooms become goals", "sagebench/stages/gen_trajectories.py",
            "or not inst.polygon.coordinates or inst.room in cut_off):", "or not inst.polygon.coordinates):",
            ("tests/test_topdown_build_scene.py",)),
+    Mutant("walls footprinted by their parts' hulls", "sagebench/topdown/builder.py",
+           'BAND_SECTION_KINDS = frozenset({"wall"})', "BAND_SECTION_KINDS = frozenset()",
+           ("tests/test_topdown_build_scene.py",)),
+    Mutant("band section keeps every enclosed face", "sagebench/topdown/footprints.py",
+           "faces = faces[_covered(shapely.get_coordinates(shapely.point_on_surface(faces)), flat)]", "pass",
+           ("tests/test_topdown_footprints.py",)),
     Mutant("a door hinge anywhere in the scene", "sagebench/scene/checks.py",
            "    if gap > HINGE_TOLERANCE_M:\n", "    if gap > 100 * HINGE_TOLERANCE_M:\n", ("tests/test_fuzz_inputs.py",)),
 )

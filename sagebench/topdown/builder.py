@@ -14,7 +14,7 @@ from sagebench.errors import ConfigError, SceneError
 from sagebench.scene.checks import NO_FLOOR
 from sagebench.scene.loader import SCENE_FILE, LoadedScene
 from sagebench.topdown.config import TopdownConfig
-from sagebench.topdown.footprints import footprint, mesh_parts
+from sagebench.topdown.footprints import band_section, footprint, mesh_parts
 from sagebench.topdown.occupancy import band_occupancy, clip_to_band, inflate
 from sagebench.topdown.raster import Grid, polygon_mask
 from sagebench.topdown.regions import reachability
@@ -23,6 +23,7 @@ from sagebench.ui import track
 
 NOT_BLOCKING_KINDS = frozenset({"floor", "ceiling"})  # walkable surfaces and what is above every head
 THIN_KINDS = frozenset({"door", "window"})  # painted where they touch a cell, so a 4 cm leaf shows
+BAND_SECTION_KINDS = frozenset({"wall"})  # footprint: where they stand in the band (doorways stay open), not hulls
 
 
 @dataclass(frozen=True)
@@ -50,10 +51,13 @@ def compute_topdown(scene: LoadedScene, config: TopdownConfig) -> Topdown:
     parts = {o.instance_id: mesh_parts(scene.meshes[o.instance_id]) for o in objects}
     footprints: dict[int, BaseGeometry] = {}
     for o in track(objects, "footprints"):
-        tris, part = parts[o.instance_id]
-        rng = np.random.default_rng([config.seed, o.instance_id])
-        fp = footprint(tris, part, config.sample_density, rng, min_width=res)
-        footprints[o.instance_id] = fp.simplify(res / 10)  # drops the near-collinear sample corners
+        if o.kind in BAND_SECTION_KINDS:
+            fp = band_section(scene.meshes[o.instance_id], z_lo, z_hi, min_width=res)
+        else:
+            tris, part = parts[o.instance_id]
+            rng = np.random.default_rng([config.seed, o.instance_id])
+            fp = footprint(tris, part, config.sample_density, rng, min_width=res)
+        footprints[o.instance_id] = fp.simplify(res / 10)  # drops the near-collinear sample and section corners
 
     plan = floor_plan(scene, footprints, config.wall_gap)
     blockers = [o for o in objects if o.kind not in NOT_BLOCKING_KINDS]

@@ -1,7 +1,9 @@
-"""Object footprints the SAGE-3D way: sample the surface, project to the ground, convex hull per part, union.
+"""Footprints: objects the SAGE-3D way (sample the surface, project, convex hull per part, union), walls by
+their cross-section in the agent's height band.
 
 An L-shaped sofa or a table on four legs is then not one rectangle: each connected part of the mesh
-gets its own hull and the hulls are fused.
+gets its own hull and the hulls are fused. A wall with door openings is one connected part, whose hull
+would span every doorway; its band section keeps them open.
 """
 
 from __future__ import annotations
@@ -84,3 +86,57 @@ def footprint_reference(tris: np.ndarray, part: np.ndarray) -> BaseGeometry:
     """Exact version of `footprint` for polyhedral parts: the union of each part's vertex hull."""
     hulls = [shapely.MultiPoint(tris[part == p].reshape(-1, 3)[:, :2]).convex_hull for p in np.unique(part)]
     return shapely.union_all(hulls)
+
+
+def band_section(mesh: trimesh.Trimesh, z_lo: float, z_hi: float, min_width: float) -> BaseGeometry:
+    """Where a structure stands in the height band [z_lo, z_hi], seen from above: a Polygon or MultiPolygon, m.
+
+    A wall with door openings is one connected part, so the hull of its parts would span every doorway;
+    its horizontal cross-sections keep the openings. Between two consecutive vertex heights a mesh of
+    vertical faces keeps one cross-section, so one cut at each such interval's middle inside the band
+    sees every shape the band holds, and the footprint is their union. Each cut's segments are noded
+    and polygonised; a face counts as solid when the mesh lies over or under it there (a wall's top or
+    bottom), so the room inside a ring of walls, with nothing of the wall above it, stays out. Section
+    lines that bound no solid face (an open sheet of a wall) are widened to `min_width`.
+    """
+    z = mesh.vertices[:, 2]
+    if len(mesh.faces) == 0 or z.max() < z_lo or z.min() > z_hi:
+        return shapely.Polygon()
+    levels = np.unique(np.concatenate([[z_lo, z_hi], z[(z > z_lo) & (z < z_hi)]]))
+    heights = (levels[:-1] + levels[1:]) / 2
+    lines, to_world, _ = trimesh.intersections.mesh_multiplane(mesh, [0.0, 0.0, 0.0], [0.0, 0.0, 1.0], heights)
+    flat = _flat_triangles(mesh.triangles)
+    cuts = []
+    for segs, matrix in zip(lines, to_world):
+        if len(segs) == 0:
+            continue
+        pts = trimesh.transform_points(np.column_stack([segs.reshape(-1, 2), np.zeros(2 * len(segs))]), matrix)
+        net = shapely.union_all(shapely.set_precision(shapely.linestrings(pts[:, :2].reshape(-1, 2, 2)), 1e-7))
+        faces = shapely.get_parts(shapely.polygonize([net]))
+        if len(faces):
+            faces = faces[_covered(shapely.get_coordinates(shapely.point_on_surface(faces)), flat)]
+        solid = shapely.union_all(faces)
+        cuts.append(shapely.union(solid, net.difference(solid).buffer(min_width / 2, cap_style="flat")))
+    return shapely.union_all(cuts)
+
+
+def _flat_triangles(tris: np.ndarray) -> np.ndarray:
+    """The triangles [F', 3, 3] of [F, 3, 3] that are not seen edge-on from above."""
+    a, b, c = tris[:, 0, :2], tris[:, 1, :2], tris[:, 2, :2]
+    area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    return tris[np.abs(area2) > 1e-12]
+
+
+def _covered(points: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """[P] bool: some triangle of `tris` [F, 3, 3] (none vertical) lies over or under each xy point [P, 2]."""
+    if len(tris) == 0:
+        return np.zeros(len(points), dtype=bool)
+    a, b, c = (tris[None, :, k, :2] for k in range(3))
+    p = points[:, None, :]
+
+    def cross(u, v, w):  # z of (v - u) x (w - u)
+        return (v[..., 0] - u[..., 0]) * (w[..., 1] - u[..., 1]) - (v[..., 1] - u[..., 1]) * (w[..., 0] - u[..., 0])
+
+    d1, d2, d3 = cross(a, b, p), cross(b, c, p), cross(c, a, p)
+    inside = ((d1 >= -1e-12) & (d2 >= -1e-12) & (d3 >= -1e-12)) | ((d1 <= 1e-12) & (d2 <= 1e-12) & (d3 <= 1e-12))
+    return inside.any(axis=1)

@@ -40,7 +40,8 @@ class MapInstance(_Model):
     category_id: Annotated[int, Field(ge=1, description="Index into `categories` and value in topdown.npz `category`.")]
     kind: Kind
     room: str | None = Field(description="Room id from scene.json, else the room holding the footprint's centroid.")
-    polygon: MultiPolygon = Field(description="Footprint: union of the convex hulls of the object's parts, m.")
+    polygon: MultiPolygon = Field(description="Footprint, m: union of the convex hulls of the object's parts; a "
+                                              "wall's cross-section within the height band (its openings kept).")
     bbox_m: tuple[tuple[float, float, float], tuple[float, float, float]] = Field(
         description="World axis-aligned box [[x, y, z] min, [x, y, z] max] of the posed mesh, m."
     )
