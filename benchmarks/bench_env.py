@@ -1,8 +1,10 @@
 """Closed-loop env steps/s on the demo run at 224x224 RGB + depth, beside the renderer and physics costs that bound
-it (target: 20 steps/s for one env on the 2-core machine)."""
+it (target: 20 steps/s for one env on the 2-core machine). Wall times move with the shared machine's load, so
+each row also gives CPU seconds (user + sys of this process, both renderer threads) and the load average."""
 
 from __future__ import annotations
 
+import os
 import shutil
 import tempfile
 import time
@@ -32,11 +34,13 @@ def _demo_run(root: Path) -> Path:
     return root / "run"
 
 
-def _steps_per_s(run: Path, config: EnvConfig, episodes: list[str], batch: int, threads: int) -> float:
+def _steps_per_s(run: Path, config: EnvConfig, episodes: list[str], batch: int, threads: int
+                 ) -> tuple[float, float]:
+    """(env steps per wall second, CPU seconds per env step)."""
     sim = Simulator(run, config, threads=threads)
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     result = rollout(sim, RandomWalk(seed=0), episodes, batch=batch, sheet=0)
-    return result.steps / (time.perf_counter() - start)
+    return result.steps / (time.perf_counter() - start), (time.process_time() - cpu) / result.steps
 
 
 def run() -> list[dict]:
@@ -52,33 +56,35 @@ def run() -> list[dict]:
         kw = dict(floor_z=w.model.floor_z, camera_height=cfg.agent.camera_height, hfov_deg=cfg.agent.hfov_deg,
                   width=cfg.width, height=cfg.height)
         observe(w.gaussians, poses, ("rgb", "depth"), **kw)
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         for k in range(10):
             observe(w.gaussians, poses + [0, 0, 0.3 * k], ("rgb", "depth"), **kw)
-        render_s = (time.perf_counter() - start) / 10
+        render_s, render_cpu = (time.perf_counter() - start) / 10, (time.process_time() - cpu) / 10
         agents = Agents(w.model, poses)
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         for _ in range(50):
             agents.move(np.array([0]), np.array([0.5]), np.array([0.2]), cfg.actions.control_interval)
-        physics_s = (time.perf_counter() - start) / 50
-        one = _steps_per_s(run_dir, cfg, ids, batch=1, threads=1)
-        four = _steps_per_s(run_dir, cfg, ids, batch=4, threads=2)
-        blind = _steps_per_s(run_dir, cfg.model_copy(update={"observations": ()}), ids, batch=1, threads=1)
+        physics_s, physics_cpu = (time.perf_counter() - start) / 50, (time.process_time() - cpu) / 50
+        one, one_cpu = _steps_per_s(run_dir, cfg, ids, batch=1, threads=1)
+        four, four_cpu = _steps_per_s(run_dir, cfg, ids, batch=4, threads=2)
+        blind, blind_cpu = _steps_per_s(run_dir, cfg.model_copy(update={"observations": ()}), ids, batch=1, threads=1)
+        load = os.getloadavg()[0]
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     bound = 1.0 / (render_s + physics_s)
     return [
         {"name": "env step, 224x224 RGB + depth, one env", "reference": "render + physics bound",
-         "seconds": 1.0 / one, "speed-up": one / bound, "notes": f"{one:.1f} steps/s (target 20); random policy, "
-                                                                  f"{len(ids)} episodes x {STEPS} actions"},
+         "seconds": 1.0 / one, "speed-up": one / bound, "cpu-s": one_cpu,
+         "notes": f"{one:.1f} steps/s (target 20); random policy, {len(ids)} episodes x {STEPS} actions; "
+                  f"load average {load:.1f}"},
         {"name": "env step, 224x224 RGB + depth, 4 episodes together", "reference": "one env",
-         "seconds": 1.0 / four, "speed-up": four / one, "notes": f"{four:.1f} steps/s"},
+         "seconds": 1.0 / four, "speed-up": four / one, "cpu-s": four_cpu, "notes": f"{four:.1f} steps/s"},
         {"name": "env step without images", "reference": "one env", "seconds": 1.0 / blind,
-         "speed-up": blind / one, "notes": f"{blind:.0f} steps/s: physics and bookkeeping only"},
+         "speed-up": blind / one, "cpu-s": blind_cpu, "notes": f"{blind:.0f} steps/s: physics and bookkeeping only"},
         {"name": "render one 224x224 view (RGB + depth)", "reference": "-", "seconds": render_s, "speed-up": 1.0,
-         "notes": "chunk-culled splat renderer"},
+         "cpu-s": render_cpu, "notes": "chunk-culled splat renderer, numba on both cores"},
         {"name": "physics of one action (0.5 s, 11 MuJoCo steps)", "reference": "-", "seconds": physics_s,
-         "speed-up": 1.0, "notes": f"bound: {bound:.1f} steps/s with the render"},
+         "speed-up": 1.0, "cpu-s": physics_cpu, "notes": f"bound: {bound:.1f} steps/s with the render"},
     ]
 
 
