@@ -80,6 +80,8 @@ def test_same_seed_gives_byte_identical_shards(run_cli, generated, tmp_path):
     run = _run_dir(generated, tmp_path)
     code, out, _ = run_cli("gen-trajectories", run, "--seed", "0")
     assert code == 0 and "200 trajectories, 600 episode rows" in out
+    assert ("  high-level types: Add_Object 40/40, Scenario_Driven 40/40, Relative_Relationship 40/40, "
+            "Attribute_Based 40/40, Area_Based 40/40 (chosen/quota)\n") in out
     assert _files(generated / "episodes" / SCENE) == _files(run / "episodes" / SCENE)
 
 
@@ -96,6 +98,7 @@ def test_options_shard_mb_per_scene_seed_and_none(run_cli, demo_built_run, tmp_p
     assert len({p.name.rsplit("-", 1)[0] for p in shards}) == 1  # the scene's one split
     rows = read_episodes(run / "episodes" / SCENE).to_pylist()
     assert {r["instruction_text"] for r in rows} == {None} and {r["seed"] for r in rows} == {3}
+    assert "high-level types" not in out
     assert {r["goal_radius"] for r in rows} == {0.5} and all(4 <= r["geodesic_distance"] <= 9 for r in rows)
 
 

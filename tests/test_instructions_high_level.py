@@ -138,18 +138,22 @@ def demo(demo_built_run):
     ctx = scene_context(spec, smap)
     targets, names = scene_targets(spec, smap, ctx)
     trajs = sample_trajectories(grid, targets, spec.scene_id, config).trajectories
-    return ctx, smap, episode_rows(spec.scene_id, trajs, names, config, ctx), (spec, smap, grid, trajs, names)
+    made = episode_rows(spec.scene_id, trajs, names, config, ctx)
+    return ctx, smap, made.rows, (spec, smap, grid, trajs, names, made.balance)
 
 
-def test_demo_every_trajectory_has_low_and_high_and_all_five_types_appear_balanced(demo):
-    _, _, rows, _ = demo
+def test_demo_every_trajectory_has_low_and_high_and_the_five_types_meet_equal_quotas(demo):
+    _, _, rows, (*_, balance) = demo
     levels: dict[str, set[str]] = {}
     for r in rows:
         levels.setdefault(r["trajectory_id"], set()).add(r["instruction_level"])
     assert all(v == {"low", "high"} for v in levels.values())
     kinds = Counter(r["instruction_type"] for r in rows if r["instruction_level"] == "high")
-    assert set(kinds) == set(HIGH_LEVEL_TYPES)
-    assert min(kinds.values()) >= 0.1 * len(levels), kinds  # each type gets its share, give or take
+    n = sum(kinds.values())
+    assert n == len(levels) == 200 and set(kinds) == set(HIGH_LEVEL_TYPES)
+    # equal shares of n: each type n // 5, the remainder's types one more (was 69/46/40/25/20 drawn one by one)
+    assert sorted(kinds.values()) == sorted([n // 5 + 1] * (n % 5) + [n // 5] * (5 - n % 5)), kinds
+    assert balance.short() == {} and min(balance.describable.values()) > n // 5
 
 
 def test_demo_high_level_texts_are_grounded_and_free_of_ids(demo):
@@ -208,10 +212,10 @@ def test_demo_next_to_relations_hold_in_the_semantic_map(demo):
 def test_demo_same_seed_same_text_other_seed_other_wording(demo):
     from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, episode_rows
 
-    ctx, _, rows, (spec, _, _, trajs, names) = demo
-    again = episode_rows(spec.scene_id, trajs, names, GenTrajectoriesConfig(), ctx)
+    ctx, _, rows, (spec, _, _, trajs, names, _) = demo
+    again = episode_rows(spec.scene_id, trajs, names, GenTrajectoriesConfig(), ctx).rows
     assert again == rows
-    other = episode_rows(spec.scene_id, trajs, names, GenTrajectoriesConfig(seed=1), ctx)
+    other = episode_rows(spec.scene_id, trajs, names, GenTrajectoriesConfig(seed=1), ctx).rows
     changed = sum(a["instruction_text"] != b["instruction_text"] for a, b in zip(rows, other, strict=True)
                   if a["instruction_level"] == "high")
     assert changed > 50
@@ -232,7 +236,7 @@ def test_scenario_and_delivery_data_reference_no_furniture_words():
 
 
 def test_demo_door_endpoints_take_their_room_from_the_position_and_their_name_from_the_rooms_joined(demo):
-    ctx, _, rows, (spec, _, _, trajs, names) = demo
+    ctx, _, rows, (spec, _, _, trajs, names, _) = demo
     floors = {r.id: Polygon(r.polygon) for r in spec.rooms}
     doors = {o.instance_id: o for o in ctx.objects if o.joins is not None}
     ends = [(e, room, wp) for t in trajs for e, room, wp in ((t.start, t.start_room, t.waypoints[0, :2]),

@@ -160,6 +160,12 @@ MUTANTS = (
     Mutant("band section keeps every enclosed face", "sagebench/topdown/footprints.py",
            "faces = faces[_covered(shapely.get_coordinates(shapely.point_on_surface(faces)), flat)]", "pass",
            ("tests/test_topdown_footprints.py",)),
+    Mutant("high-level types without quotas", "sagebench/instructions/balance.py",
+           "cap, chosen = dict(first), {}", "cap, chosen = {t: len(pool) for t in kinds}, {}",
+           ("tests/test_instructions_balance.py",)),
+    Mutant("a short type's trajectories shared again", "sagebench/instructions/balance.py",
+           "chosen.update({i: t for i, t in flow.items() if t not in reached})", "pass",
+           ("tests/test_instructions_balance.py",)),
     Mutant("a door hinge anywhere in the scene", "sagebench/scene/checks.py",
            "    if gap > HINGE_TOLERANCE_M:\n", "    if gap > 100 * HINGE_TOLERANCE_M:\n", ("tests/test_fuzz_inputs.py",)),
 )

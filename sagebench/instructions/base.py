@@ -98,6 +98,7 @@ class TrajectoryText:
     scene: SceneContext | None = None
     goal_radius: float = 1.0  # metres; Base_Action's literal execution must end this close to the last waypoint
     blocked: BlockedMap | None = None  # cells Base_Action's literal execution must not cross (None: not checked)
+    high_level: tuple[str, str] | None = None  # (type, sentence) chosen with the scene's other trajectories
 
 
 Generator = Callable[[TrajectoryText, np.random.Generator], list[Instruction]]

@@ -7,20 +7,23 @@ Each type describes the goal its own way, and every description picks out exactl
   from the start, closest to), or a room by an object in it;
 - Attribute_Based: the goal by its colour, material and state;
 - Area_Based: the goal's room, then the goal among that room's objects.
-A type that cannot describe a trajectory's goal is skipped; among the rest one is drawn with weights
-`SceneContext.type_mix` (default equal), and a phrasing is drawn per type, all from the trajectory's rng.
+Every type that can describe a trajectory's goal offers a sentence (`sentences`, phrasing drawn from the
+trajectory's rng). gen-trajectories chooses among them for all the scene's trajectories at once
+(`balanced`), so each type's count is its `SceneContext.type_mix` share (default equal) of the trajectories
+wherever the goals allow (`balance.balance_types`); a trajectory on its own gets one drawn the same way.
 """
 
 from __future__ import annotations
 
 import tomllib
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 from functools import cache
 from importlib import resources
 
 import numpy as np
 
+from sagebench.instructions.balance import TypeBalance, balance_types
 from sagebench.instructions.base import HIGH_LEVEL_TYPES, Instruction, SceneContext, TrajectoryText
 from sagebench.instructions.naming import ObjectInfo, door_peers, door_place, words
 from sagebench.instructions.relations import NEXT_TO_M, between, nearest, next_to, rooms_along, side_as_seen
@@ -70,23 +73,37 @@ def high_level(text: TrajectoryText, rng: np.random.Generator) -> list[Instructi
 
 
 def describe(text: TrajectoryText, rng: np.random.Generator) -> tuple[str, str] | None:
-    """(type, sentence): the first type in a seeded, mix-weighted order that can describe the goal."""
+    """(type, sentence): the one chosen with the scene's other trajectories (`text.high_level`), else one drawn
+    for this trajectory alone; None when no type can describe the goal."""
+    if text.high_level is not None:
+        return text.high_level
+    (alone,), _ = balanced([text], [rng], rng)
+    return alone.high_level
+
+
+def sentences(text: TrajectoryText, rng: np.random.Generator) -> dict[str, str]:
+    """Type -> sentence for every type with a positive share that can describe the goal (phrasings from `rng`)."""
     ctx = text.scene
     if ctx is None:
-        return None
-    for kind in _type_order(ctx, rng):
-        sentence = _TYPES[kind](ctx, text, rng)
+        return {}
+    out = {}
+    for kind in HIGH_LEVEL_TYPES:
+        sentence = _TYPES[kind](ctx, text, rng) if ctx.type_mix.get(kind, 0) > 0 else None
         if sentence is not None:
-            return kind, _capitalise(sentence)
-    return None
+            out[kind] = _capitalise(sentence)
+    return out
 
 
-def _type_order(ctx: SceneContext, rng: np.random.Generator) -> list[str]:
-    """Types in a weighted random order without replacement (keys u^(1/w)); zero-weight types left out."""
-    weights = np.array([ctx.type_mix.get(t, 0.0) for t in HIGH_LEVEL_TYPES], dtype=np.float64)
-    u = rng.random(len(HIGH_LEVEL_TYPES))
-    keys = np.where(weights > 0, u ** (1.0 / np.maximum(weights, 1e-12)), -1.0)
-    return [HIGH_LEVEL_TYPES[i] for i in np.argsort(-keys, kind="stable") if weights[i] > 0]
+def balanced(texts: Sequence[TrajectoryText], rngs: Sequence[np.random.Generator],
+             rng: np.random.Generator) -> tuple[list[TrajectoryText], TypeBalance]:
+    """The trajectories of one scene with their high-level (type, sentence) chosen together: every type's count
+    is its share of `type_mix` wherever the goals allow. Phrasings come from `rngs` (one per trajectory), the
+    choice from `rng`."""
+    offered = [sentences(t, r) for t, r in zip(texts, rngs, strict=True)]
+    mix = texts[0].scene.type_mix if texts and texts[0].scene is not None else {}  # one scene: one mix
+    balance = balance_types([o.keys() for o in offered], mix, rng)
+    return [replace(t, high_level=None if k is None else (k, o[k]))
+            for t, o, k in zip(texts, offered, balance.chosen)], balance
 
 
 def _pick(rng: np.random.Generator, options):

@@ -1,6 +1,6 @@
 """High-level instructions from an OpenAI-compatible chat model, grounded or replaced by the template.
 
-`LLMInstructor` asks `llm_client.ChatClient` for one instruction of the type the template draw chose,
+`LLMInstructor` asks `llm_client.ChatClient` for one instruction of the type chosen for the trajectory,
 checks it with `grounding.Grounder`, asks again quoting the problems, and otherwise keeps the
 template sentence (`instruction_source` "template" instead of "llm:<model>"). Once the client's
 breaker has opened, every remaining trajectory keeps its template without a request.

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import zlib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -28,7 +29,9 @@ from sagebench.errors import ConfigError, DataError, ServiceError, first_error
 from sagebench.fileio import staged_dir, write_bytes
 from sagebench.instructions import instructions_for
 from sagebench.instructions.execution import BlockedMap
+from sagebench.instructions.balance import TypeBalance
 from sagebench.instructions.base import HIGH_LEVEL_TYPES, SceneContext, TrajectoryText, make_context
+from sagebench.instructions.high_level import balanced
 from sagebench.instructions.llm_client import API_KEY_ENV, LLMConfig, check_cache_dir, default_cache_dir
 from sagebench.instructions.naming import ObjectInfo, RoomInfo
 from sagebench.instructions.sight import SightMap, sight_map
@@ -103,6 +106,7 @@ class SceneEpisodes:
     shards: list[Path]
     llm_summary: str | None = None  # what the chat model contributed, in llm mode
     unreachable_rooms: tuple[str, ...] = ()  # rooms whose objects (and themselves) were no start or goal
+    high_level_summary: str | None = None  # the high-level types' counts against their quotas, and why any fell short
 
     def summary(self) -> str:
         line = (f"gen-trajectories {self.scene_id}: {self.trajectories} trajectories, {self.rows} episode rows "
@@ -110,6 +114,8 @@ class SceneEpisodes:
         if self.unreachable_rooms:
             line += (f"\n  left out (unreachable: most of the navigable floor outside the main region): rooms "
                      f"{', '.join(self.unreachable_rooms)} and the objects in them")
+        if self.high_level_summary is not None:
+            line += f"\n  high-level types: {self.high_level_summary}"
         return line if self.llm_summary is None else f"{line}\n  llm: {self.llm_summary}"
 
 
@@ -161,7 +167,8 @@ def generate_scene(scene_dir: Path, out_dir: Path, config: GenTrajectoriesConfig
 
         ctx, instructor = with_instructor(ctx, config.llm, api_key=api_key)
     blocked = BlockedMap(occupancy != 0, grid.resolution, grid.origin)
-    rows = episode_rows(spec.scene_id, result.trajectories, names, config, ctx, blocked)
+    made = episode_rows(spec.scene_id, result.trajectories, names, config, ctx, blocked)
+    rows = made.rows
     if instructor is not None:
         share = instructor.share()
         if not share.enough:
@@ -177,7 +184,7 @@ def generate_scene(scene_dir: Path, out_dir: Path, config: GenTrajectoriesConfig
         write_bytes(tmp / PREVIEW, png)
     return SceneEpisodes(spec.scene_id, out_dir, len(result.trajectories), len(rows),
                          [out_dir / p.name for p in shards], None if instructor is None else instructor.summary(),
-                         unreachable_rooms(smap))
+                         unreachable_rooms(smap), None if made.balance is None else made.balance.summary())
 
 
 def read_scene_inputs(scene_dir: Path) -> tuple[SceneSpec, SemanticMap, GridMap, np.ndarray]:
@@ -259,28 +266,43 @@ def unreachable_rooms(smap: SemanticMap) -> tuple[str, ...]:
     return tuple(r.room_id for r in smap.rooms if not r.reachable)
 
 
+@dataclass(frozen=True)
+class EpisodeRows:
+    rows: list[dict[str, Any]]
+    balance: TypeBalance | None  # the high-level types chosen for the trajectories (None without instructions)
+
+
 def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str, str],
                  config: GenTrajectoriesConfig, ctx: SceneContext | None = None,
-                 blocked: BlockedMap | None = None) -> list[dict[str, Any]]:
+                 blocked: BlockedMap | None = None) -> EpisodeRows:
     """One row per (trajectory, instruction); one bare row per trajectory when instructions are 'none'.
 
-    `blocked` (the occupancy map) is what Base_Action's literal execution must not cross.
+    `blocked` (the occupancy map) is what Base_Action's literal execution must not cross. The high-level
+    types are chosen for all trajectories at once (`high_level.balanced`, seeded by (seed, scene id)), so
+    their counts follow `config.high_level_mix` wherever the goals allow.
 
-    Each trajectory's wording depends only on (seed, trajectory id), so in llm mode trajectories are
-    instructed on `config.llm.concurrency` threads and the rows still come out in order.
+    Each trajectory's wording depends only on (seed, trajectory id) and its chosen type, so in llm mode
+    trajectories are instructed on `config.llm.concurrency` threads and the rows still come out in order.
     """
+    texts = [TrajectoryText(t.waypoints, names[t.start.key], names[t.goal.key], t.start.kind, t.goal.kind,
+                            t.start.instance_id, t.goal.instance_id, t.start_room, t.goal_room, ctx,
+                            config.goal_radius_m, blocked) for t in trajectories]
+    balance = None
+    if config.instructions != "none":
+        phrasing = [np.random.default_rng([config.seed, int(t.trajectory_id, 16), 1]) for t in trajectories]
+        choice = np.random.default_rng([config.seed, zlib.crc32(f"high-level types|{scene_id}".encode())])
+        texts, balance = balanced(texts, phrasing, choice)
 
-    def instruct(traj: Trajectory):
-        text = TrajectoryText(traj.waypoints, names[traj.start.key], names[traj.goal.key], traj.start.kind,
-                              traj.goal.kind, traj.start.instance_id, traj.goal.instance_id, traj.start_room,
-                              traj.goal_room, ctx, config.goal_radius_m, blocked)
+    def instruct(item: tuple[Trajectory, TrajectoryText]):
+        traj, text = item
         rng = np.random.default_rng([config.seed, int(traj.trajectory_id, 16)])
         return instructions_for(text, config.instructions, rng)
 
+    items = list(zip(trajectories, texts, strict=True))
     if config.instructions == "llm":
         pool = ThreadPoolExecutor(config.llm.concurrency)
         try:
-            instructed = list(ui.track(pool.map(instruct, trajectories), "instructions (llm)", len(trajectories)))
+            instructed = list(ui.track(pool.map(instruct, items), "instructions (llm)", len(items)))
         except BaseException:  # Ctrl-C: cut the requests in flight and leave without waiting for the queue
             if ctx is not None and ctx.llm is not None:
                 ctx.llm.client.cancel()
@@ -288,7 +310,7 @@ def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str,
             raise
         pool.shutdown()
     else:
-        instructed = [instruct(t) for t in trajectories]
+        instructed = [instruct(item) for item in items]
     split_of = assign_splits(scene_id, [t.trajectory_id for t in trajectories], config.splits)
     rows = []
     for traj, instructions in zip(trajectories, instructed, strict=True):
@@ -319,7 +341,7 @@ def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str,
             rows.append({**base, "episode_id": _episode_id(traj.trajectory_id, ins.level, ins.type, k),
                          "instruction_level": ins.level, "instruction_type": ins.type,
                          "instruction_text": ins.text, "instruction_source": ins.source})
-    return rows
+    return EpisodeRows(rows, balance)
 
 
 def _episode_id(trajectory_id: str, level: str, kind: str, index: int) -> str:
