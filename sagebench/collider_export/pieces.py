@@ -21,6 +21,7 @@ import numpy as np
 from sagebench import ui
 from sagebench.collider_export.coacd_cache import PartCache, PieceResult, cache_key
 from sagebench.collider_export.convex import ConvexPart, hull_part
+from sagebench.collider_export.fanout import worker_context
 from sagebench.collider_export.methods import LADDERS, ColliderSettings, Method, band_error_cm, good_enough, run_method
 
 PROGRESS_EVERY_S = 5.0
@@ -87,8 +88,7 @@ class _Scheduler:
                  progress: bool):
         self.pieces, self.keys, self.settings, self.cache = pieces, keys, settings, cache
         self.workers, self.floor_height = max(1, workers), floor_height
-        self.ctx = multiprocessing.get_context("forkserver")
-        self.ctx.set_forkserver_preload(["sagebench.collider_export.pieces"])
+        self.ctx = worker_context()
         self.running: dict[Connection, _Run] = {}
         self.progress = PieceProgress(quiet=not progress)
 
