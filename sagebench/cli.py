@@ -294,7 +294,7 @@ def export_usd_cmd(
     cache_dir: Annotated[
         Path | None, typer.Option("--cache-dir", help="Collider piece cache (default: the user cache directory).")
     ] = None,
-    workers: Annotated[int | None, typer.Option(help="Processes decomposing pieces in parallel.")] = None,
+    workers: Annotated[int | None, typer.Option(help="Processes splitting meshes, decomposing pieces and measuring colliders.")] = None,
     colliders: Annotated[
         str | None, typer.Option(help="quality (CoACD), balanced (hull, voxel or CoACD, whichever first fits the "
                                       "agent band) or fast (hull or voxel).")

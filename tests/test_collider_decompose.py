@@ -34,6 +34,10 @@ def test_mixed_mesh_gets_exact_parts_and_decomposed_pieces(tmp_path):
     assert [p.method for p in out["meshes/mixed.glb"].pieces] == ["voxel"]  # the U's hull misses the band by 15 cm
     # the U inside `mixed` is moved, so it is a different piece from meshes/u.obj
     assert out["meshes/mixed.glb"].pieces[0].key != out["meshes/u.obj"].pieces[0].key
+    two = decompose_meshes(meshes, ColliderSettings(mode="fast"), cache=PartCache(tmp_path / "two"), workers=2)
+    for name, mc in out.items():  # meshes split on two processes: the same parts
+        assert [(p.vertices.tobytes(), p.faces.tobytes()) for p in mc.parts] == \
+            [(p.vertices.tobytes(), p.faces.tobytes()) for p in two[name].parts]
 
 
 def _boxes(n: int) -> trimesh.Trimesh:

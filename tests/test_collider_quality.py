@@ -10,7 +10,7 @@ import trimesh
 
 from sagebench.collider_export.convex import hull_part
 from sagebench.collider_export.quality import (
-    _distances, _inside, band_in_mesh_frame, inside_reference, measure, measure_placed, part_planes,
+    _distances, _inside, band_in_mesh_frame, inside_reference, measure, measure_objects, measure_placed, part_planes,
 )
 
 # an L: [0,2]x[0,1] plus [0,1]x[1,2], 1 m tall; its hull adds the triangle (1,1) (2,1) (1,2), 0.5 m^2 x 1 m
@@ -97,3 +97,15 @@ def test_distances_agree_with_trimesh_closest_point():
     points = np.concatenate([rng.uniform(-1, 4, size=(500, 3)), mesh.vertices[:20], mesh.triangles_center[:20]])
     _, expected, _ = trimesh.proximity.closest_point(mesh, points)
     np.testing.assert_allclose(_distances(mesh, points), expected, rtol=0, atol=1e-12)
+
+
+def test_measure_objects_measures_each_mesh_and_band_once_on_any_number_of_workers():
+    meshes = {"l": (L_SHAPE.vertices, L_SHAPE.faces), "leg": (LEG_A.vertices, LEG_A.faces)}
+    parts = {"l": [hull_part(L_SHAPE.vertices)], "leg": [hull_part(LEG_A.vertices)]}
+    shifted = np.eye(4)
+    shifted[:3, 3] = (5.0, 0.0, 0.0)  # the same band height: the same measurement
+    placed = [(1, "l", np.eye(4)), (2, "leg", np.eye(4)), (3, "l", shifted)]
+    one = measure_objects(placed, meshes, parts, 0.0, workers=1)
+    assert one == measure_objects(placed, meshes, parts, 0.0, workers=2)
+    assert one[1] == one[3] == measure(L_SHAPE.vertices, L_SHAPE.faces, parts["l"])
+    assert one[2].band_over_cm == 0.0 and one[1].band_over_cm == pytest.approx(50.0, abs=1.0)

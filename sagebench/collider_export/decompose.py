@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -9,6 +10,7 @@ import numpy as np
 
 from sagebench.collider_export.coacd_cache import PartCache, PieceResult
 from sagebench.collider_export.convex import ConvexPart, ConvexSplit, merge_parts, split_convex, weld
+from sagebench.collider_export.fanout import map_processes
 from sagebench.collider_export.methods import LADDERS, ColliderSettings, agent_band
 from sagebench.collider_export.pieces import Piece, decompose_pieces
 
@@ -42,7 +44,7 @@ def decompose_meshes(
     with more than WHOLE_MESH_FACTOR times that many pieces (a plant of a thousand leaves) becomes one voxel
     collider of the whole mesh within the budget instead.
     """
-    plan = plan_pieces(meshes, settings, convex_tolerance=convex_tolerance)
+    plan = plan_pieces(meshes, settings, convex_tolerance=convex_tolerance, workers=workers)
     results = iter(decompose_pieces(plan.jobs, settings, cache=cache, workers=workers, floor_height=floor_height))
     out: dict[str, MeshColliders] = {}
     for name, split in plan.splits.items():
@@ -69,9 +71,12 @@ class PiecePlan:
 
 
 def plan_pieces(meshes: Mapping[str, tuple[np.ndarray, np.ndarray]], settings: ColliderSettings, *,
-                convex_tolerance: float = 0.002) -> PiecePlan:
-    """The pieces decompose_meshes runs, without running them (a run spreads them over its executor)."""
-    splits = {name: split_convex(v, f, tolerance=convex_tolerance) for name, (v, f) in meshes.items()}
+                convex_tolerance: float = 0.002, workers: int = 1) -> PiecePlan:
+    """The pieces decompose_meshes runs, without running them (a run spreads them over its executor); the
+    meshes are split on up to `workers` processes."""
+    split = functools.partial(split_convex, tolerance=convex_tolerance)
+    splits = dict(zip(meshes, map_processes(split, list(meshes.values()), workers=workers,
+                                            sizes=[len(f) for _, f in meshes.values()])))
     over = {name for name, s in splits.items()
             if len(s.parts) + len(s.concave) > WHOLE_MESH_FACTOR * settings.max_parts}
     jobs = []  # one batch, so the whole-mesh jobs run beside the pieces (biggest first)

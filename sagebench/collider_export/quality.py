@@ -23,6 +23,7 @@ import trimesh
 from scipy import ndimage
 
 from sagebench.collider_export.convex import ConvexPart
+from sagebench.collider_export.fanout import map_processes
 
 AGENT_BAND = (0.05, 1.2)  # m above the floor: what the agent's body sweeps through
 
@@ -319,15 +320,19 @@ def measure_objects(
     parts: Mapping[str, Sequence[ConvexPart]],
     floor_height: float,
     settings: QualitySettings = QualitySettings(),
+    *,
+    workers: int = 1,
 ) -> dict[int, ColliderQuality]:
     """Quality per (instance id, mesh name, 4x4 mesh -> world matrix); one measurement per mesh and band height,
-    so an asset placed many times on the floor costs one."""
-    out: dict[int, ColliderQuality] = {}
-    done: dict[tuple, ColliderQuality] = {}
+    so an asset placed many times on the floor costs one; measurements spread over up to `workers` processes."""
+    keys = []
+    first: dict[tuple, tuple[str, np.ndarray]] = {}
     for instance_id, name, matrix in placed:
         band = band_in_mesh_frame(matrix, floor_height)
         key = (name, tuple(np.round(band, 9))) if band is not None else (name, instance_id)
-        if key not in done:
-            done[key] = measure_placed(*meshes[name], parts[name], matrix, floor_height, settings)
-        out[instance_id] = done[key]
-    return out
+        keys.append(key)
+        first.setdefault(key, (name, matrix))
+    jobs = [(*meshes[name], parts[name], matrix, floor_height, settings) for name, matrix in first.values()]
+    results = map_processes(measure_placed, jobs, workers=workers, sizes=[len(job[1]) for job in jobs])
+    done = dict(zip(first, results))
+    return {instance_id: done[key] for (instance_id, _, _), key in zip(placed, keys)}

@@ -44,7 +44,8 @@ class ExportConfig(BaseModel):
     convex_tolerance: float = Field(
         default=0.002, gt=0, lt=1, description="A closed piece within this relative volume of its hull is convex."
     )
-    workers: int = Field(default=1, ge=1, description="Processes decomposing pieces in parallel.")
+    workers: int = Field(default=1, ge=1,
+                         description="Processes splitting meshes, decomposing pieces and measuring colliders.")
     usdz: bool = Field(default=False, description="Also package the stage and its layers as scene.usdz.")
 
 
@@ -149,7 +150,7 @@ def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> 
     local = _local_meshes(scene)
     colliders = decompose_meshes(local, config.colliders, cache=cache, workers=config.workers,
                                  convex_tolerance=config.convex_tolerance, floor_height=spec.floor_height)
-    quality = _measure_objects(scene, local, colliders)
+    quality = _measure_objects(scene, local, colliders, config.workers)
     per_object = _split_gaussians(scene_dir / GAUSSIANS, scene)
     rooms = {r.id: r.type for r in spec.rooms}
     objects: list[StageObject] = []
@@ -206,11 +207,12 @@ def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> 
 
 
 def _measure_objects(scene: LoadedScene, local: dict[str, tuple[np.ndarray, np.ndarray]],
-                     colliders: dict[str, MeshColliders]) -> dict[int, ColliderQuality]:
+                     colliders: dict[str, MeshColliders], workers: int) -> dict[int, ColliderQuality]:
     """Quality of the objects whose colliders have decomposed pieces (exact convex pieces are their own collider)."""
     placed = [(o.instance_id, o.mesh, o.transform.as_matrix() if o.door is None
                else door_pose(o.door) @ o.transform.as_matrix()) for o in scene.spec.objects if colliders[o.mesh].pieces]
-    return measure_objects(placed, local, {name: mc.parts for name, mc in colliders.items()}, scene.spec.floor_height)
+    return measure_objects(placed, local, {name: mc.parts for name, mc in colliders.items()}, scene.spec.floor_height,
+                           workers=workers)
 
 
 def _local_meshes(scene: LoadedScene) -> dict[str, tuple[np.ndarray, np.ndarray]]:
