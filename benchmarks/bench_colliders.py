@@ -1,5 +1,8 @@
-"""export-usd on the demo apartment furnished with real Sweet Home 3D models: cold/warm time and collider quality
-per `--colliders` mode, then the balanced export validated (every trajectory replayed).
+"""export-usd on the demo apartment furnished with real Sweet Home 3D models: cold/warm time, CPU seconds and
+collider quality per `--colliders` mode, then the balanced export validated (every trajectory replayed).
+
+CPU seconds are this process's plus the piece workers' (children of multiprocessing's fork server, which reaps
+them: its /proc cutime/cstime), so they count the work whatever else loads the machine.
 
 Uses Debian's sweethome3d-furniture CC0 catalogue when it is installed (apt-get install
 sweethome3d-furniture), else the seven fixture models in tests/fixtures/sh3d_cc0.
@@ -17,33 +20,48 @@ from pathlib import Path
 
 SYSTEM_CATALOGUE = Path("/usr/share/sweethome3d/furniture/BlendSwap-CC-0.sh3f")
 FIXTURE_CATALOGUE = Path(__file__).resolve().parent.parent / "tests" / "fixtures" / "sh3d_cc0"
-MODES = {"fast": None, "balanced": None, "quality": 3.0}  # mode -> piece budget (s; None = the default)
+MODES = {"fast": None, "balanced": None, "quality": None}  # mode -> piece budget (s; None = the default)
 WORKERS = 2
 
 
-def _export(run_dir: Path, cache: Path, mode: str, budget: float | None) -> tuple[float, object, str]:
-    """(seconds, ExportResult, stderr text) of one export-usd."""
+def _cpu_seconds() -> float:
+    """User + system CPU of this process and of every piece worker finished so far."""
+    from multiprocessing import forkserver
+
+    own = time.process_time()
+    pid = forkserver._forkserver._forkserver_pid
+    if pid is None:
+        return own
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return own
+    return own + sum(int(x) for x in fields[11:15]) / os.sysconf("SC_CLK_TCK")  # utime stime cutime cstime
+
+
+def _export(run_dir: Path, cache: Path, mode: str, budget: float | None) -> tuple[float, float, object, str]:
+    """(seconds, CPU seconds, ExportResult, stderr text) of one export-usd."""
     from sagebench.stages.export_usd import export_usd, make_config
 
     err = io.StringIO()
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), _cpu_seconds()
     config = make_config(colliders=mode, piece_budget=budget, workers=WORKERS)
     with contextlib.redirect_stderr(err):
         (result,) = export_usd(run_dir, config=config, cache_dir=cache)
-    return time.perf_counter() - start, result, err.getvalue()
+    return time.perf_counter() - start, _cpu_seconds() - cpu, result, err.getvalue()
 
 
-def _quality_notes(scene_dir: Path, max_parts: int) -> str:
+def _quality(scene_dir: Path, max_parts: int) -> dict:
+    """Worst and median agent-band error, objects over 2 cm, worst surface distance, most parts, objects over budget."""
     index = json.loads((scene_dir / "colliders" / "colliders.json").read_text())
     measured = [o for o in index["objects"] if o["quality"]]
-    band = [max(o["quality"]["band_over_cm"], o["quality"]["band_under_cm"]) for o in measured]
-    surf = [o["quality"]["to_source_max_cm"] for o in measured]
+    band = sorted(max(o["quality"]["band_over_cm"], o["quality"]["band_under_cm"]) for o in measured)
     worst = max(measured, key=lambda o: max(o["quality"]["band_over_cm"], o["quality"]["band_under_cm"]))
-    over_parts = sum(len(o["parts"]) > max_parts for o in index["objects"])
-    return (f"{len(measured)} objects measured: band error max {max(band):.1f} cm ({worst['name']}), "
-            f"{sum(b > 2.0 for b in band)} over 2 cm, median {sorted(band)[len(band) // 2]:.1f} cm; surface max "
-            f"{max(surf):.1f} cm; most parts {max(len(o['parts']) for o in index['objects'])} "
-            f"({over_parts} objects over {max_parts})")
+    return {"worst band cm": band[-1], "median band cm": band[len(band) // 2], "over 2 cm": sum(b > 2.0 for b in band),
+            "surface max cm": max(o["quality"]["to_source_max_cm"] for o in measured),
+            "most parts": max(len(o["parts"]) for o in index["objects"]),
+            "over budget": sum(len(o["parts"]) > max_parts for o in index["objects"]),
+            "worst object": worst["name"], "measured": len(measured)}
 
 
 def run() -> list[dict]:
@@ -69,21 +87,24 @@ def run() -> list[dict]:
         for mode, budget in MODES.items():
             cache = tmp / f"cache-{mode}"
             load = os.getloadavg()[0]
-            cold, res, err = _export(tmp / "run", cache, mode, budget)
-            warm, _, _ = _export(tmp / "run", cache, mode, budget)
-            made = ", ".join(f"{m} {n}" for m, n in sorted(res.methods.items()))
+            cold, cold_cpu, res, err = _export(tmp / "run", cache, mode, budget)
+            warm, warm_cpu, _, _ = _export(tmp / "run", cache, mode, budget)
+            q = _quality(scene_dir, max_parts)
             rows.append({
-                "name": f"export-usd --colliders {mode}, cold", "reference": "-", "seconds": cold,
-                "speed-up": "", "notes": f"{catalogue.name}: {len(models)} real models ({len(set(models))} "
-                f"different); pieces {made}; {err.count('budget; using')} stopped at the "
-                f"{budget or ExportConfig().colliders.piece_budget_s:g} s budget; {WORKERS} workers; load average {load:.1f}"})
-            rows.append({"name": f"export-usd --colliders {mode}, warm", "reference": "cold", "seconds": warm,
-                         "speed-up": cold / warm, "notes": _quality_notes(scene_dir, max_parts)})
+                "name": f"--colliders {mode}", "reference": "balanced", "cold s": cold, "cold CPU s": cold_cpu,
+                "warm s": warm, "warm CPU s": warm_cpu, **{k: v for k, v in q.items() if k != "worst object"},
+                "notes": f"{catalogue.name}: {len(models)} real models ({len(set(models))} different); pieces "
+                f"{', '.join(f'{m} {n}' for m, n in sorted(res.methods.items()))}; worst {q['worst object']}; "
+                f"{err.count('budget; using')} stopped at the {budget or ExportConfig().colliders.piece_budget_s:g} s "
+                f"budget; {WORKERS} workers; load average {load:.1f} before, {os.getloadavg()[0]:.1f} after"})
         _export(tmp / "run", tmp / "cache-balanced", "balanced", None)
         gen_trajectories(tmp / "run", GenTrajectoriesConfig(per_scene=200))
         start = time.perf_counter()
         (report,) = validate_run(tmp / "run")
-        rows.append({"name": "validate (balanced colliders)", "reference": "-", "seconds": time.perf_counter() - start,
-                     "speed-up": "", "notes": report.summary().split(" -> ")[0]})
+        rows.append({"name": "validate (balanced colliders)", "reference": "-", "cold s": time.perf_counter() - start,
+                     "notes": report.summary().split(" -> ")[0]})
+        base = next(r for r in rows if r["name"] == "--colliders balanced")
+        for r in rows[:-1]:
+            r["cold CPU vs balanced"] = r["cold CPU s"] / base["cold CPU s"]
         SETTINGS.quiet = False
     return rows
