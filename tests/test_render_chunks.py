@@ -10,7 +10,7 @@ from sagebench.render.camera import agent_camera
 from sagebench.render.chunks import pack, visible_chunks, visible_index
 from sagebench.render.gaussians import Gaussians, logit, rgb_to_sh_dc
 from sagebench.render.splat_reference import render_reference
-from sagebench.render.splat_render import _project, render, render_packed
+from sagebench.render.splat_render import _depth_order, _project, render, render_packed
 from sagebench.splats.prune import psnr
 
 
@@ -79,3 +79,13 @@ def test_culled_frame_matches_the_reference_renderer():
     fast, ref = render_packed(p, [cam])[0], render_reference(p.gaussians, cam)
     assert psnr(fast.rgb, ref.rgb) >= 140.0
     assert (fast.instance == ref.instance).all()
+
+
+def test_depth_order_is_numpys_stable_argsort():
+    """The radix depth sort against np.argsort(kind="stable"): ties (rounded depths) keep index order, depths
+    spanning many binades, and the empty and one-element cases."""
+    rng = np.random.default_rng(3)
+    cases = [np.zeros(0), np.array([2.5]), np.round(rng.uniform(0.01, 20.0, 5000), 2),
+             np.exp(rng.uniform(np.log(1e-2), np.log(1e6), 5000)), np.full(100, 0.75)]
+    for d in cases:
+        assert np.array_equal(_depth_order(d), np.argsort(d, kind="stable"))

@@ -61,6 +61,8 @@ MUTANTS = (
            ("tests/test_replay_render.py",)),
     Mutant("fast renderer: last SH term dropped", "sagebench/render/splat_render.py",
            "\n                  + C3[6] * x * (xx - 3 * yy) * sh[i, 15, c])", ")", ("tests/test_replay_render.py",)),
+    Mutant("depth radix sort skips the top 16 bits", "sagebench/render/splat_render.py",
+           "for shift in range(0, 64, 16):", "for shift in range(0, 48, 16):", ("tests/test_render_chunks.py",)),
     Mutant("chunk cull ignores the Gaussians' size", "sagebench/render/chunks.py",
            "+ 3.0 * packed.max_scale[None] * k", "", ("tests/test_render_chunks.py",)),
     Mutant("derived ICP without contact", "sagebench/stages/evaluate.py",

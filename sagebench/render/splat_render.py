@@ -139,6 +139,30 @@ def _project(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, w
 
 
 @numba.njit(cache=True)
+def _depth_order(depth):  # pragma: no cover - jit
+    """np.argsort(depth, kind="stable") for positive float64 depths (3.0 against 5.5 CPU-ms on a demo frame's 166 k):
+    an LSD radix sort (stable) on
+    16-bit digits of the IEEE bits, whose unsigned order is the value order for positive floats."""
+    n = depth.shape[0]
+    bits = depth.view(np.uint64)
+    idx = np.arange(n)
+    tmp = np.empty(n, np.int64)
+    for shift in range(0, 64, 16):
+        count = np.zeros(65537, np.int64)
+        for r in range(n):
+            count[((bits[idx[r]] >> shift) & 0xFFFF) + 1] += 1
+        for d in range(65536):
+            count[d + 1] += count[d]
+        for r in range(n):
+            g = idx[r]
+            d = (bits[g] >> shift) & 0xFFFF
+            tmp[count[d]] = g
+            count[d] += 1
+        idx, tmp = tmp, idx
+    return idx
+
+
+@numba.njit(cache=True)
 def _bin(order, rect, gx, n_tiles):  # pragma: no cover - jit
     """Counting sort of (tile, Gaussian) pairs; `order` is depth-sorted so each tile's run is too."""
     offsets = np.zeros(n_tiles + 1, np.int64)
@@ -237,7 +261,7 @@ def _run(g: Gaussians, cam: Camera, background: tuple[float, float, float], inde
         float(cam.fx), float(cam.fy), float(cam.cx), float(cam.cy), cam.width, cam.height,
     )
     visible = np.flatnonzero(rect[:, 0] >= 0)
-    order = visible[np.argsort(depth[visible], kind="stable")]
+    order = visible[_depth_order(np.ascontiguousarray(depth[visible]))]  # depths > NEAR > 0
     gx, gy = (cam.width + TILE - 1) // TILE, (cam.height + TILE - 1) // TILE
     offsets, pairs = _bin(order, rect, gx, gx * gy)
     h, w = cam.height, cam.width
