@@ -55,6 +55,7 @@ def test_the_oracle_reaches_every_goal(demo_eval_run):
     assert all(s.success == 1.0 for s in sim.slots)  # SR 1
     icp = [float(np.mean(p.collision_intensity)) for p in result.predictions]
     assert all(p.stopped for p in result.predictions) and max(icp) < 0.05
+    assert np.mean(icp) < 0.01  # measured 0.0016: the 15-degree turns take it within 1 cm of a collider now and then
 
 
 def test_straight_scrapes_walls_and_the_simulator_measures_it(demo_eval_run):
@@ -64,7 +65,9 @@ def test_straight_scrapes_walls_and_the_simulator_measures_it(demo_eval_run):
     sr = np.array([s.success for s in sim.slots])
     assert 0.0 < sr.mean() < 1.0
     assert (icp > 0).mean() >= 0.25  # a quarter of its episodes pushed into colliders (measured, not replayed)
-    assert icp.max() > 0.3 and icp.mean() > 0.05  # measured 0.359 and 0.066: turn actions (c = 0) dilute the mean
+    # measured 0.531 and 0.099 (0.359 and 0.066 from the motion shortfall alone, without contact along the step):
+    # it stops after 4 forward moves without progress, so its steps in the open dilute the mean
+    assert icp.max() > 0.45 and icp.mean() > 0.08
     assert all(p.intensity_source == "simulator" for p in result.predictions)
 
 

@@ -8,7 +8,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from sagebench.evaluation.intensity import STEP_REPLAY, blocked_fraction, contact_share, replay_intensity
+from sagebench.evaluation.intensity import STEP_REPLAY, blocked_fraction, replay_intensity
+from sagebench.replay.contact import contact_share
 from sagebench.replay.physics import build_replay_model, replay_one
 
 

@@ -67,6 +67,8 @@ MUTANTS = (
            "+ 3.0 * packed.max_scale[None] * k", "", ("tests/test_render_chunks.py",)),
     Mutant("derived ICP without contact", "sagebench/stages/evaluate.py",
            "(i, np.maximum(b, near))", "(i, b)", ("tests/test_cli_evaluate.py",)),
+    Mutant("measured ICP without contact along the step", "sagebench/navsim/simulator.py",
+           "np.maximum(motion.intensity, near)", "motion.intensity", ("tests/test_env.py",)),
     Mutant("SH basis: a degree-3 constant halved", "sagebench/render/sh.py",
            "1.445305721320277,", "0.7226528606601385,", ("tests/test_replay_render.py",)),
     Mutant("validate: penetration tolerance 0.01 -> 0.05 m", "sagebench/validation/checks.py",

@@ -16,7 +16,8 @@ along free floor 0, whatever the steps before it did. Poses closer together than
 wall they pass through by the steps that start inside it (the replay pushes the agent out: c = 1).
 
 Replaying reached poses rarely blocks anything (an agent that scraped along a wall reached every pose it
-reports), so evaluate also derives contact: `contact_share` is the share of the positions along a step (its
+reports), so evaluate also derives contact: `sagebench.replay.contact.contact_share` (the simulator's
+measured c(t) uses it too) is the share of the positions along a step (its
 start, its end and every SAMPLE_SPACING between) where the agent's cylinder comes within CONTACT_DISTANCE
 (0.01 m) of a collider, and a derived c(t) is the larger of the two. A step that stays where it is counts its
 one pose: an agent pressed against a wall scores 1 there. Paths planned on the navigable map keep at least
@@ -25,20 +26,18 @@ one pose: an agent pressed against a wall scores 1 there. Paths planned on the n
 
 from __future__ import annotations
 
-import copy
 from collections.abc import Sequence
 
 import mujoco
 import numpy as np
 
-from sagebench.replay.physics import AGENT_GEOM, ReplayConfig, ReplayModel, replay_batch
+from sagebench.replay.contact import CONTACT_DISTANCE
+from sagebench.replay.physics import ReplayConfig, ReplayModel, replay_batch
 
 # Replay settings for single agent steps: a step ends within 5 mm of its target (not 2 cm: the deadbeat drive
 # lands on it exactly, so short steps do not fall short), a blocked step gives up after 0.5 s without progress
 # (not 2 s), and the time limit's slack is 1 s, since a step is short.
 STEP_REPLAY = ReplayConfig(stall_time=0.5, time_slack=1.0, waypoint_tolerance=0.005)
-CONTACT_DISTANCE = 0.01  # m: an agent cylinder this close to a collider touches it (derived c(t))
-SAMPLE_SPACING = 0.02  # m between the positions checked along a step
 ICP_NOTE = ("measured: c(t) from sagebench rollout's simulator; self-reported: the agent's own; derived: evaluate "
             "replayed each step from pose t-1 towards pose t, c(t) = the larger of the share of the motion contact "
             f"blocked and the share of the step within {CONTACT_DISTANCE} m of a collider")
@@ -77,44 +76,3 @@ def replay_intensity(rm: ReplayModel, poses: Sequence[np.ndarray], *, threads: i
         c[moving] = blocked_fraction(starts[moving], targets[moving], end, min_step=tol)
     bounds = np.cumsum([0] + [len(s) - 1 for s in seqs])
     return [np.concatenate([[0.0], c[bounds[i]: bounds[i + 1]]]) for i in range(len(seqs))]
-
-
-def contact_share(rm: ReplayModel, poses: Sequence[np.ndarray], *, distance: float = CONTACT_DISTANCE,
-                  spacing: float = SAMPLE_SPACING, threads: int = 2) -> list[np.ndarray]:
-    """[T_i] per pose sequence [T_i, >=2]: for each step (0 for row 0) the share of its positions where the agent's
-    cylinder is within `distance` of a collider (module docstring). Every position is one state of one
-    `mujoco.rollout` call whose contact sensor reads it."""
-    from mujoco import rollout
-
-    model = copy.copy(rm.model)
-    g = model.geom(AGENT_GEOM).id
-    model.geom_margin[g] = model.geom_gap[g] = distance  # contacts reported (at least) this far out, exact dist
-    seqs = [np.asarray(p, dtype=np.float64)[:, :2] for p in poses]
-    points, owner = [], []  # every position checked, and the (sequence, step) it belongs to
-    for k, xy in enumerate(seqs):
-        for t in range(1, len(xy)):
-            n = int(np.ceil(np.linalg.norm(xy[t] - xy[t - 1]) / spacing))
-            points.append(xy[t - 1] + (xy[t] - xy[t - 1]) * np.linspace(0.0, 1.0, n + 1)[:, None] if n else xy[t][None])
-            owner += [(k, t)] * len(points[-1])
-    out = [np.zeros(len(xy)) for xy in seqs]
-    if not points:
-        return out
-    xy = np.concatenate(points)
-    full = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    data = mujoco.MjData(model)
-    state = np.empty((len(xy), mujoco.mj_stateSize(model, full)))
-    mujoco.mj_getState(model, data, state[0], full)
-    state[:] = state[0]
-    state[:, mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_TIME) + np.array(rm.qpos[:2])] = xy
-    n = max(1, min(threads, len(xy)))
-    with rollout.Rollout(nthread=n if n > 1 else 0) as pool:
-        _, sensor = pool.rollout(model, [mujoco.MjData(model) for _ in range(n)], state,
-                                 np.zeros((len(xy), 1, model.nu)), nstep=1)
-    found, dist = sensor[:, 0, rm.sensor], sensor[:, 0, rm.sensor + 1]
-    touching = (found > 0) & (dist <= distance)
-    sums: dict[tuple[int, int], list[float]] = {}
-    for key, hit in zip(owner, touching):
-        sums.setdefault(key, []).append(float(hit))
-    for (k, t), hits in sums.items():
-        out[k][t] = float(np.mean(hits))
-    return out

@@ -5,7 +5,9 @@ MuJoCo call (motion.py), ends slots on STOP, on the step limit or on leaving the
 running slot's view in one renderer call per scene (observe.py). Slots never influence each other: stepping
 episodes together gives byte for byte what stepping them one at a time gives (tests/test_navsim_simulator.py).
 Running metrics per slot: the distance on foot to the goal, success (stopped within the goal radius on foot)
-and c(t) of the last action; the reward is the step's progress on foot towards the goal.
+and c(t) of the last action: the larger of the motion shortfall motion.py measures and the share of the step
+(from the pose before to the pose after, every 2 cm) within 0.01 m of a collider (sagebench.replay.contact,
+the same check evaluate derives c(t) with), so sliding along a wall at full speed counts too; the reward is the step's progress on foot towards the goal.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from sagebench.navsim.actions import ActionConfig, continuous_commands, discrete
 from sagebench.navsim.motion import Agents, MotionConfig, wrap
 from sagebench.navsim.observe import observe
 from sagebench.navsim.world import World, open_world, run_episodes
+from sagebench.replay.contact import contact_share
 from sagebench.replay.physics import ReplayConfig
 
 POSE_DECIMALS = 6  # predictions are written to the micrometre / microradian
@@ -155,10 +158,13 @@ class Simulator:
             slots = [self.slots[i] for i, _, _ in items]
             motion = self._agents[sid].move(np.array([s.row for s in slots]), np.array([x[1] for x in items]),
                                             np.array([x[2] for x in items]), c.actions.control_interval, c.motion)
+            steps = [np.array([s.poses[-1][:2], p[:2]]) for s, p in zip(slots, motion.pose)]
+            near = [share[1] for share in contact_share(self._worlds[sid].model, steps, threads=self.threads)]
+            intensity = np.maximum(motion.intensity, near)
             for k, s in enumerate(slots):
                 x, y, yaw = motion.pose[k]
                 s.poses.append(_rounded((float(x), float(y), s.world.model.floor_z, float(wrap(yaw)))))
-                s.intensity.append(round(float(motion.intensity[k]), POSE_DECIMALS))
+                s.intensity.append(round(float(intensity[k]), POSE_DECIMALS))
                 s.collided = bool(motion.collided[k])
                 s.steps += 1
                 s.distance = float(s.world.navmap.field(s.episode.goal).distance(np.array([[x, y]]))[0])

@@ -20,7 +20,8 @@ from sagebench.config import AgentConfig, from_options
 from sagebench.episodes.load import load_episodes
 from sagebench.episodes.splits import SPLITS
 from sagebench.errors import ConfigError, DataError
-from sagebench.evaluation.intensity import ICP_NOTE, STEP_REPLAY, contact_share, replay_intensity
+from sagebench.evaluation.intensity import ICP_NOTE, STEP_REPLAY, replay_intensity
+from sagebench.replay.contact import contact_share
 from sagebench.evaluation.predictions import Prediction, match_episodes, read_predictions
 from sagebench.evaluation.scoring import (
     DISTANCE_USED, ICP_SOURCES, METRIC_NAMES, Episode, EpisodeScore, Summary, icp_source, missing_metrics,
