@@ -130,3 +130,13 @@ def test_resample_keeps_both_ends():
     np.testing.assert_allclose(pts[0], [0, 0])
     np.testing.assert_allclose(pts[-1], [1, 0.6])
     assert len(pts) == 8  # stations 0, .25, ..., 1.5 and the end at 1.6
+
+
+def test_turn_only_policies_keep_the_papers_ps():
+    # PS as the paper and DESIGN.md define it penalises only heading change per step, so a policy that only
+    # turns scores 1 - 15/180 in VLN-CE's discrete actions and 1 - 0.75/pi at the continuous space's top rate
+    # (1.5 rad/s for 0.5 s); issue 13's "PS below 0.6" for it cannot hold without changing the formula.
+    discrete = np.radians(15.0) * np.arange(40)
+    assert path_smoothness(discrete) == pytest.approx(1 - 15 / 180, abs=1e-12)  # 0.9167
+    continuous = 0.75 * np.arange(40)
+    assert path_smoothness(continuous) == pytest.approx(1 - 0.75 / np.pi, abs=1e-12)  # 0.7613
