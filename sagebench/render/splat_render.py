@@ -141,8 +141,8 @@ def _project(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, w
 @numba.njit(cache=True)
 def _depth_order(depth):  # pragma: no cover - jit
     """np.argsort(depth, kind="stable") for positive float64 depths (3.0 against 5.5 CPU-ms on a demo frame's 166 k):
-    an LSD radix sort (stable) on
-    16-bit digits of the IEEE bits, whose unsigned order is the value order for positive floats."""
+    an LSD radix sort (stable) on 16-bit digits of the IEEE bits, whose unsigned order is the value order for
+    positive floats."""
     n = depth.shape[0]
     bits = depth.view(np.uint64)
     idx = np.arange(n)
