@@ -18,6 +18,7 @@ from sagebench.render.gaussians import Gaussians
 from sagebench.scene.loader import door_pose, load_scene, write_normalised_scene
 from sagebench.splats.ply import read_ply, write_ply
 from tests.test_collider_convex import u_prism
+from signals import as_from_a_terminal
 from tests.test_usd_writer import nvidia_failures
 
 FAST = ["--colliders", "quality", "--coacd-preprocess", "off", "--coacd-max-hulls", "8"]
@@ -327,13 +328,6 @@ def test_ctrl_c_stops_a_cold_export_and_a_rerun_reuses_every_finished_piece(tmp_
         "objects": objects}))
     write_normalised_scene(load_scene(src), run / "scenes" / "six")
     args = ["export-usd", str(run), "--cache-dir", str(cache), "--colliders", "quality", "--coacd-max-hulls", "8"]
-    def as_from_a_terminal() -> None:
-        """A suite started in the background by a non-interactive shell (`make test &`, `nohup ... &`) runs with
-        SIGINT ignored, as POSIX shells start such jobs; the child inherits SIG_IGN through exec, Python then
-        installs no KeyboardInterrupt handler, and the export ignores the signal, finishes and exits 0. Give
-        the child SIGINT's default, as a command started from a terminal has."""
-        signal.signal(signal.SIGINT, signal.SIG_DFL)
-
     proc = subprocess.Popen([sys.executable, "-m", "sagebench", *args], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, preexec_fn=as_from_a_terminal)
     try:

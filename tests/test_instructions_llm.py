@@ -16,6 +16,7 @@ import zlib
 import numpy as np
 import pytest
 from fake_llm import FakeLLM, Reply, answer, bounded, completion
+from signals import as_from_a_terminal
 
 from sagebench.instructions.base import TrajectoryText, make_context
 from sagebench.instructions.high_level import scenario_data
@@ -273,7 +274,7 @@ def test_ctrl_c_stops_promptly_and_writes_nothing(fake_llm, run, tmp_path):
     server = fake_llm(lambda b, n: Reply(mode="hang"))
     proc = subprocess.Popen([sys.executable, "-m", "sagebench", *map(str, _llm_args(run, server.url, tmp_path,
                              "--llm-timeout", "60"))], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
+                            env={**os.environ, "PYTHONUNBUFFERED": "1"}, preexec_fn=as_from_a_terminal)
     try:
         bounded(BOUND_S * 3, lambda: [time.sleep(0.05) for _ in iter(lambda: len(server.bodies) >= 4, True)])
         proc.send_signal(signal.SIGINT)
