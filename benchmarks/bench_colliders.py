@@ -5,7 +5,7 @@ CPU seconds are this process's plus the piece workers' (children of multiprocess
 them: its /proc cutime/cstime), so they count the work whatever else loads the machine.
 
 Uses Debian's sweethome3d-furniture CC0 catalogue when it is installed (apt-get install
-sweethome3d-furniture), else the seven fixture models in tests/fixtures/sh3d_cc0.
+sweethome3d-furniture), else the eight fixture models in tests/fixtures/sh3d_cc0.
 """
 
 from __future__ import annotations
