@@ -10,7 +10,8 @@ import trimesh
 
 from sagebench.collider_export.convex import hull_part
 from sagebench.collider_export.quality import (
-    _distances, _inside, band_in_mesh_frame, inside_reference, measure, measure_objects, measure_placed, part_planes,
+    AGENT_BAND, BandReach, _distances, _inside, band_errors, band_in_mesh_frame, band_polygons, inside_reference, measure,
+    measure_objects, measure_placed, part_planes,
 )
 
 # an L: [0,2]x[0,1] plus [0,1]x[1,2], 1 m tall; its hull adds the triangle (1,1) (2,1) (1,2), 0.5 m^2 x 1 m
@@ -109,3 +110,26 @@ def test_measure_objects_measures_each_mesh_and_band_once_on_any_number_of_worke
     assert one == measure_objects(placed, meshes, parts, 0.0, workers=2)
     assert one[1] == one[3] == measure(L_SHAPE.vertices, L_SHAPE.faces, parts["l"])
     assert one[2].band_over_cm == 0.0 and one[1].band_over_cm == pytest.approx(50.0, abs=1.0)
+
+
+def test_band_reach_agrees_with_the_band_measure_of_one_part():
+    """BandReach (the merge's test) is band_errors' `over` for one part, up to the one cell its raster's
+    origin may shift: the L's hull reaches 0.5 m past it (the middle of the edge bridging the notch); on
+    the real fixtures, their pieces' hulls, coarse voxel parts and whole hulls."""
+    from sagebench.collider_export.convex import split_convex
+    from sagebench.collider_export.voxel import voxel_parts
+    from tests.test_collider_decompose import _fixture_meshes
+
+    hull = hull_part(L_SHAPE.vertices)
+    assert BandReach(L_SHAPE, hull.vertices, (0.05, 0.95))(hull) == pytest.approx(0.5, abs=0.01)
+    pairs = []
+    for m in _fixture_meshes().values():
+        split = split_convex(m.vertices, m.faces)
+        parts = [*split.parts, *(hull_part(v) for v, _ in split.concave), hull_part(m.vertices),
+                 *voxel_parts(m.vertices, m.faces, pitch=0.05, max_parts=8)]
+        reach = BandReach(m, np.concatenate([p.vertices for p in parts]), AGENT_BAND)
+        pairs += [(reach(p), band_errors(m, [p], AGENT_BAND, 0.01)[0]) for p in parts
+                  if band_polygons(p.vertices[p.faces], *AGENT_BAND)]
+    fast, reference = np.array(pairs).T
+    assert len(pairs) > 100 and np.abs(fast - reference).max() <= 0.01 + 1e-9
+    assert np.mean(fast == reference) > 0.9

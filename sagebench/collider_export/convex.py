@@ -7,6 +7,7 @@ faces) and its volume equals its hull's volume within a relative tolerance.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -175,13 +176,23 @@ def _is_flat(points: np.ndarray) -> bool:
 
 
 def merge_parts(parts: list[ConvexPart], budget: int, band: tuple[float, float] | None = None,
-                off_band: float = 0.02) -> list[ConvexPart]:
+                off_band: float = 0.02, reach: Callable[[ConvexPart], float] | None = None, tolerance: float = 0.0,
+                max_checks: int = 256) -> list[ConvexPart]:
     """At most `budget` parts: repeatedly replace the two parts whose bounding boxes together enclose the least
     extra space by the hull of both (small neighbours first: two legs of a chair before a leg and the seat).
-    Space outside the agent `band` (z range) counts `off_band` times as much: merging above it costs little."""
-    out = list(parts)
-    lo = np.array([p.vertices.min(axis=0) for p in out]).reshape(-1, 3)
-    hi = np.array([p.vertices.max(axis=0) for p in out]).reshape(-1, 3)
+    Space outside the agent `band` (z range) counts `off_band` times as much: merging above it costs little.
+
+    With `reach` (how far a part's band footprint lies past the source's, m), a pair is merged only when its
+    hull reaches no farther than `tolerance` or than either part already did: the bounding boxes alone
+    bridged a bed's notches by 3 cm. Where up to `max_checks` pairs in a row fail, the one reaching least
+    far of them is merged."""
+    out: list[ConvexPart | None] = list(parts)
+    n = len(out)
+    lo = np.array([p.vertices.min(axis=0) for p in parts]).reshape(-1, 3)
+    hi = np.array([p.vertices.max(axis=0) for p in parts]).reshape(-1, 3)
+    allowed = np.full(n, tolerance)
+    if reach is not None:
+        allowed = np.maximum(allowed, [reach(p) for p in parts])
 
     def wvol(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         height = b[..., 2] - a[..., 2]
@@ -190,15 +201,39 @@ def merge_parts(parts: list[ConvexPart], budget: int, band: tuple[float, float] 
             height = inside + off_band * (height - inside)
         return (b[..., 0] - a[..., 0]) * (b[..., 1] - a[..., 1]) * height
 
-    while len(out) > budget:
-        ulo, uhi = np.minimum(lo[:, None], lo[None]), np.maximum(hi[:, None], hi[None])
-        vol = wvol(lo, hi)
-        cost = wvol(ulo, uhi) - vol[:, None] - vol[None, :]
-        np.fill_diagonal(cost, np.inf)
-        i, j = sorted(np.unravel_index(np.argmin(cost), cost.shape))
-        merged = hull_part(np.concatenate([out[i].vertices, out[j].vertices]))
-        del out[j], out[i]
-        out.append(merged)
-        lo = np.vstack([np.delete(lo, [i, j], axis=0), merged.vertices.min(axis=0)])
-        hi = np.vstack([np.delete(hi, [i, j], axis=0), merged.vertices.max(axis=0)])
-    return out
+    def pair_cost(i: int, others: np.ndarray) -> np.ndarray:
+        ulo, uhi = np.minimum(lo[i], lo[others]), np.maximum(hi[i], hi[others])
+        return wvol(ulo, uhi) - wvol(lo[i], hi[i]) - wvol(lo[others], hi[others])
+
+    cost = np.full((n, n), np.inf)  # [i, j], i < j; inf once merged away or found to reach too far
+    for i in range(n - 1):
+        cost[i, i + 1:] = pair_cost(i, np.arange(i + 1, n))
+    alive = np.ones(n, dtype=bool)
+    failed: dict[tuple[int, int], tuple[float, float]] = {}  # pair -> (reach past what it may, cost)
+    for _ in range(n - budget):
+        for _check in range(max_checks):
+            i, j = (int(k) for k in np.unravel_index(np.argmin(cost), cost.shape))
+            if not np.isfinite(cost[i, j]):
+                break
+            merged = hull_part(np.concatenate([out[i].vertices, out[j].vertices]))
+            far = 0.0 if reach is None else reach(merged)
+            if far <= max(allowed[i], allowed[j]) + 1e-9:
+                break
+            failed[i, j] = (far - max(allowed[i], allowed[j]), cost[i, j])
+            cost[i, j] = np.inf
+        else:
+            i = -1
+        if i < 0 or not np.isfinite(cost[i, j]):  # no pair fits within the checks: the one reaching least far
+            i, j = min(failed, key=lambda k: (*failed[k], k))
+            merged = hull_part(np.concatenate([out[i].vertices, out[j].vertices]))
+            far = reach(merged)
+        out[i], out[j], alive[j] = merged, None, False
+        lo[i], hi[i] = merged.vertices.min(axis=0), merged.vertices.max(axis=0)
+        allowed[i] = max(allowed[i], allowed[j], far)
+        failed = {k: v for k, v in failed.items() if i not in k and j not in k}
+        cost[j, :] = cost[:, j] = np.inf
+        others = np.flatnonzero(alive & (np.arange(n) != i))
+        row = pair_cost(i, others)
+        cost[others[others < i], i] = row[others < i]
+        cost[i, others[others > i]] = row[others > i]
+    return [p for p in out if p is not None]

@@ -13,6 +13,7 @@ from sagebench.collider_export.convex import ConvexPart, ConvexSplit, merge_part
 from sagebench.collider_export.fanout import map_processes
 from sagebench.collider_export.methods import LADDERS, ColliderSettings, agent_band
 from sagebench.collider_export.pieces import Piece, decompose_pieces
+from sagebench.collider_export.quality import BandReach
 
 
 WHOLE_MESH_FACTOR = 4
@@ -54,7 +55,7 @@ def decompose_meshes(
             continue
         pieces = [next(results) for _ in split.concave]
         parts = list(split.parts) + [p for r in pieces for p in r.parts]
-        kept = merge_parts(parts, settings.max_parts, agent_band(floor_height)) if len(parts) > settings.max_parts else parts
+        kept = merge_to_budget(parts, meshes[name], settings, floor_height) if len(parts) > settings.max_parts else parts
         exact = len(split.parts) if kept is parts else 0
         out[name] = MeshColliders(kept, exact, pieces, merged=len(parts) - len(kept))
     return {name: out[name] for name in meshes}
@@ -88,3 +89,15 @@ def plan_pieces(meshes: Mapping[str, tuple[np.ndarray, np.ndarray]], settings: C
             jobs += [Piece(f"{name} (concave piece {k})", pv, pf, LADDERS[settings.mode])
                      for k, (pv, pf) in enumerate(split.concave)]
     return PiecePlan(splits, frozenset(over), jobs)
+
+
+def merge_to_budget(parts: list[ConvexPart], mesh: tuple[np.ndarray, np.ndarray], settings: ColliderSettings,
+                    floor_height: float) -> list[ConvexPart]:
+    """`parts` of the mesh (vertices [V, 3], faces [F, 3]) merged to the part budget, each merge kept within
+    the band tolerance of the mesh's footprint where some pair allows it (convex.merge_parts)."""
+    import trimesh
+
+    band = agent_band(floor_height)
+    source = trimesh.Trimesh(*mesh, process=False)
+    reach = BandReach(source, np.concatenate([p.vertices for p in parts]), band)
+    return merge_parts(parts, settings.max_parts, band, reach=reach, tolerance=settings.band_tolerance_cm / 100)

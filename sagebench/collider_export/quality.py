@@ -248,6 +248,31 @@ def band_errors(source: trimesh.Trimesh, parts: Sequence[ConvexPart], band: tupl
     return float(over), float(under)
 
 
+class BandReach:
+    """How far a convex part's agent-band footprint lies past a mesh's (m): band_errors' `over` figure for one
+    part, with the mesh's footprint rasterised once, so that merging can judge many candidate hulls cheaply
+    (a convex part's band footprint is the 2-D hull of its surface's, one polygon). `extent` [N, 3]: points
+    whose xy bounds hold every part to be judged."""
+
+    def __init__(self, source: trimesh.Trimesh, extent: np.ndarray, band: tuple[float, float], pitch: float = 0.01):
+        self.band, self.pitch = band, pitch
+        src_polys = band_polygons(source.vertices[source.faces], *band)
+        xy = np.concatenate([np.asarray(extent, dtype=np.float64)[:, :2], *src_polys])
+        self.lo = xy.min(axis=0) - 2 * pitch
+        self.shape = tuple(np.ceil((xy.max(axis=0) + 2 * pitch - self.lo) / pitch).astype(int)[::-1] + 1)
+        src = ndimage.binary_fill_holes(rasterise(src_polys, self.lo, pitch, self.shape))
+        self.outside = ndimage.distance_transform_edt(~src, sampling=pitch) if src.any() else np.full(self.shape, np.inf)
+
+    def __call__(self, part: ConvexPart) -> float:
+        import cv2
+
+        polys = band_polygons(part.vertices[part.faces], *self.band)
+        if not polys:
+            return 0.0
+        outline = cv2.convexHull(np.concatenate(polys).astype(np.float32))[:, 0].astype(np.float64)
+        return float(self.outside[rasterise([outline], self.lo, self.pitch, self.shape)].max(initial=0.0))
+
+
 def band_polygons(triangles: np.ndarray, z0: float, z1: float) -> list[np.ndarray]:
     """The xy shadow of each triangle [T, 3, 3] clipped to z0 <= z <= z1: convex polygons [k, 2] (k <= 9, points in
     angular order, a segment or point where the clipped piece is vertical)."""
