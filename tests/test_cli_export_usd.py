@@ -14,6 +14,7 @@ import pytest
 import trimesh
 from pxr import Usd, UsdGeom, UsdPhysics, UsdSemantics, UsdValidation, UsdVol
 
+from sagebench.collider_export.coacd_cache import CACHE_SUBDIR
 from sagebench.render.gaussians import Gaussians
 from sagebench.scene.loader import door_pose, load_scene, write_normalised_scene
 from sagebench.splats.ply import read_ply, write_ply
@@ -328,18 +329,19 @@ def test_ctrl_c_stops_a_cold_export_and_a_rerun_reuses_every_finished_piece(tmp_
         "objects": objects}))
     write_normalised_scene(load_scene(src), run / "scenes" / "six")
     args = ["export-usd", str(run), "--cache-dir", str(cache), "--colliders", "quality", "--coacd-max-hulls", "8"]
+    pieces = cache / CACHE_SUBDIR  # beside the meshes' splits
     proc = subprocess.Popen([sys.executable, "-m", "sagebench", *args], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, preexec_fn=as_from_a_terminal)
     try:
         for _ in range(2400):  # up to 2 minutes for the first piece on a busy machine
-            if any(cache.rglob("*.npz")) or proc.poll() is not None:
+            if any(pieces.rglob("*.npz")) or proc.poll() is not None:
                 break
             time.sleep(0.05)
         proc.send_signal(signal.SIGINT)
         proc.wait(timeout=10)
     finally:
         proc.kill()
-    finished = {p.stem for p in cache.rglob("*.npz")}
+    finished = {p.stem for p in pieces.rglob("*.npz")}
     assert proc.returncode != 0 and 1 <= len(finished) < 6
     assert not (run / "scenes" / "six" / "scene.usda").exists()
     code, out, _ = run_cli(*args)

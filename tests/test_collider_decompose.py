@@ -9,7 +9,8 @@ import pytest
 import trimesh
 
 from sagebench.collider_export.coacd_cache import PartCache
-from sagebench.collider_export.decompose import WHOLE_MESH_FACTOR, decompose_meshes
+from sagebench.collider_export import decompose
+from sagebench.collider_export.decompose import WHOLE_MESH_FACTOR, decompose_meshes, plan_pieces
 from sagebench.collider_export.methods import ColliderSettings
 from sagebench.collider_export.quality import measure
 from sagebench.scene.furniture import Catalogue
@@ -38,6 +39,29 @@ def test_mixed_mesh_gets_exact_parts_and_decomposed_pieces(tmp_path):
     for name, mc in out.items():  # meshes split on two processes: the same parts
         assert [(p.vertices.tobytes(), p.faces.tobytes()) for p in mc.parts] == \
             [(p.vertices.tobytes(), p.faces.tobytes()) for p in two[name].parts]
+
+
+def test_a_split_is_cached_so_the_export_after_a_plan_does_not_split_again(tmp_path, monkeypatch):
+    # `sagebench run` plans a scene's pieces in one task and exports it in another: both split every mesh
+    table, u = _table(), u_prism()
+    mixed = trimesh.util.concatenate([table, u.copy().apply_translation((3, 0, 0))])
+    meshes = {name: (m.vertices, m.faces) for name, m in {"table": table, "mixed": mixed, "u": u}.items()}
+    settings = ColliderSettings(mode="fast")
+    fresh = decompose_meshes(meshes, settings, cache=PartCache(None))
+    plan = plan_pieces(meshes, settings, cache=PartCache(tmp_path))
+
+    def split_again(*args, **kwargs):
+        raise AssertionError("split again")
+
+    monkeypatch.setattr(decompose, "split_convex", split_again)
+    again = plan_pieces(meshes, settings, cache=PartCache(tmp_path))
+    assert [(p.name, p.vertices.tobytes(), p.faces.tobytes()) for p in again.jobs] == \
+        [(p.name, p.vertices.tobytes(), p.faces.tobytes()) for p in plan.jobs]
+    cached = decompose_meshes(meshes, settings, cache=PartCache(tmp_path))
+    for name, mc in fresh.items():
+        assert mc.exact_parts == cached[name].exact_parts
+        assert [(p.vertices.tobytes(), p.faces.tobytes()) for p in mc.parts] == \
+            [(p.vertices.tobytes(), p.faces.tobytes()) for p in cached[name].parts]
 
 
 def _boxes(n: int) -> trimesh.Trimesh:

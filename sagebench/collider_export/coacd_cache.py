@@ -1,7 +1,10 @@
-"""CoACD's settings and runner, and the content-addressed cache of every piece's collider parts.
+"""CoACD's settings and runner, and the content-addressed cache of every piece's collider parts and of every
+mesh's split into exact parts and concave pieces.
 
-The cache key is sha256 of (vertex and face bytes, coacd version, the collider settings), so an asset that
-appears in many scenes (or many times in one) is decomposed once per machine.
+A piece's key is sha256 of (vertex and face bytes, coacd version, the collider settings), so an asset that
+appears in many scenes (or many times in one) is decomposed once per machine. A mesh's split is cached
+too: `sagebench run` splits each scene's meshes in its plan task and again in its export, and a warm
+export splits them again (4 CPU-s of the bench scene's 463 k faces each time).
 """
 
 from __future__ import annotations
@@ -9,6 +12,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib.metadata import version
 from pathlib import Path
@@ -18,10 +22,11 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench import ui
-from sagebench.collider_export.convex import ConvexPart
+from sagebench.collider_export.convex import ConvexPart, ConvexSplit
 from sagebench.fileio import write_bytes
 
 CACHE_SUBDIR = "colliders-v3"  # bumped whenever a method's parts change for the same settings (v3: voxel hulls)
+SPLIT_VERSION = 1  # bumped whenever convex.split_convex splits the same mesh differently
 
 
 class CoacdParams(BaseModel):
@@ -119,12 +124,47 @@ def _decode(data: bytes, key: str) -> PieceResult:
     return PieceResult(parts, meta["method"], key, float(meta["band_error_cm"]), cached=True)
 
 
+def split_key(vertices: np.ndarray, faces: np.ndarray, tolerance: float) -> str:
+    """sha256 hex of a mesh's split_convex input: vertices [V, 3], faces [F, 3] and the convex tolerance."""
+    return cache_key(vertices, faces, _SplitSettings(tolerance=tolerance), split_version=SPLIT_VERSION)
+
+
+class _SplitSettings(BaseModel):
+    tolerance: float
+
+
+def _pack(meshes: list[tuple[np.ndarray, np.ndarray]], prefix: str) -> dict[str, np.ndarray]:
+    """Many (vertices [V, 3], faces [F, 3]) as four arrays: both concatenated, and the counts to cut them at."""
+    return {f"{prefix}_v": np.concatenate([v for v, _ in meshes]) if meshes else np.zeros((0, 3)),
+            f"{prefix}_f": np.concatenate([f for _, f in meshes]) if meshes else np.zeros((0, 3), dtype=np.int64),
+            f"{prefix}_nv": np.array([len(v) for v, _ in meshes], dtype=np.int64),
+            f"{prefix}_nf": np.array([len(f) for _, f in meshes], dtype=np.int64)}
+
+
+def _unpack(z: Mapping[str, np.ndarray], prefix: str) -> list[tuple[np.ndarray, np.ndarray]]:
+    cut = lambda a, n: np.split(a, np.cumsum(n)[:-1]) if len(n) else []  # noqa: E731
+    return list(zip(cut(z[f"{prefix}_v"], z[f"{prefix}_nv"]), cut(z[f"{prefix}_f"], z[f"{prefix}_nf"])))
+
+
+def _encode_split(split: ConvexSplit) -> bytes:
+    buf = io.BytesIO()
+    np.savez(buf, **_pack([(p.vertices, p.faces) for p in split.parts], "parts"), **_pack(split.concave, "concave"))
+    return buf.getvalue()
+
+
+def _decode_split(data: bytes) -> ConvexSplit:
+    with np.load(io.BytesIO(data)) as z:
+        arrays = {k: z[k] for k in z.files}
+    return ConvexSplit([ConvexPart(v, f) for v, f in _unpack(arrays, "parts")], _unpack(arrays, "concave"))
+
+
 class PartCache:
     """Piece results on disk: CACHE_DIR/colliders-v3/<key[:2]>/<key>.npz, each written atomically when its
-    piece is done (so an interrupted run keeps what it finished)."""
+    piece is done (so an interrupted run keeps what it finished); mesh splits in CACHE_DIR/splits/."""
 
     def __init__(self, root: Path | None):
         self.root = None if root is None else Path(root) / CACHE_SUBDIR
+        self.splits = None if root is None else Path(root) / "splits"
 
     def _path(self, key: str) -> Path | None:
         return None if self.root is None else self.root / key[:2] / f"{key}.npz"
@@ -148,3 +188,17 @@ class PartCache:
         path = self._path(result.key)
         if path is not None:
             write_bytes(path, _encode(result))
+
+    def get_split(self, key: str) -> ConvexSplit | None:
+        path = None if self.splits is None else self.splits / key[:2] / f"{key}.npz"
+        if path is None or not path.is_file():
+            return None
+        try:
+            return _decode_split(path.read_bytes())
+        except (OSError, ValueError, KeyError):
+            ui.warn(f"ignoring unreadable cache entry {path}")
+            return None
+
+    def put_split(self, key: str, split: ConvexSplit) -> None:
+        if self.splits is not None:
+            write_bytes(self.splits / key[:2] / f"{key}.npz", _encode_split(split))

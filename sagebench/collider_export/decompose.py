@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sagebench.collider_export.coacd_cache import PartCache, PieceResult
+from sagebench.collider_export.coacd_cache import PartCache, PieceResult, split_key
 from sagebench.collider_export.convex import ConvexPart, ConvexSplit, merge_parts, split_convex, weld
 from sagebench.collider_export.fanout import map_processes
 from sagebench.collider_export.methods import LADDERS, ColliderSettings, agent_band
@@ -45,7 +45,7 @@ def decompose_meshes(
     with more than WHOLE_MESH_FACTOR times that many pieces (a plant of a thousand leaves) becomes one voxel
     collider of the whole mesh within the budget instead.
     """
-    plan = plan_pieces(meshes, settings, convex_tolerance=convex_tolerance, workers=workers)
+    plan = plan_pieces(meshes, settings, cache=cache, convex_tolerance=convex_tolerance, workers=workers)
     results = iter(decompose_pieces(plan.jobs, settings, cache=cache, workers=workers, floor_height=floor_height))
     out: dict[str, MeshColliders] = {}
     for name, split in plan.splits.items():
@@ -72,12 +72,10 @@ class PiecePlan:
 
 
 def plan_pieces(meshes: Mapping[str, tuple[np.ndarray, np.ndarray]], settings: ColliderSettings, *,
-                convex_tolerance: float = 0.002, workers: int = 1) -> PiecePlan:
+                cache: PartCache, convex_tolerance: float = 0.002, workers: int = 1) -> PiecePlan:
     """The pieces decompose_meshes runs, without running them (a run spreads them over its executor); the
-    meshes are split on up to `workers` processes."""
-    split = functools.partial(split_convex, tolerance=convex_tolerance)
-    splits = dict(zip(meshes, map_processes(split, list(meshes.values()), workers=workers,
-                                            sizes=[len(f) for _, f in meshes.values()])))
+    meshes not split before (`cache`) are split on up to `workers` processes."""
+    splits = split_meshes(meshes, cache, tolerance=convex_tolerance, workers=workers)
     over = {name for name, s in splits.items()
             if len(s.parts) + len(s.concave) > WHOLE_MESH_FACTOR * settings.max_parts}
     jobs = []  # one batch, so the whole-mesh jobs run beside the pieces (biggest first)
@@ -89,6 +87,21 @@ def plan_pieces(meshes: Mapping[str, tuple[np.ndarray, np.ndarray]], settings: C
             jobs += [Piece(f"{name} (concave piece {k})", pv, pf, LADDERS[settings.mode])
                      for k, (pv, pf) in enumerate(split.concave)]
     return PiecePlan(splits, frozenset(over), jobs)
+
+
+def split_meshes(meshes: Mapping[str, tuple[np.ndarray, np.ndarray]], cache: PartCache, *, tolerance: float,
+                 workers: int = 1) -> dict[str, ConvexSplit]:
+    """convex.split_convex of each named mesh (vertices [V, 3], faces [F, 3]), read from `cache` where split
+    before, else split on up to `workers` processes and cached."""
+    keys = {name: split_key(v, f, tolerance) for name, (v, f) in meshes.items()}
+    out = {name: cache.get_split(key) for name, key in keys.items()}
+    todo = [name for name, split in out.items() if split is None]
+    split = functools.partial(split_convex, tolerance=tolerance)
+    for name, made in zip(todo, map_processes(split, [meshes[n] for n in todo], workers=workers,
+                                              sizes=[len(meshes[n][1]) for n in todo])):
+        cache.put_split(keys[name], made)
+        out[name] = made
+    return out
 
 
 def merge_to_budget(parts: list[ConvexPart], mesh: tuple[np.ndarray, np.ndarray], settings: ColliderSettings,

@@ -58,8 +58,8 @@ def plan_export(task: Task) -> tuple[PieceTask, ...]:
             if up_to_date(task, stage_key(task, STAGES[EXPORT].inputs(task))):
                 return ()
             config = ExportConfig.model_validate(task.settings)
-            jobs, floor_height = scene_pieces(task.run_dir, task.scene_id, config)
             cache = part_cache(task.cache_dir)
+            jobs, floor_height = scene_pieces(task.run_dir, task.scene_id, config, cache)
             out: dict[str, PieceTask] = {}
             for piece in jobs:
                 key = piece_key(piece, config.colliders, floor_height)

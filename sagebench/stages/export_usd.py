@@ -128,12 +128,13 @@ def part_cache(cache_dir: Path | None) -> PartCache:
     return PartCache(default_cache_dir() if cache_dir is None else cache_dir)
 
 
-def scene_pieces(run_dir: Path, scene_id: str, config: ExportConfig) -> tuple[list[Piece], float]:
+def scene_pieces(run_dir: Path, scene_id: str, config: ExportConfig, cache: PartCache) -> tuple[list[Piece], float]:
     """The concave pieces export_scene would decompose for the scene, and the floor height they are measured
-    from (so a run can spread them over its executor and export the scene from the cache)."""
+    from (so a run can spread them over its executor and export the scene from the cache; the meshes' splits
+    are cached for the export too)."""
     (scene_dir,) = scene_dirs(run_dir, scene_id)
     scene = load_scene(scene_dir)
-    plan = plan_pieces(_local_meshes(scene), config.colliders, convex_tolerance=config.convex_tolerance)
+    plan = plan_pieces(_local_meshes(scene), config.colliders, cache=cache, convex_tolerance=config.convex_tolerance)
     return plan.jobs, scene.spec.floor_height
 
 
