@@ -41,9 +41,9 @@ def decompose_meshes(
 ) -> dict[str, MeshColliders]:
     """Parts for each named mesh (vertices [V, 3], faces [F, 3]); all concave pieces share one batch of workers.
 
-    A mesh with more parts than `settings.max_parts` gets its closest parts merged (convex.merge_parts); one
-    with more than WHOLE_MESH_FACTOR times that many pieces (a plant of a thousand leaves) becomes one voxel
-    collider of the whole mesh within the budget instead.
+    A mesh with more parts than `settings.max_parts` gets its closest parts merged, within the band tolerance
+    of its footprint where possible (merge_to_budget); one with more than WHOLE_MESH_FACTOR times that many
+    pieces (a plant of a thousand leaves) becomes one voxel collider of the whole mesh within the budget.
     """
     plan = plan_pieces(meshes, settings, cache=cache, convex_tolerance=convex_tolerance, workers=workers)
     results = iter(decompose_pieces(plan.jobs, settings, cache=cache, workers=workers, floor_height=floor_height))
