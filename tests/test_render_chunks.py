@@ -1,4 +1,5 @@
-"""Chunk culling: a culled chunk holds no Gaussian the renderer would draw, and culled frames equal plain ones."""
+"""Chunk culling: a culled chunk holds no Gaussian the renderer would draw, and culled frames (several cameras
+rendered side by side) equal plain ones."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from sagebench.render.camera import agent_camera
 from sagebench.render.chunks import pack, visible_chunks, visible_index
 from sagebench.render.gaussians import Gaussians, logit, rgb_to_sh_dc
 from sagebench.render.splat_reference import render_reference
-from sagebench.render.splat_render import _depth_order, _project, render, render_packed
+from sagebench.render.splat_render import _concurrent_launches, _depth_order, _project, render, render_packed
 from sagebench.splats.prune import psnr
 
 
@@ -64,10 +65,12 @@ def test_culled_chunks_hold_no_gaussian_the_renderer_draws():
 
 
 def test_culled_frames_equal_plain_frames_byte_for_byte():
+    """Also when the cameras render side by side, one per thread."""
     p = pack(_room(6000, seed=2), cell=1.0)
     cams = _cams()
-    for cam, frame in zip(cams, render_packed(p, cams)):
-        plain = render(p.gaussians, cam)
+    plains = [render(p.gaussians, cam) for cam in cams]
+    assert _concurrent_launches()  # the plain renders picked numba's threading layer: the batch goes threaded
+    for cam, frame, plain in zip(cams, render_packed(p, cams), plains):
         for name in ("rgb", "depth", "alpha", "instance"):
             assert getattr(frame, name).tobytes() == getattr(plain, name).tobytes()
         assert len(visible_index(p, cam)) < p.gaussians.count

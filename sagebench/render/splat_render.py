@@ -2,14 +2,19 @@
 
 Same conventions and results as splat_reference (tested to agree): per-Gaussian projection in a parallel
 loop, one global stable depth sort (so every tile's list is in depth order), a counting sort of
-(tile, Gaussian) pairs, then each tile composites its list front to back over only the pixels inside
-each Gaussian's 3-sigma box, and stops once every pixel's transmittance is spent.
+(tile, Gaussian) pairs, then each tile composites its list front to back, stopping once every pixel's
+transmittance is spent. A Gaussian adds nothing outside its reach ellipse (3 sigma, less for faint ones:
+`_reach2`), so it is binned to the tiles of that ellipse's bounding box and, within a tile, visits only the
+pixels on the ellipse's chords of the rows still taking colour. Several cameras render side by side, one
+per thread.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
+from functools import cache
 
 import numba
 import numpy as np
@@ -30,6 +35,28 @@ from sagebench.render.splat_reference import (
 )
 
 TILE = 16
+SLACK = 1e-6  # relative widening of each Gaussian's reach, so rounding never drops a pixel the per-pixel test keeps
+
+
+@numba.njit(cache=True, inline="always")
+def _reach2(o: float) -> float:
+    """Squared Mahalanobis radius beyond which a Gaussian of opacity `o` adds nothing: there power < -CUTOFF or
+    o exp(power) < MIN_ALPHA (the 3-sigma ellipse, shrunk for faint Gaussians), widened by SLACK."""
+    return 2.0 * min(CUTOFF, math.log(o / MIN_ALPHA)) * (1.0 + SLACK) + SLACK
+
+
+@numba.njit(cache=True, inline="always")
+def _pixels(lo: float, hi: float, n: int) -> tuple[int, int]:
+    """First and last of the n pixel columns (or rows) whose centres k + 0.5 lie in [lo, hi], widened by a
+    hundredth of a pixel against rounding; first > last if none."""
+    return max(int(math.ceil(max(lo - 0.51, -1.0))), 0), min(int(math.floor(min(hi - 0.49, n))), n - 1)
+
+
+@numba.njit(cache=True, inline="always")
+def _tiles(lo: float, hi: float, n: int) -> tuple[int, int]:
+    """Tile range [first, end) holding the pixels `_pixels(lo, hi, n)`; first >= end if none."""
+    a, b = _pixels(lo, hi, n)
+    return (a // TILE, b // TILE + 1) if a <= b else (0, 0)
 
 
 @numba.njit(cache=True, inline="always")
@@ -49,7 +76,7 @@ def _sh_colour(sh: np.ndarray, i: int, c: int, k: int, x: float, y: float, z: fl
     return max(v + 0.5, 0.0)
 
 
-@numba.njit(parallel=True, cache=True)
+@numba.njit(parallel=True, nogil=True, cache=True)
 def _project(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, width, height):  # pragma: no cover - jit
     """Per Gaussian of `index` [n]: image centre, conic, depth, colour, opacity and tile rectangle (rows follow
     `index`); rect[r, 0] = -1 if culled."""
@@ -60,8 +87,8 @@ def _project(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, w
     depth = np.empty(n)
     rgb = np.empty((n, 3))
     opac = np.empty(n)
+    reach2 = np.empty(n)
     rect = np.full((n, 4), -1, np.int32)
-    gx, gy = (width + TILE - 1) // TILE, (height + TILE - 1) // TILE
     limx, limy = FOV_CLAMP * width / (2 * fx), FOV_CLAMP * height / (2 * fy)
     r00, r01, r02, t0 = w2c[0, 0], w2c[0, 1], w2c[0, 2], w2c[0, 3]
     r10, r11, r12, t1 = w2c[1, 0], w2c[1, 1], w2c[1, 2], w2c[1, 3]
@@ -117,12 +144,9 @@ def _project(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, w
         det = ca * cc - cb * cb
         if det <= 0.0:
             continue
-        mid = 0.5 * (ca + cc)
-        radius = math.ceil(3.0 * math.sqrt(mid + math.sqrt(max(0.1, mid * mid - det))))
-        x0 = min(max(int(math.floor((u - radius) / TILE)), 0), gx)
-        x1 = min(max(int(math.floor((u + radius) / TILE)) + 1, 0), gx)
-        y0 = min(max(int(math.floor((v - radius) / TILE)), 0), gy)
-        y1 = min(max(int(math.floor((v + radius) / TILE)) + 1, 0), gy)
+        r2 = _reach2(o)
+        x0, x1 = _tiles(u - math.sqrt(r2 * ca), u + math.sqrt(r2 * ca), width)
+        y0, y1 = _tiles(v - math.sqrt(r2 * cc), v + math.sqrt(r2 * cc), height)
         if x1 <= x0 or y1 <= y0:
             continue
         dx, dy, dz = mx - ox, my - oy, mz - oz
@@ -134,11 +158,12 @@ def _project(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, w
         conic[r, 0], conic[r, 1], conic[r, 2] = cc / det, -cb / det, ca / det
         depth[r] = pz
         opac[r] = o
+        reach2[r] = r2
         rect[r, 0], rect[r, 1], rect[r, 2], rect[r, 3] = x0, x1, y0, y1
-    return xy, conic, depth, rgb, opac, rect
+    return xy, conic, depth, rgb, opac, rect, reach2
 
 
-@numba.njit(cache=True)
+@numba.njit(nogil=True, cache=True)
 def _depth_order(depth):  # pragma: no cover - jit
     """np.argsort(depth, kind="stable") for positive float64 depths (3.0 against 5.5 CPU-ms on a demo frame's 166 k):
     an LSD radix sort (stable) on 16-bit digits of the IEEE bits, whose unsigned order is the value order for
@@ -162,7 +187,7 @@ def _depth_order(depth):  # pragma: no cover - jit
     return idx
 
 
-@numba.njit(cache=True)
+@numba.njit(nogil=True, cache=True)
 def _bin(order, rect, gx, n_tiles):  # pragma: no cover - jit
     """Counting sort of (tile, Gaussian) pairs; `order` is depth-sorted so each tile's run is too."""
     offsets = np.zeros(n_tiles + 1, np.int64)
@@ -183,8 +208,8 @@ def _bin(order, rect, gx, n_tiles):  # pragma: no cover - jit
     return offsets, pairs
 
 
-@numba.njit(parallel=True, cache=True)
-def _rasterise(offsets, pairs, xy, conic, depth, rgb, opac, inst, width, height, bg,
+@numba.njit(parallel=True, nogil=True, cache=True)
+def _rasterise(offsets, pairs, xy, conic, depth, rgb, opac, reach2, inst, width, height, bg,
                out_rgb, out_depth, out_alpha, out_inst, pair_weight):  # pragma: no cover - jit
     gx = (width + TILE - 1) // TILE
     n_tiles = offsets.shape[0] - 1
@@ -196,25 +221,31 @@ def _rasterise(offsets, pairs, xy, conic, depth, rgb, opac, inst, width, height,
         dacc = np.zeros((th, tw))
         best = np.zeros((th, tw))
         bid = np.zeros((th, tw), np.int32)
-        done = np.zeros((th, tw), np.bool_)
+        live = np.full(th, (1 << tw) - 1, np.int64)  # bit j of row i: pixel (i, j) still takes colour
         active = th * tw
         for k in range(offsets[t], offsets[t + 1]):
             g = pairs[k]
             u, v = xy[g, 0], xy[g, 1]
             ca, cb, cc = conic[g, 0], conic[g, 1], conic[g, 2]
-            o = opac[g]
-            # pixels whose centres can lie inside the 3-sigma ellipse: |du| <= sqrt(9 / (a - b^2/c)) etc.
-            det_inv = ca * cc - cb * cb
-            hx, hy = 3.0 * math.sqrt(cc / det_inv), 3.0 * math.sqrt(ca / det_inv)
-            j0 = max(int(math.floor(u - hx - 0.5)) - tx0, 0)
-            j1 = min(int(math.ceil(u + hx - 0.5)) - tx0 + 1, tw)
-            i0 = max(int(math.floor(v - hy - 0.5)) - ty0, 0)
-            i1 = min(int(math.ceil(v + hy - 0.5)) - ty0 + 1, th)
+            o, r2 = opac[g], reach2[g]
+            # only the pixels whose centres lie inside the reach ellipse: rows within its height, and in each
+            # row the chord  ca dx^2 + 2 cb dx dy + cc dy^2 <= r2  (dx = u - x, dy = v - y)
+            det = ca * cc - cb * cb
+            hy = math.sqrt(r2 * ca / det)
+            i0, i1 = _pixels(v - hy - ty0, v + hy - ty0, th)
             wsum = 0.0
-            for i in range(i0, i1):
+            for i in range(i0, i1 + 1):
+                if live[i] == 0:
+                    continue
                 dy = v - (ty0 + i + 0.5)
-                for j in range(j0, j1):
-                    if done[i, j]:
+                disc = ca * r2 - det * dy * dy
+                if disc < 0.0:
+                    continue
+                half = math.sqrt(disc) / ca
+                mid = u + cb * dy / ca
+                j0, j1 = _pixels(mid - half - tx0, mid + half - tx0, tw)
+                for j in range(j0, j1 + 1):
+                    if not (live[i] >> j) & 1:
                         continue
                     dx = u - (tx0 + j + 0.5)
                     power = -0.5 * (ca * dx * dx + cc * dy * dy) - cb * dx * dy
@@ -225,7 +256,7 @@ def _rasterise(offsets, pairs, xy, conic, depth, rgb, opac, inst, width, height,
                         continue
                     t_next = trans[i, j] * (1.0 - alpha)
                     if t_next < MIN_TRANSMITTANCE:
-                        done[i, j] = True
+                        live[i] &= ~(1 << j)
                         active -= 1
                         continue
                     w = alpha * trans[i, j]
@@ -255,7 +286,7 @@ def _run(g: Gaussians, cam: Camera, background: tuple[float, float, float], inde
          ) -> tuple[Frame, np.ndarray, np.ndarray]:
     """Render the Gaussians at `index` [M] (all when None); pairs index rows of `index`."""
     index = np.arange(g.count, dtype=np.int64) if index is None else np.asarray(index, dtype=np.int64)
-    xy, conic, depth, rgb, opac, rect = _project(
+    xy, conic, depth, rgb, opac, rect, reach2 = _project(
         index, g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh,
         np.ascontiguousarray(cam.world_to_camera, np.float64),
         float(cam.fx), float(cam.fy), float(cam.cx), float(cam.cy), cam.width, cam.height,
@@ -270,7 +301,7 @@ def _run(g: Gaussians, cam: Camera, background: tuple[float, float, float], inde
     out_alpha = np.empty((h, w), np.float32)
     out_inst = np.empty((h, w), np.int32)
     pair_weight = np.zeros(len(pairs))
-    _rasterise(offsets, pairs, xy, conic, depth, rgb, opac, g.instance_id[index], w, h,
+    _rasterise(offsets, pairs, xy, conic, depth, rgb, opac, reach2, g.instance_id[index], w, h,
                np.asarray(background, np.float64), out_rgb, out_depth, out_alpha, out_inst, pair_weight)
     return Frame(rgb=out_rgb, depth=out_depth, alpha=out_alpha, instance=out_inst), index[pairs], pair_weight
 
@@ -283,8 +314,31 @@ def render(g: Gaussians, cam: Camera, *, background: tuple[float, float, float] 
 def render_packed(packed: PackedGaussians, cams: Sequence[Camera], *,
                   background: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> list[Frame]:
     """One frame per camera of packed Gaussians, projecting only the chunks each camera may see; every frame
-    equals `render(packed.gaussians, cam)` (chunks.py)."""
-    return [_run(packed.gaussians, cam, background, visible_index(packed, cam))[0] for cam in cams]
+    equals `render(packed.gaussians, cam)` (chunks.py). Several cameras render concurrently, each frame on one
+    thread: no barrier between a frame's passes and no core idling on a frame's serial sort and binning."""
+    def one(cam: Camera) -> Frame:
+        return _run(packed.gaussians, cam, background, visible_index(packed, cam))[0]
+
+    threads = min(len(cams), numba.get_num_threads())
+    if threads < 2 or not _concurrent_launches():
+        return [one(cam) for cam in cams]
+    return list(_pool(threads).map(one, cams))
+
+
+def _concurrent_launches() -> bool:
+    """Whether numba's threading layer takes kernel launches from several threads at once (omp and tbb do,
+    workqueue aborts); False until the first parallel kernel has picked a layer."""
+    try:
+        return numba.threading_layer() in ("omp", "tbb")
+    except ValueError:
+        return False
+
+
+@cache
+def _pool(threads: int) -> ThreadPoolExecutor:
+    """Worker threads whose kernels each run on one thread (numba's thread count is per calling thread)."""
+    return ThreadPoolExecutor(threads, thread_name_prefix="splat", initializer=numba.set_num_threads,
+                              initargs=(1,))
 
 
 def contributions(g: Gaussians, cam: Camera) -> np.ndarray:
