@@ -11,7 +11,7 @@ from sagebench.render.camera import agent_camera
 from sagebench.render.chunks import pack, visible_chunks, visible_index
 from sagebench.render.gaussians import Gaussians, logit, rgb_to_sh_dc
 from sagebench.render.splat_reference import render_reference
-from sagebench.render.splat_render import _concurrent_launches, _depth_order, _project, render, render_packed
+from sagebench.render.splat_render import _bin, _concurrent_launches, _depth_order, _project, render, render_packed
 from sagebench.splats.prune import psnr
 
 
@@ -86,9 +86,28 @@ def test_culled_frame_matches_the_reference_renderer():
 
 def test_depth_order_is_numpys_stable_argsort():
     """The radix depth sort against np.argsort(kind="stable"): ties (rounded depths) keep index order, depths
-    spanning many binades, and the empty and one-element cases."""
+    spanning many binades, and the empty and one-element cases; on one thread and in parallel slices."""
     rng = np.random.default_rng(3)
-    cases = [np.zeros(0), np.array([2.5]), np.round(rng.uniform(0.01, 20.0, 5000), 2),
-             np.exp(rng.uniform(np.log(1e-2), np.log(1e6), 5000)), np.full(100, 0.75)]
+    cases = [np.zeros(0), np.array([2.5]), np.round(rng.uniform(0.01, 20.0, 50000), 2),
+             np.exp(rng.uniform(np.log(1e-2), np.log(1e6), 50000)), np.full(20000, 0.75)]
     for d in cases:
-        assert np.array_equal(_depth_order(d), np.argsort(d, kind="stable"))
+        for threads in (1, 3):
+            assert np.array_equal(_depth_order(d, threads), np.argsort(d, kind="stable"))
+
+
+def test_binning_lists_each_tile_in_the_given_order():
+    """Every tile's run holds exactly the Gaussians whose rectangle covers it, in `order`; the same when slices
+    of `order` are counted and placed in parallel."""
+    rng = np.random.default_rng(5)
+    n, gx, gy = 30000, 14, 11
+    x0, y0 = rng.integers(0, gx, n), rng.integers(0, gy, n)
+    rect = np.column_stack([x0, np.minimum(x0 + rng.integers(1, 4, n), gx),
+                            y0, np.minimum(y0 + rng.integers(1, 4, n), gy)]).astype(np.int32)
+    order = rng.permutation(n)
+    r = rect[order]
+    for threads in (1, 3):
+        offsets, pairs = _bin(order, rect, gx, gx * gy, threads)
+        for t in range(gx * gy):
+            tx, ty = t % gx, t // gx
+            covers = (r[:, 0] <= tx) & (tx < r[:, 1]) & (r[:, 2] <= ty) & (ty < r[:, 3])
+            assert np.array_equal(pairs[offsets[t]:offsets[t + 1]], order[covers])

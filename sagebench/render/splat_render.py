@@ -2,11 +2,11 @@
 
 Same conventions and results as splat_reference (tested to agree): per-Gaussian projection in a parallel
 loop, one global stable depth sort (so every tile's list is in depth order), a counting sort of
-(tile, Gaussian) pairs, then each tile composites its list front to back, stopping once every pixel's
-transmittance is spent. A Gaussian adds nothing outside its reach ellipse (3 sigma, less for faint ones:
-`_reach2`), so it is binned to the tiles of that ellipse's bounding box and, within a tile, visits only the
-pixels on the ellipse's chords of the rows still taking colour. Several cameras render side by side, one
-per thread.
+(tile, Gaussian) pairs (both sorts count and place slices of their input in parallel), then each tile
+composites its list front to back, stopping once every pixel's transmittance is spent. A Gaussian adds
+nothing outside its reach ellipse (3 sigma, less for faint ones: `_reach2`), so it is binned to the tiles of
+that ellipse's bounding box and, within a tile, visits only the pixels on the ellipse's chords of the rows
+still taking colour. Several cameras render side by side, one per thread.
 """
 
 from __future__ import annotations
@@ -163,48 +163,76 @@ def _project(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, w
     return xy, conic, depth, rgb, opac, rect, reach2
 
 
-@numba.njit(nogil=True, cache=True)
-def _depth_order(depth):  # pragma: no cover - jit
-    """np.argsort(depth, kind="stable") for positive float64 depths (3.0 against 5.5 CPU-ms on a demo frame's 166 k):
-    an LSD radix sort (stable) on 16-bit digits of the IEEE bits, whose unsigned order is the value order for
-    positive floats."""
+@numba.njit(cache=True)
+def _parts(n, threads):  # pragma: no cover - jit
+    """[P + 1] bounds of P near-equal slices of range(n), one per thread (one slice below 8192 items)."""
+    p = max(1, min(threads, n // 8192))
+    return (np.arange(p + 1) * n) // p
+
+
+@numba.njit(cache=True)
+def _starts(count):  # pragma: no cover - jit
+    """Exclusive prefix sums of count [P, K] taken key-major (key 0 of every slice, then key 1, ...), in place: a
+    stable counting sort's first output slot for each (slice, key); returns the total."""
+    run = 0
+    for d in range(count.shape[1]):
+        for p in range(count.shape[0]):
+            c = count[p, d]
+            count[p, d] = run
+            run += c
+    return run
+
+
+@numba.njit(parallel=True, nogil=True, cache=True)
+def _depth_order(depth, threads):  # pragma: no cover - jit
+    """np.argsort(depth, kind="stable") for positive float64 depths: an LSD radix sort (stable) on 11-bit digits of
+    the IEEE bits, whose unsigned order is the value order for positive floats; each pass counts and scatters
+    slices of the array in parallel."""
     n = depth.shape[0]
     bits = depth.view(np.uint64)
+    bounds = _parts(n, threads)
     idx = np.arange(n)
     tmp = np.empty(n, np.int64)
-    for shift in range(0, 64, 16):
-        count = np.zeros(65537, np.int64)
-        for r in range(n):
-            count[((bits[idx[r]] >> shift) & 0xFFFF) + 1] += 1
-        for d in range(65536):
-            count[d + 1] += count[d]
-        for r in range(n):
-            g = idx[r]
-            d = (bits[g] >> shift) & 0xFFFF
-            tmp[count[d]] = g
-            count[d] += 1
+    for shift in range(0, 64, 11):
+        count = np.zeros((len(bounds) - 1, 2048), np.int64)
+        for p in numba.prange(len(bounds) - 1):
+            for r in range(bounds[p], bounds[p + 1]):
+                count[p, (bits[idx[r]] >> shift) & 0x7FF] += 1
+        _starts(count)
+        for p in numba.prange(len(bounds) - 1):
+            for r in range(bounds[p], bounds[p + 1]):
+                g = idx[r]
+                d = (bits[g] >> shift) & 0x7FF
+                tmp[count[p, d]] = g
+                count[p, d] += 1
         idx, tmp = tmp, idx
     return idx
 
 
-@numba.njit(nogil=True, cache=True)
-def _bin(order, rect, gx, n_tiles):  # pragma: no cover - jit
-    """Counting sort of (tile, Gaussian) pairs; `order` is depth-sorted so each tile's run is too."""
-    offsets = np.zeros(n_tiles + 1, np.int64)
-    for g in order:
-        for ty in range(rect[g, 2], rect[g, 3]):
-            for tx in range(rect[g, 0], rect[g, 1]):
-                offsets[ty * gx + tx + 1] += 1
-    for t in range(n_tiles):
-        offsets[t + 1] += offsets[t]
-    fill = offsets[:-1].copy()
+@numba.njit(parallel=True, nogil=True, cache=True)
+def _bin(order, rect, gx, n_tiles, threads):  # pragma: no cover - jit
+    """Counting sort of (tile, Gaussian) pairs, slices of `order` counted and placed in parallel; `order` is
+    depth-sorted so each tile's run is too. Returns [n_tiles + 1] run starts and the pairs' Gaussians."""
+    bounds = _parts(len(order), threads)
+    count = np.zeros((len(bounds) - 1, n_tiles), np.int64)
+    for p in numba.prange(len(bounds) - 1):
+        for r in range(bounds[p], bounds[p + 1]):
+            g = order[r]
+            for ty in range(rect[g, 2], rect[g, 3]):
+                for tx in range(rect[g, 0], rect[g, 1]):
+                    count[p, ty * gx + tx] += 1
+    offsets = np.empty(n_tiles + 1, np.int64)
+    offsets[n_tiles] = _starts(count)
+    offsets[:n_tiles] = count[0]
     pairs = np.empty(offsets[n_tiles], np.int64)
-    for g in order:
-        for ty in range(rect[g, 2], rect[g, 3]):
-            for tx in range(rect[g, 0], rect[g, 1]):
-                t = ty * gx + tx
-                pairs[fill[t]] = g
-                fill[t] += 1
+    for p in numba.prange(len(bounds) - 1):
+        for r in range(bounds[p], bounds[p + 1]):
+            g = order[r]
+            for ty in range(rect[g, 2], rect[g, 3]):
+                for tx in range(rect[g, 0], rect[g, 1]):
+                    t = ty * gx + tx
+                    pairs[count[p, t]] = g
+                    count[p, t] += 1
     return offsets, pairs
 
 
@@ -292,9 +320,10 @@ def _run(g: Gaussians, cam: Camera, background: tuple[float, float, float], inde
         float(cam.fx), float(cam.fy), float(cam.cx), float(cam.cy), cam.width, cam.height,
     )
     visible = np.flatnonzero(rect[:, 0] >= 0)
-    order = visible[_depth_order(np.ascontiguousarray(depth[visible]))]  # depths > NEAR > 0
+    threads = numba.get_num_threads()  # this thread's: 1 in render_packed's workers
+    order = visible[_depth_order(np.ascontiguousarray(depth[visible]), threads)]  # depths > NEAR > 0
     gx, gy = (cam.width + TILE - 1) // TILE, (cam.height + TILE - 1) // TILE
-    offsets, pairs = _bin(order, rect, gx, gx * gy)
+    offsets, pairs = _bin(order, rect, gx, gx * gy, threads)
     h, w = cam.height, cam.width
     out_rgb = np.empty((h, w, 3), np.float32)
     out_depth = np.empty((h, w), np.float32)
