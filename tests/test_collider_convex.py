@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from sagebench.collider_export.convex import (
+    FLAT_BRIDGE,
     MIN_THICKNESS,
     face_components,
     hull_part,
@@ -83,6 +84,19 @@ def test_flat_piece_becomes_a_padded_part():
     (part,) = split.parts
     assert np.isclose(np.ptp(part.vertices[:, 2]), MIN_THICKNESS)
     assert np.isclose(part.volume, MIN_THICKNESS)
+
+
+@pytest.mark.parametrize("notch", [0.004, 0.3])
+def test_flat_piece_with_a_notch_is_its_hull_only_when_the_notch_is_shallow(notch):
+    """A U-shaped sheet (a grand piano's lid is one, curved): its hull fills the notch, so it is left for the
+    methods, which measure it; a notch shallower than FLAT_BRIDGE is no notch."""
+    u = u_prism(depth=0.1 + notch, height=1.0)
+    top = u.faces[np.isclose(u.vertices[u.faces][:, :, 2], 1.0).all(axis=1)]  # the U outline, one sheet at z = 1
+    split = split_convex(u.vertices + [0, 0, 0.5], top)
+    if notch < FLAT_BRIDGE:
+        assert len(split.parts) == 1 and split.concave == []
+    else:
+        assert split.parts == [] and len(split.concave) == 1
 
 
 def test_hull_part_is_closed_and_outward():

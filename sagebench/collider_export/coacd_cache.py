@@ -26,7 +26,7 @@ from sagebench.collider_export.convex import ConvexPart, ConvexSplit
 from sagebench.fileio import write_bytes
 
 CACHE_SUBDIR = "colliders-v3"  # bumped whenever a method's parts change for the same settings (v3: voxel hulls)
-SPLIT_VERSION = 1  # bumped whenever convex.split_convex splits the same mesh differently
+SPLIT_VERSION = 2  # bumped whenever convex.split_convex splits the same mesh differently
 
 
 class CoacdParams(BaseModel):

@@ -18,6 +18,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 WELD_DECIMALS = 6  # vertices closer than ~1e-6 m are one vertex
 MIN_THICKNESS = 0.01  # m; a flat piece's hull is padded to this thickness so it has a volume
+FLAT_BRIDGE = 0.005  # m; a flat piece is its own hull only where that hull bridges no notch of its outline deeper
 
 
 @dataclass(frozen=True)
@@ -140,7 +141,7 @@ def split_convex(vertices: np.ndarray, faces: np.ndarray, *, tolerance: float = 
     """Split a mesh into exact convex parts and concave pieces for CoACD.
 
     Pieces are the groups of faces joined through (welded) vertices. A convex solid piece is its own
-    hull; a flat piece (thinner than MIN_THICKNESS) is its padded hull; a piece made of convex solids
+    hull; a flat piece (thinner than MIN_THICKNESS) that is convex in its plane is its padded hull; a piece made of convex solids
     that only touch at vertices (boxes sharing corners, with their own vertices in the file) is those
     solids; anything else is concave.
     """
@@ -151,7 +152,7 @@ def split_convex(vertices: np.ndarray, faces: np.ndarray, *, tolerance: float = 
     concave: list[tuple[np.ndarray, np.ndarray]] = []
     for idx in face_components(f, len(v)):
         piece_v, piece_f = weld(*_compact(v, f[idx]))
-        if is_convex_solid(piece_v, piece_f, tolerance=tolerance) or _is_flat(piece_v):
+        if is_convex_solid(piece_v, piece_f, tolerance=tolerance) or _is_flat_convex(piece_v, piece_f):
             parts.append(hull_part(piece_v))
             continue
         sub_v, sub_f = _compact(raw_v, raw_f[idx])
@@ -170,9 +171,25 @@ def _compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.nd
     return vertices[used], inverse.reshape(-1, 3)
 
 
-def _is_flat(points: np.ndarray) -> bool:
-    """Thinner than MIN_THICKNESS along some direction (a sheet, a line or a point)."""
-    return bool(_principal_extents(points)[1][-1] < MIN_THICKNESS)
+def _is_flat_convex(vertices: np.ndarray, faces: np.ndarray) -> bool:
+    """Thinner than MIN_THICKNESS along some direction (a sheet, a line or a point) and convex in its plane: no
+    point of its outline's hull farther than FLAT_BRIDGE from the sheet. (A grand piano's lid, a flat sheet with
+    a curved notch, was once taken as its hull: 13 cm past the piano in the agent band.)"""
+    import shapely
+
+    directions, extents = _principal_extents(vertices)
+    if extents[-1] >= MIN_THICKNESS:
+        return False
+    flat = (vertices - vertices.mean(axis=0)) @ directions[:2].T  # [V, 2] in the sheet's plane
+    hull = shapely.MultiPoint(flat).convex_hull
+    if hull.area <= 0:  # a line or a point: nothing to bridge
+        return True
+    sheet = shapely.union_all(shapely.polygons(flat[faces]))
+    bridged = hull.difference(sheet.buffer(1e-9))
+    if bridged.is_empty:
+        return True
+    probe = shapely.points(shapely.get_coordinates(shapely.segmentize(bridged, FLAT_BRIDGE / 2)))
+    return bool(shapely.distance(probe, sheet).max() <= FLAT_BRIDGE)
 
 
 def merge_parts(parts: list[ConvexPart], budget: int, band: tuple[float, float] | None = None,
