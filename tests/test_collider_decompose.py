@@ -127,5 +127,15 @@ def test_quality_mode_is_within_2_cm_in_the_band_where_balanced_is(tmp_path):
     meshes = _fixture_meshes("upperCornerCabinet", "couch2", "chair2", "table")
     balanced, _ = _band_errors(meshes, ColliderSettings(mode="balanced", max_parts=8), tmp_path)
     quality, merged = _band_errors(meshes, ColliderSettings(mode="quality", max_parts=8), tmp_path)
-    assert max(balanced.values()) <= 2.0 and merged == 4
+    assert max(balanced.values()) <= 2.0 and merged == 3  # the chair keeps balanced's 5 parts, closer in the band
     assert {name: e for name, e in quality.items() if e > 2.0} == {}
+
+
+@pytest.mark.parametrize("max_parts", [32, 4])
+def test_quality_mode_is_never_farther_off_in_the_band_than_balanced(tmp_path, max_parts):
+    # CoACD's four parts of the open Japanese lantern reach 1 cm past it in the band where balanced's hull
+    # is exact, and at 4 parts the chair's merged CoACD parts 1.4 cm where balanced's voxel parts reach 1
+    meshes = _fixture_meshes("JapaneseLantern", "chair2")
+    balanced, _ = _band_errors(meshes, ColliderSettings(mode="balanced", max_parts=max_parts), tmp_path)
+    quality, _ = _band_errors(meshes, ColliderSettings(mode="quality", max_parts=max_parts), tmp_path)
+    assert {name: (e, balanced[name]) for name, e in quality.items() if e > balanced[name]} == {}

@@ -11,7 +11,7 @@ import numpy as np
 from sagebench.collider_export.coacd_cache import PartCache, PieceResult, split_key
 from sagebench.collider_export.convex import ConvexPart, ConvexSplit, merge_parts, split_convex, weld
 from sagebench.collider_export.fanout import map_processes
-from sagebench.collider_export.methods import LADDERS, ColliderSettings, agent_band
+from sagebench.collider_export.methods import LADDERS, ColliderSettings, agent_band, band_error_cm
 from sagebench.collider_export.pieces import Piece, decompose_pieces
 from sagebench.collider_export.quality import BandReach
 
@@ -44,7 +44,23 @@ def decompose_meshes(
     A mesh with more parts than `settings.max_parts` gets its closest parts merged, within the band tolerance
     of its footprint where possible (merge_to_budget); one with more than WHOLE_MESH_FACTOR times that many
     pieces (a plant of a thousand leaves) becomes one voxel collider of the whole mesh within the budget.
+    `quality` keeps balanced's parts for a mesh where they are closer in the band (or as close in fewer parts):
+    CoACD's parts merged to the budget were once 5 cm off where balanced's were 2.
     """
+    out = _decompose(meshes, settings, cache=cache, workers=workers, convex_tolerance=convex_tolerance,
+                     floor_height=floor_height)
+    if settings.mode != "quality":
+        return out
+    other = _decompose(meshes, settings.model_copy(update={"mode": "balanced"}), cache=cache, workers=workers,
+                       convex_tolerance=convex_tolerance, floor_height=floor_height)
+    return {name: min((out[name], other[name]), key=lambda mc: (band_error_cm(*meshes[name], mc.parts, floor_height),
+                                                                 len(mc.parts)))
+            for name in meshes}
+
+
+def _decompose(meshes: Mapping[str, tuple[np.ndarray, np.ndarray]], settings: ColliderSettings, *, cache: PartCache,
+               workers: int, convex_tolerance: float, floor_height: float) -> dict[str, MeshColliders]:
+    """decompose_meshes by the one mode `settings.mode`."""
     plan = plan_pieces(meshes, settings, cache=cache, convex_tolerance=convex_tolerance, workers=workers)
     results = iter(decompose_pieces(plan.jobs, settings, cache=cache, workers=workers, floor_height=floor_height))
     out: dict[str, MeshColliders] = {}
