@@ -4,7 +4,7 @@ A policy sees, per running episode, its observation dict and info (and at `begin
 the baselines are privileged, the oracle reads the reference path and `straight` the goal).
 - `oracle` walks the reference path's stations (agents.policies.oracle_targets): it turns towards the next one
   while the heading error exceeds half a turn step, else moves forward; a station within half a forward step
-  counts as passed; it stops after the last.
+  of its last move (not only of where it ended) counts as passed; it stops after the last.
 - `straight` turns towards the goal and moves forward; it stops within the goal radius (straight distance) or
   after stall_patience forward moves in a row without min_progress towards the goal.
 - `random`: forward, or with random_turn_probability a turn of 15-90 degrees either way (as successive turn
@@ -43,6 +43,15 @@ def _heading_action(pose: np.ndarray, target: np.ndarray, turn: float) -> Action
     return Action.MOVE_FORWARD
 
 
+def _segment_distance(point: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """Distance from `point` to the segment a-b (the agent's last move): a station the move passed by counts,
+    not only one it ended near, since 15-degree headings can carry a 0.25 m move past a station by more than
+    half a step on either side and the oracle would turn back and forth around it for ever."""
+    ab = b - a
+    t = float(np.clip(np.dot(point - a, ab) / max(float(np.dot(ab, ab)), 1e-24), 0.0, 1.0))
+    return float(np.hypot(*(point - (a + t * ab))))
+
+
 class Oracle:
     def __init__(self, actions: ActionConfig = ActionConfig()):
         self.actions = actions
@@ -50,13 +59,16 @@ class Oracle:
     def begin(self, episodes: Sequence[Episode]) -> None:
         self.targets = [oracle_targets(e.reference_path, self.actions.forward_step)[1:] for e in episodes]
         self.next = [0] * len(episodes)
+        self.last: list[np.ndarray | None] = [None] * len(episodes)
 
     def act(self, slots, observations, infos) -> list:
         out, reach = [], self.actions.forward_step / 2
         for i, obs in zip(slots, observations):
             pose, t = obs["pose"], self.targets[i]
-            while self.next[i] < len(t) and np.hypot(*(t[self.next[i]] - pose[:2])) <= reach:
+            moved_from = pose[:2] if self.last[i] is None else self.last[i]
+            while self.next[i] < len(t) and _segment_distance(t[self.next[i]], moved_from, pose[:2]) <= reach:
                 self.next[i] += 1
+            self.last[i] = np.array(pose[:2], dtype=np.float64)
             out.append(Action.STOP if self.next[i] >= len(t)
                        else _heading_action(pose, t[self.next[i]], math.radians(self.actions.turn_deg)))
         return out

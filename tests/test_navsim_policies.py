@@ -1,0 +1,67 @@
+"""The built-in oracle on an open floor with ideal motion: it must reach the end of any reference path.
+
+Its moves are 0.25 m along 15-degree headings, so it can pass a station without ever ending within half a step
+of it; on the demo run 18 of 600 episodes turned back and forth round such a station until the step limit.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from sagebench.evaluation.scoring import Episode
+from sagebench.navsim.actions import Action, ActionConfig
+from sagebench.navsim.policies import built_in
+
+ACTIONS = ActionConfig()
+
+
+def _episode(path_xy: np.ndarray, start_yaw: float = 0.0) -> Episode:
+    path = np.column_stack([path_xy, np.zeros(len(path_xy)), np.zeros(len(path_xy))])
+    return Episode(episode_id="e", scene_id="s", level="low", type="Base_Action", start=path[0, :3],
+                   start_yaw=start_yaw, goal=path[-1, :3], goal_radius=1.0, geodesic_distance=0.0,
+                   reference_path=path)
+
+
+def _walk(episode: Episode, limit: int) -> tuple[np.ndarray, int]:
+    """Drive the oracle with exact motion (no physics, nothing in the way): its final pose and actions taken."""
+    policy = built_in("oracle", actions=ACTIONS)
+    policy.begin([episode])
+    pose = np.array([*episode.start[:2], 0.0, episode.start_yaw])
+    for n in range(limit):
+        action = policy.act([0], [{"pose": pose.copy()}], [{"collision_intensity": 0.0}])[0]
+        if action == Action.STOP:
+            return pose, n
+        if action == Action.MOVE_FORWARD:
+            pose[:2] += ACTIONS.forward_step * np.array([math.cos(pose[3]), math.sin(pose[3])])
+        else:
+            turn = math.radians(ACTIONS.turn_deg) * (1 if action == Action.TURN_LEFT else -1)
+            pose[3] = math.remainder(pose[3] + turn, 2 * math.pi)
+    return pose, limit
+
+
+def _bound(path_xy: np.ndarray) -> int:
+    """Generous: every station a forward move plus a half turn."""
+    length = float(np.linalg.norm(np.diff(path_xy, axis=0), axis=1).sum())
+    return int((length / ACTIONS.forward_step + len(path_xy) + 1) * (1 + 180 / ACTIONS.turn_deg)) + 10
+
+
+def test_the_demo_path_it_circled_on_is_walked_to_its_end():
+    path = np.array([[7.825, 5.975], [8.175, 5.975], [8.275, 5.825], [8.275, 4.975], [8.125, 4.875],
+                     [6.825, 4.875], [5.525, 6.025]])
+    pose, n = _walk(_episode(path), 500)
+    assert n < 500 and np.hypot(*(pose[:2] - path[-1])) <= ACTIONS.forward_step
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.tuples(st.integers(-6, 6), st.integers(-6, 6)), min_size=1, max_size=6),
+       st.floats(-math.pi, math.pi))
+def test_the_oracle_stops_near_the_end_of_any_grid_path(steps, start_yaw):
+    """Reference paths with corners on a 0.25 m grid, runs of up to 1.5 m each way, any start heading."""
+    path = np.cumsum(np.array([(0, 0), *steps], dtype=np.float64) * 0.05 * 5, axis=0)
+    pose, n = _walk(_episode(path, start_yaw), _bound(path))
+    assert n < _bound(path), "the oracle did not stop"
+    assert np.hypot(*(pose[:2] - path[-1])) <= ACTIONS.forward_step
