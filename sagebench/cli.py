@@ -24,9 +24,9 @@ app = typer.Typer(
 )
 
 
-def _defaults_from(settings: str) -> type[typer.core.TyperCommand]:
+def _defaults_from(settings: str, options: str = "OPTIONS") -> type[typer.core.TyperCommand]:
     """A command class whose --help adds "(default X)" to each option, X read from the settings model
-    "module:Model" through the module's OPTIONS (option -> field path) when help is shown: the defaults have
+    "module:Model" through the module's OPTIONS (or `options`: option -> field path) when help is shown: the defaults have
     one source, and a command that is run rather than asked for help imports nothing more."""
 
     class Command(typer.core.TyperCommand):
@@ -36,7 +36,7 @@ def _defaults_from(settings: str) -> type[typer.core.TyperCommand]:
 
                 module_name, model = settings.split(":")
                 module = importlib.import_module(module_name)
-                defaults = option_defaults(getattr(module, model), module.OPTIONS)
+                defaults = option_defaults(getattr(module, model), getattr(module, options))
                 for param in self.params:
                     value = next((defaults[o] for o in param.opts if o in defaults), None)
                     if value is not None and not isinstance(value, bool) and not param.required:
@@ -487,7 +487,7 @@ def evaluate_cmd(
         typer.echo(f"wrote {out}")
 
 
-@app.command("baseline", cls=_defaults_from("sagebench.stages.baseline:BaselineConfig"))
+@app.command("baseline", cls=_defaults_from("sagebench.stages.rollout:BaselineConfig", "BASELINE_OPTIONS"))
 def baseline_cmd(
     agent: Annotated[str, typer.Option("--agent", help="oracle, straight or random.")],
     run_dir: Annotated[Path, typer.Option("--run", help="Run directory with episodes/<id>/ and scenes/<id>/scene.xml.")],
@@ -497,19 +497,20 @@ def baseline_cmd(
     max_actions: Annotated[int | None, typer.Option(help="Actions per episode before it ends unstopped.")] = None,
     workers: Annotated[int | None, typer.Option(help="Threads stepping the MuJoCo agents.")] = None,
 ) -> None:
-    """Drive a baseline agent through every episode in MuJoCo and write its predictions.
+    """Run a built-in policy closed-loop over every episode: `rollout --policy AGENT --obs none`.
 
-    oracle follows the reference path; straight turns towards the goal and moves straight at it,
-    stopping within the goal radius or when stuck; random wanders (seeded). Each action moves at most
-    0.25 m or turns in place.
+    The same loop, policies and simulator as `sagebench rollout` (VLN-CE's discrete actions, MuJoCo, c(t)
+    measured by the simulator), without rendering: oracle follows the reference path; straight turns
+    towards the goal and moves at it, stopping within the goal radius or after 4 forward moves without
+    progress; random wanders (seeded per episode).
 
-    Reads RUN/episodes/<id>/part-*.parquet and RUN/scenes/<id>/scene.json and scene.xml (export-usd).
-    Writes OUT: one JSON line per episode with poses, stopped and collision_intensity, ready for
-    `sagebench evaluate`.
+    Reads RUN/episodes/<id>/part-*.parquet and RUN/scenes/<id>/scene.json, topdown.npz and scene.xml
+    (export-usd). Writes OUT: one JSON line per episode with poses, stopped and the simulator's
+    collision_intensity, ready for `sagebench evaluate`.
     """
-    from sagebench.stages.baseline import make_config, run_baseline
+    from sagebench.stages.rollout import make_baseline_config, run_baseline
 
-    config = make_config(agent_name=agent, seed=seed, max_actions=max_actions, workers=workers)
+    config = make_baseline_config(agent_name=agent, seed=seed, max_actions=max_actions, workers=workers)
     typer.echo(run_baseline(run_dir, out, config, scene_id=scene).summary())
 
 

@@ -94,7 +94,7 @@ def test_demo_runs_the_whole_pipeline_and_verifies(run_cli, tmp_path):
                 "baselines/oracle.jsonl"):
         assert (out / rel).is_file(), rel
     overall = json.loads((out / "baselines" / "oracle_results.json").read_text())["overall"]
-    assert overall["sr"] == 1.0 and overall["icp"] == 0.0 and overall["csr"] == 1.0
+    assert overall["sr"] == 1.0 and overall["icp"] < 0.01 and overall["csr"] == 1.0  # ICP measured by the simulator
     code, stdout, _ = run_cli("verify", out)
     assert code == 0 and stdout.startswith("ok:")
 

@@ -14,21 +14,21 @@ from sagebench.config import from_options
 from sagebench.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parent.parent
-COMMANDS = {  # command -> (stage module, settings model)
+COMMANDS = {  # command -> (stage module, settings model[, its options table when not OPTIONS])
     "build-scene": ("sagebench.stages.build_scene", "TopdownConfig"),
     "gen-trajectories": ("sagebench.stages.gen_trajectories", "GenTrajectoriesConfig"),
     "render": ("sagebench.stages.render", "RenderConfig"),
     "export-usd": ("sagebench.stages.export_usd", "ExportConfig"),
     "validate": ("sagebench.stages.validate", "ValidateConfig"),
     "evaluate": ("sagebench.stages.evaluate", "EvaluateConfig"),
-    "baseline": ("sagebench.stages.baseline", "BaselineConfig"),
+    "baseline": ("sagebench.stages.rollout", "BaselineConfig", "BASELINE_OPTIONS"),
     "rollout": ("sagebench.stages.rollout", "RolloutConfig"),
 }
 
 
 def _settings(command: str) -> tuple[type[BaseModel], dict[str, str]]:
     module = importlib.import_module(COMMANDS[command][0])
-    return getattr(module, COMMANDS[command][1]), module.OPTIONS
+    return getattr(module, COMMANDS[command][1]), getattr(module, (*COMMANDS[command], "OPTIONS")[2])
 
 
 def _default(model: type[BaseModel], path: str) -> object:

@@ -462,8 +462,8 @@ def test_a_trained_ply_link_leaving_the_scene_is_refused(tiny_scene, run_cli, tm
 @pytest.fixture(scope="module")
 def tiny_run(tiny_scene, tmp_path_factory) -> Path:
     """The tiny scene built (few Gaussians), 8 trajectories, exported, and the oracle's predictions. Read-only."""
-    from sagebench.stages.baseline import make_config as baseline_config
-    from sagebench.stages.baseline import run_baseline
+    from sagebench.stages.rollout import make_baseline_config as baseline_config
+    from sagebench.stages.rollout import run_baseline
     from sagebench.stages.build_scene import build_scene, make_config
     from sagebench.stages.export_usd import export_usd
     from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, gen_trajectories
@@ -680,7 +680,7 @@ def _args(template: list[str], run: Path, scene: Path) -> list[str]:
 def test_damaged_run_outputs(damage, command, expect, tiny_run, tiny_scene, run_cli, tmp_path):
     run = tmp_path / "run"
     shutil.copytree(tiny_run, run, symlinks=True)
-    rows = [{k: v for k, v in r.items() if k != "collision_intensity"} for r in _pred_lines(run)]
+    rows = [{k: v for k, v in r.items() if k not in ("collision_intensity", "intensity_source")} for r in _pred_lines(run)]
     (run / "pred.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))  # evaluate replays them
     damage(run)
     assert_refused(run_cli, _args(command, run, tiny_scene), tmp_path, expect)

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from sagebench.evaluation.scoring import Episode
 from sagebench.navsim.actions import Action, ActionConfig
-from sagebench.navsim.policies import built_in
+from sagebench.navsim.policies import PolicyConfig, built_in, oracle_targets
 
 ACTIONS = ActionConfig()
 
@@ -65,3 +65,34 @@ def test_the_oracle_stops_near_the_end_of_any_grid_path(steps, start_yaw):
     pose, n = _walk(_episode(path, start_yaw), _bound(path))
     assert n < _bound(path), "the oracle did not stop"
     assert np.hypot(*(pose[:2] - path[-1])) <= ACTIONS.forward_step
+
+
+def test_oracle_targets_by_hand():
+    t = oracle_targets(np.array([[0, 0], [1, 0], [1, 0.6]]), 0.25)
+    np.testing.assert_allclose(t, [[0, 0], [.25, 0], [.5, 0], [.75, 0], [1, 0], [1, .25], [1, .5], [1, .6]])
+    # a turn waypoint (same spot) is one point; stations 3 cm before a corner or the end give way; stations
+    # stay at multiples of 0.25 m of arc length (those nDTW resamples the reference to)
+    np.testing.assert_allclose(oracle_targets(np.array([[0, 0], [0, 0], [0.53, 0], [0.53, 1]]), 0.25),
+                               [[0, 0], [.25, 0], [.53, 0], [.53, .22], [.53, .47], [.53, .72], [.53, 1]])
+
+
+def _random_actions(episodes: list[Episode], seed: int) -> list[list[Action]]:
+    policy = built_in("random", seed=seed, config=PolicyConfig(random_min_actions=5, random_max_actions=30))
+    policy.begin(episodes)
+    out: list[list[Action]] = [[] for _ in episodes]
+    pose = {"pose": np.zeros(4)}
+    for _ in range(40):
+        live = [i for i in range(len(episodes)) if not out[i] or out[i][-1] != Action.STOP]
+        acts = policy.act(live, [pose] * len(live), [{"collision_intensity": 0.0}] * len(live))
+        for i, a in zip(live, acts):
+            out[i].append(a)
+    return out
+
+
+def test_random_walks_are_seeded_per_episode():
+    path = np.array([[0.0, 0.0], [1.0, 0.0]])
+    eps = [Episode(**{**_episode(path).__dict__, "episode_id": f"r{i}"}) for i in range(3)]
+    together = _random_actions(eps, 0)
+    assert together == _random_actions(eps, 0) and together[1] == _random_actions([eps[1]], 0)[0]
+    assert together[0] != _random_actions(eps, 1)[0] and together[0] != together[2]  # own generator per id
+    assert all(w[-1] == Action.STOP and 5 <= len(w) - 1 <= 30 for w in together)

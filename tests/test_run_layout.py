@@ -83,7 +83,7 @@ def test_a_stage_needs_only_the_files_it_declares(stage, full_run, demo_scene_di
 
 
 def _baseline(run: Path, out: Path) -> bytes:
-    from sagebench.stages.baseline import BaselineConfig, run_baseline
+    from sagebench.stages.rollout import BaselineConfig, run_baseline
 
     run_baseline(run, out / "oracle.jsonl", BaselineConfig(agent_name="oracle"))
     return (out / "oracle.jsonl").read_bytes()
@@ -94,7 +94,7 @@ def _evaluate(run: Path, out: Path) -> bytes:
     from sagebench.stages.evaluate import evaluate
 
     lines = _baseline(run, out).decode().splitlines()
-    bare = [json.dumps({k: v for k, v in json.loads(line).items() if k != "collision_intensity"}) for line in lines]
+    bare = [json.dumps({k: v for k, v in json.loads(line).items() if k not in ("collision_intensity", "intensity_source")}) for line in lines]
     (out / "bare.jsonl").write_text("\n".join(bare) + "\n")
     result = evaluate(run, out / "bare.jsonl").to_json()
     assert result["intensity_replayed"] == len(lines) > 0

@@ -9,9 +9,9 @@ a collider's reach), so an agent that follows an accepted path scores ICP 0. Ste
 translation (shorter than the replay's waypoint tolerance: turns in place) have c(t) = 0, since contact never
 twists the replay agent's heading.
 
-The baseline agents measure c(t) while they drive. For predictions without `collision_intensity`,
-`replay_intensity` replays every step of every episode on its own (a translation from the predicted pose t-1
-towards pose t, already facing it) in one `replay_batch`, so a step into a wall scores about 1 and a step
+`sagebench rollout` (and `baseline`, its alias) measure c(t) in the simulator. For predictions without
+`collision_intensity`, `replay_intensity` replays every step of every episode on its own (a translation from the
+predicted pose t-1 towards pose t, already facing it) in one `replay_batch`, so a step into a wall scores about 1 and a step
 along free floor 0, whatever the steps before it did. Poses closer together than the allowance register a
 wall they pass through by the steps that start inside it (the replay pushes the agent out: c = 1).
 

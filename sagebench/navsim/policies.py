@@ -2,7 +2,7 @@
 
 A policy sees, per running episode, its observation dict and info (and at `begin`, the episodes themselves:
 the baselines are privileged, the oracle reads the reference path and `straight` the goal).
-- `oracle` walks the reference path's stations (agents.policies.oracle_targets): it turns towards the next one
+- `oracle` walks the reference path's stations (oracle_targets): it turns towards the next one
   while the heading error exceeds half a turn step, else moves forward; a station within half a forward step
   of its last move (not only of where it ended) counts as passed; it stops after the last.
 - `straight` turns towards the goal and moves forward; it stops within the goal radius (straight distance) or
@@ -14,17 +14,55 @@ the baselines are privileged, the oracle reads the reference path and `straight`
 
 from __future__ import annotations
 
+import hashlib
 import math
 from collections.abc import Sequence
 from typing import Protocol
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from sagebench.agents.policies import PolicyConfig, episode_rng, oracle_targets
 from sagebench.evaluation.scoring import Episode
 from sagebench.navsim.actions import Action, ActionConfig
 
 BUILT_IN = ("oracle", "straight", "random")
+
+
+class PolicyConfig(BaseModel):
+    """Settings of the baseline policies (defaults here, nowhere else)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    stall_patience: int = Field(default=4, ge=1, description="straight: forward moves without progress before it stops.")
+    min_progress: float = Field(default=0.05, ge=0, description="straight: nearer to the goal than this counts as progress, m.")
+    random_turn_probability: float = Field(default=0.25, ge=0, le=1, description="random: chance an action is a turn.")
+    random_min_actions: int = Field(default=10, ge=0, description="random: fewest actions before it stops.")
+    random_max_actions: int = Field(default=150, ge=0, description="random: most actions before it stops.")
+
+    @model_validator(mode="after")
+    def _range(self) -> PolicyConfig:
+        if self.random_max_actions < self.random_min_actions:
+            raise ValueError("random_max_actions must be at least random_min_actions")
+        return self
+
+
+def oracle_targets(reference_path: np.ndarray, step_length: float, *, merge: float = 0.05) -> np.ndarray:
+    """[K, 2] points along the XY polyline of `reference_path` [M, >=2]: its start, every step_length of arc
+    length, every corner and the end; a station closer than `merge` (m) to a corner gives way to the corner."""
+    p = np.asarray(reference_path, dtype=np.float64)[:, :2]
+    keep = np.concatenate([[True], np.linalg.norm(np.diff(p, axis=0), axis=1) > 0])
+    p = p[keep]  # two waypoints at one spot (a turn) are one point here
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+    stations = np.arange(0.0, s[-1], step_length)
+    near_corner = np.abs(stations[:, None] - s[None, :]).min(axis=1) < merge if len(stations) else np.zeros(0, bool)
+    arc = np.union1d(stations[~near_corner], s)
+    return np.column_stack([np.interp(arc, s, p[:, 0]), np.interp(arc, s, p[:, 1])])
+
+
+def episode_rng(seed: int, episode_id: str) -> np.random.Generator:
+    """A generator of its own for one episode: seeded by the run seed and a hash of the episode id."""
+    digest = int.from_bytes(hashlib.sha256(episode_id.encode("utf-8")).digest()[:8], "little")
+    return np.random.default_rng([seed, digest])
 
 
 class Policy(Protocol):

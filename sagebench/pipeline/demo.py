@@ -44,8 +44,8 @@ def run_demo(out: Path, *, seed: int = 0) -> DemoResult:
     summary = run_pipeline(load_run_config(config_path), config_path)
     if not summary.ok:
         return DemoResult(summary, "")
-    from sagebench.stages.baseline import BaselineConfig, run_baseline
     from sagebench.stages.evaluate import evaluate
+    from sagebench.stages.rollout import BaselineConfig, run_baseline
 
     predictions = out / BASELINES / "oracle.jsonl"
     info(run_baseline(out, predictions, BaselineConfig(agent_name="oracle", seed=seed)).summary())

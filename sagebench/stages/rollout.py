@@ -4,6 +4,9 @@ Reads RUN/episodes/<id>/part-*.parquet, RUN/scenes/<id>/scene.json, topdown.npz,
 rendered) and scene.xml + colliders (export-usd). Writes OUT (predictions JSON Lines, episodes in run order,
 c(t) measured by the simulator and marked so) and, when RGB is rendered, OUT's stem + _contact_sheet.png
 (start, middle and end views of the first few episodes).
+
+`baseline` is this stage's alias for the built-in policies with no images (`rollout --policy AGENT --obs none`),
+kept for its options: one implementation of the baselines, their c(t) the simulator's measured one.
 """
 
 from __future__ import annotations
@@ -11,6 +14,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import cv2
 import numpy as np
@@ -119,3 +123,49 @@ def run_rollout(run_dir: Path, out: Path, config: RolloutConfig = RolloutConfig(
     write_predictions(Path(out), result.predictions)
     return RolloutSummary(policy=config.policy, out=Path(out), sheet=sheet, episodes=len(result.predictions),
                           stopped=sum(p.stopped for p in result.predictions), steps=result.steps, seconds=seconds)
+
+
+class BaselineConfig(BaseModel):
+    """Settings of baseline (defaults here, nowhere else); the CLI maps its options onto these fields."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    agent_name: Literal["oracle", "straight", "random"] = Field(default="oracle", description="Which baseline.")
+    seed: int = Field(default=0, ge=0, description="Seed of the random agent's walks.")
+    max_actions: int = Field(default=500, ge=1, description="Actions per episode before it ends unstopped.")
+    workers: int = Field(default=2, ge=1, description="Threads stepping the MuJoCo agents.")
+
+    def rollout(self) -> RolloutConfig:
+        """The rollout these settings name."""
+        return RolloutConfig(policy=self.agent_name, seed=self.seed, workers=self.workers, sheet_episodes=0,
+                             env=EnvConfig(observations=(), max_steps=self.max_actions))
+
+
+# baseline's options and the BaselineConfig fields they set (their defaults and error names come from here)
+BASELINE_OPTIONS = {"--agent": "agent_name", "--max-actions": "max_actions", "--workers": "workers", "--seed": "seed"}
+
+
+def make_baseline_config(**fields: object) -> BaselineConfig:
+    """A BaselineConfig from the options given (None = keep the default); a bad value is a ConfigError."""
+    return from_options(BaselineConfig, fields, BASELINE_OPTIONS)
+
+
+@dataclass(frozen=True)
+class BaselineResult:
+    agent_name: str
+    out: Path
+    episodes: int
+    stopped: int
+    actions: int
+
+    def summary(self) -> str:
+        return (f"baseline {self.agent_name}: {self.episodes} episodes ({self.stopped} stopped by the agent, "
+                f"{self.actions} actions) -> {self.out}")
+
+
+def run_baseline(run_dir: Path, out: Path, config: BaselineConfig = BaselineConfig(), *,
+                 scene_id: str | None = None) -> BaselineResult:
+    """Roll the agent out over every episode of the run (or `scene_id`) and write `out` whole."""
+    done = run_rollout(Path(run_dir), Path(out), config.rollout(), scene_id=scene_id)
+    return BaselineResult(agent_name=config.agent_name, out=done.out, episodes=done.episodes, stopped=done.stopped,
+                          actions=done.steps)
