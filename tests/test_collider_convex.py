@@ -164,3 +164,20 @@ def test_merge_parts_merges_above_the_agent_band_first():
     assert sorted(np.ptp(p.vertices[:, 0]) for p in with_band) == pytest.approx([0.1, 0.1, 0.8])
     without = merge_parts(low + high, 3)
     assert sorted(np.ptp(p.vertices[:, 0]) for p in without) == pytest.approx([0.1, 0.1, 0.5])
+
+
+def test_a_closed_mesh_whose_volumes_cancel_is_not_convex_and_warns_nothing():
+    """An octahedron with every face above z = 0 flipped: closed, signed volume 0 (trimesh's centre of mass then
+    divides by zero; a user saw eight RuntimeWarnings from one catalogue scene's export)."""
+    import warnings
+
+    v = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=np.float64)
+    ring = [0, 2, 1, 3]
+    top = [[ring[i], ring[(i + 1) % 4], 4] for i in range(4)]
+    bottom = [[ring[(i + 1) % 4], ring[i], 5] for i in range(4)]
+    f = np.array([t[::-1] for t in top] + bottom)
+    assert trimesh.Trimesh(v, f, process=False).is_watertight
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert not is_convex_solid(v, f, tolerance=0.002)
+        assert not is_convex_solid_reference(v, f)
