@@ -4,14 +4,17 @@ server, vectorised == sequential, and rollout / evaluate on its predictions."""
 from __future__ import annotations
 
 import json
+import re
 import threading
+import warnings
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
+import gymnasium
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from sagebench.env import NavEnv, VectorNavEnv
+from sagebench.env import ENV_ID, NavEnv, VectorNavEnv
 from sagebench.metrics.episode import path_smoothness
 from sagebench.navsim.actions import Action
 from sagebench.navsim.http_policy import decode_image
@@ -23,9 +26,20 @@ SMALL = EnvConfig(width=32, height=24, observations=("rgb", "depth", "instance")
 BLIND = EnvConfig(observations=())
 
 
-def test_gymnasium_accepts_the_env(demo_eval_run):
-    env = NavEnv(demo_eval_run, SMALL.model_copy(update={"max_steps": 5}))
-    check_env(env, skip_render_check=False)
+# gymnasium's checker warns of any infinite Box limit: positions are scene metres and depth has no far plane
+UNBOUNDED = {"A Box observation space maximum value is infinity. This is probably too high.",
+             "A Box observation space minimum value is -infinity. This is probably too low."}
+
+
+def test_gymnasium_makes_and_accepts_the_env(demo_eval_run):
+    made = gymnasium.make("sagebench.env:sagebench/Nav-v0", run_dir=str(demo_eval_run),
+                          config={"width": 32, "height": 24, "max_steps": 5})
+    env = made.unwrapped
+    assert isinstance(env, NavEnv) and made.spec.id == ENV_ID and env.metadata["render_fps"] == 2.0
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env, skip_render_check=False)  # with a spec it also remakes the env for each render mode
+    assert {re.sub(r"\x1b\[\d+m|WARN: ", "", str(w.message)) for w in caught} <= UNBOUNDED
     obs, info = env.reset(seed=3)
     assert obs["rgb"].shape == (24, 32, 3) and obs["rgb"].dtype == np.uint8
     assert obs["depth"].dtype == np.float32 and obs["instance"].dtype == np.int32
@@ -98,6 +112,34 @@ def test_vectorised_equals_sequential_byte_for_byte(demo_eval_run):
     o, *_ = single.step(Action.TURN_LEFT)
     assert results[1].observation["rgb"].tobytes() == o["rgb"].tobytes()
     assert results[1].observation["depth"].tobytes() == o["depth"].tobytes()
+
+
+# async: each env in a process of its own, made from the spec; spawned, since this process has rendered already
+# and numba's OpenMP threads do not survive a fork (README)
+@pytest.mark.parametrize("mode, vector_kwargs", [("sync", {}), ("async", {"context": "spawn"})])
+def test_gymnasiums_own_vector_envs_step_each_env_as_alone_and_autoreset_to_the_next_episode(demo_eval_run, mode,
+                                                                                          vector_kwargs):
+    cfg = {"width": 16, "height": 12, "observations": ["rgb"], "max_steps": 2}
+    alone = [NavEnv(demo_eval_run, cfg) for _ in range(2)]
+    alone[0].reset(seed=0)  # renders here before the vector env starts its processes
+    vec = gymnasium.make_vec("sagebench.env:sagebench/Nav-v0", num_envs=2, vectorization_mode=mode,
+                             vector_kwargs=vector_kwargs, run_dir=str(demo_eval_run), config=cfg)
+    obs, info = vec.reset(seed=7)  # env k gets seed 7 + k
+    firsts = [env.reset(seed=7 + k) for k, env in enumerate(alone)]
+    assert list(info["episode_id"]) == [i["episode_id"] for _, i in firsts]
+    actions = [[Action.MOVE_FORWARD, Action.TURN_LEFT], [Action.TURN_RIGHT, Action.MOVE_FORWARD]]
+    for step in actions:
+        obs, reward, terminated, truncated, info = vec.step(np.array(step))
+        for k, env in enumerate(alone):
+            o, r, te, tr, i = env.step(step[k])
+            assert obs["rgb"][k].tobytes() == o["rgb"].tobytes() and obs["pose"][k].tolist() == o["pose"].tolist()
+            assert (reward[k], terminated[k], truncated[k]) == (r, te, tr)
+    assert truncated.all()  # the step limit; gymnasium resets each env on the next step, ignoring its action
+    obs, reward, *_ , info = vec.step(np.array([Action.STOP, Action.STOP]))
+    nexts = [env.reset() for env in alone]  # the next episode of each env's seeded order
+    assert list(info["episode_id"]) == [i["episode_id"] for _, i in nexts] and not reward.any()
+    assert [obs["rgb"][k].tobytes() for k in range(2)] == [o["rgb"].tobytes() for o, _ in nexts]
+    vec.close()
 
 
 class _Policy(BaseHTTPRequestHandler):

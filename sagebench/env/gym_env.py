@@ -9,7 +9,7 @@ distance_to_goal (on foot, m), success (SR so far), collision_intensity (c of th
 from __future__ import annotations
 
 import string
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import gymnasium as gym
@@ -51,10 +51,12 @@ class NavEnv(gym.Env):
 
     metadata = {"render_modes": ["rgb_array"]}
 
-    def __init__(self, run_dir: Path, config: EnvConfig = EnvConfig(), *, scene_id: str | None = None,
-                 render_mode: str | None = None):
-        self.sim = Simulator(run_dir, config, scene_id=scene_id)
+    def __init__(self, run_dir: Path | str, config: EnvConfig | Mapping = EnvConfig(), *,
+                 scene_id: str | None = None, render_mode: str | None = None):
+        config = EnvConfig.model_validate(config)  # a mapping too: gymnasium.make passes plain keyword values
+        self.sim = Simulator(Path(run_dir), config, scene_id=scene_id)
         self.config, self.render_mode = config, render_mode
+        self.metadata = {**self.metadata, "render_fps": 1.0 / config.actions.control_interval}  # a frame per action
         self.action_space = action_space(config)
         self.observation_space = observation_space(config, list(self.sim.instructions.values()))
         self._queue: list[str] = []
