@@ -158,6 +158,30 @@ def test_pieces_are_spread_over_the_executor_with_the_same_outputs(workspace, se
     assert index == {t.key for t, _ in pieces}
 
 
+def test_quality_spreads_both_its_passes_over_the_executor(workspace, run_cli, dispatched):
+    """quality also decomposes each piece as balanced does (and keeps the closer): both passes' pieces run as
+    tasks of their own before the export, which then finds every piece it looks up in the cache."""
+    from sagebench.collider_export.coacd_cache import PartCache
+    from sagebench.collider_export.decompose import mode_passes
+    from sagebench.collider_export.methods import ColliderSettings
+    from sagebench.collider_export.pieces import piece_key
+    from sagebench.stages.export_usd import ExportConfig, scene_pieces
+
+    extra = '[export_usd]\ncolliders = { mode = "quality" }\n'
+    code, out, err = run_cli("-q", "run", _config(workspace, "quality", extra), "--workers", "2")
+    assert code == 0, out + err
+    pieces = _pieces(dispatched)
+    assert sorted(ColliderSettings.model_validate(t.colliders).mode for t, _ in pieces) == ["balanced"] * 2 + [
+        "quality"] * 2
+    assert all(o.method and not o.error for _, o in pieces)
+    run, cache = workspace / "quality", PartCache(workspace / "cache-quality")
+    config = ExportConfig.model_validate({"colliders": {"mode": "quality"}})
+    assert len(mode_passes(config.colliders)) == 2
+    for sid in ("demo_apartment_0", "demo_apartment_1"):
+        jobs, floor = scene_pieces(run, sid, config, cache)
+        assert {piece_key(p, c, floor) for p, c in jobs} <= {t.key for t, _ in pieces}  # nothing left to the export
+
+
 def _stage_counts(out: str) -> dict[str, tuple[int, int, int]]:
     """The summary's per-stage lines: name -> (ran, skipped, failed)."""
     found = re.findall(r"^\s+(\w+)\s+ran\s+(\d+)\s+skipped\s+(\d+)\s+failed\s+(\d+)", out, re.MULTILINE)

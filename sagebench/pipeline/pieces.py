@@ -28,7 +28,7 @@ class PieceTask:
     key: str  # the piece's cache key
     piece: Piece
     floor_height: float
-    settings: dict[str, Any]  # export_usd's config as JSON data
+    colliders: dict[str, Any]  # the ColliderSettings of the piece's pass as JSON data (quality runs two passes)
     cache_dir: Path | None = None  # the run's CoACD cache
 
     @property
@@ -61,10 +61,11 @@ def plan_export(task: Task) -> tuple[PieceTask, ...]:
             cache = part_cache(task.cache_dir)
             jobs, floor_height = scene_pieces(task.run_dir, task.scene_id, config, cache)
             out: dict[str, PieceTask] = {}
-            for piece in jobs:
-                key = piece_key(piece, config.colliders, floor_height)
+            for piece, colliders in jobs:
+                key = piece_key(piece, colliders, floor_height)
                 if key not in out and not cache.has(key):
-                    out[key] = PieceTask(task.scene_id, key, piece, floor_height, task.settings, task.cache_dir)
+                    out[key] = PieceTask(task.scene_id, key, piece, floor_height, colliders.model_dump(mode="json"),
+                                         task.cache_dir)
             return tuple(out.values())
     except Exception:  # noqa: BLE001 - the export task meets the same error and reports it as the scene's failure
         return ()
@@ -72,13 +73,14 @@ def plan_export(task: Task) -> tuple[PieceTask, ...]:
 
 def run_piece(task: PieceTask) -> PieceOutcome:
     """Decompose one piece into the cache; never raises (a failed piece is decomposed again by its export)."""
-    from sagebench.stages.export_usd import ExportConfig, decompose_piece
+    from sagebench.collider_export.methods import ColliderSettings
+    from sagebench.stages.export_usd import decompose_piece
 
     start = time.perf_counter()
     worker = f"{socket.gethostname()}:{os.getpid()}"
     with ui.collect_warnings() as found:
         try:
-            result = decompose_piece(task.piece, ExportConfig.model_validate(task.settings), task.floor_height,
+            result = decompose_piece(task.piece, ColliderSettings.model_validate(task.colliders), task.floor_height,
                                      task.cache_dir)
             method, error = result.method, ""
         except Exception as err:  # noqa: BLE001

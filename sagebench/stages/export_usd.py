@@ -20,7 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from sagebench import ui
 from sagebench.collider_export.coacd_cache import PartCache, PieceResult, coacd_version
 from sagebench.collider_export.convex import hull_part
-from sagebench.collider_export.decompose import MeshColliders, decompose_meshes, plan_pieces
+from sagebench.collider_export.decompose import MeshColliders, decompose_meshes, mode_passes, plan_pieces
 from sagebench.collider_export.pieces import Piece, decompose_pieces
 from sagebench.collider_export.methods import ColliderSettings
 from sagebench.collider_export.mjcf_writer import MjcfBody, mjcf_text, scene_body
@@ -128,19 +128,24 @@ def part_cache(cache_dir: Path | None) -> PartCache:
     return PartCache(default_cache_dir() if cache_dir is None else cache_dir)
 
 
-def scene_pieces(run_dir: Path, scene_id: str, config: ExportConfig, cache: PartCache) -> tuple[list[Piece], float]:
-    """The concave pieces export_scene would decompose for the scene, and the floor height they are measured
-    from (so a run can spread them over its executor and export the scene from the cache; the meshes' splits
-    are cached for the export too)."""
+def scene_pieces(run_dir: Path, scene_id: str, config: ExportConfig,
+                 cache: PartCache) -> tuple[list[tuple[Piece, ColliderSettings]], float]:
+    """The concave pieces export_scene would decompose for the scene, each with the settings of its pass
+    (quality's balanced pass included), and the floor height they are measured from; so a run can spread them
+    over its executor and export the scene from the cache (the meshes' splits are cached for the export too)."""
     (scene_dir,) = scene_dirs(run_dir, scene_id)
     scene = load_scene(scene_dir)
-    plan = plan_pieces(_local_meshes(scene), config.colliders, cache=cache, convex_tolerance=config.convex_tolerance)
-    return plan.jobs, scene.spec.floor_height
+    local = _local_meshes(scene)
+    jobs = [(piece, colliders) for colliders in mode_passes(config.colliders)
+            for piece in plan_pieces(local, colliders, cache=cache, convex_tolerance=config.convex_tolerance).jobs]
+    return jobs, scene.spec.floor_height
 
 
-def decompose_piece(piece: Piece, config: ExportConfig, floor_height: float, cache_dir: Path | None) -> PieceResult:
-    """One piece as export_scene would make it (its methods, time budget, cache), without progress lines."""
-    (result,) = decompose_pieces([piece], config.colliders, cache=part_cache(cache_dir), floor_height=floor_height,
+def decompose_piece(piece: Piece, colliders: ColliderSettings, floor_height: float,
+                    cache_dir: Path | None) -> PieceResult:
+    """One piece as export_scene's pass with `colliders` makes it (methods, time budget, cache), without
+    progress lines."""
+    (result,) = decompose_pieces([piece], colliders, cache=part_cache(cache_dir), floor_height=floor_height,
                                  progress=False)
     return result
 
