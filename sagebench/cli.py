@@ -525,6 +525,9 @@ def rollout_cmd(
     height: Annotated[int | None, typer.Option(help="Image height, px.")] = None,
     max_steps: Annotated[int | None, typer.Option(help="Actions per episode before it is cut off.")] = None,
     workers: Annotated[int | None, typer.Option(help="Threads stepping MuJoCo and calling the policy server.")] = None,
+    threads: Annotated[int | None, typer.Option(
+        help="Cores the renderer's threads use, which wait passively when idle (default: every core this process "
+             "may run on).")] = None,
     seed: Annotated[int | None, typer.Option(help="Seed of the episode sample and of the random policy.")] = None,
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene's episodes (default: every scene).")] = None,
 ) -> None:
@@ -540,7 +543,7 @@ def rollout_cmd(
     from sagebench.stages.rollout import make_config, run_rollout
 
     config = make_config(policy=policy, episodes=episodes, obs=obs, width=width, height=height, max_steps=max_steps,
-                         workers=workers, seed=seed)
+                         workers=workers, threads=threads, seed=seed)
     typer.echo(run_rollout(run_dir, out, config, scene_id=scene).summary())
 
 

@@ -198,6 +198,8 @@ MUTANTS = (
            ("tests/test_instructions_balance.py",)),
     Mutant("a door hinge anywhere in the scene", "sagebench/scene/checks.py",
            "    if gap > HINGE_TOLERANCE_M:\n", "    if gap > 100 * HINGE_TOLERANCE_M:\n", ("tests/test_fuzz_inputs.py",)),
+    Mutant("env and rollout processes keep OpenMP's spin-wait", "sagebench/threads.py",
+           'os.environ.setdefault("OMP_WAIT_POLICY", wait.upper())', "pass", ("tests/test_threads.py",)),
 )
 
 

@@ -1,5 +1,6 @@
 """gymnasium's API over the closed-loop simulator: `NavEnv` runs one episode at a time, `VectorNavEnv` several.
 
+Constructing one sizes the process's renderer threads and makes idle ones wait passively (sagebench.threads).
 reset(options={"episode_id": ID}) starts that episode; without one, episodes come in an order shuffled by the
 reset seed (each once, then again). Observations: rgb [H, W, 3] uint8, depth [H, W] float32 m, instance [H, W]
 int32 (those asked for), pose [4] (x, y, z, yaw), instruction (text) and collided (this step). info: episode_id,
@@ -18,6 +19,7 @@ from gymnasium import spaces
 
 from sagebench.navsim.actions import Action
 from sagebench.navsim.simulator import EnvConfig, Simulator, StepResult
+from sagebench.threads import share_cores
 
 MAX_INSTRUCTION = 4096  # characters
 
@@ -52,7 +54,8 @@ class NavEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"]}
 
     def __init__(self, run_dir: Path | str, config: EnvConfig | Mapping = EnvConfig(), *,
-                 scene_id: str | None = None, render_mode: str | None = None):
+                 scene_id: str | None = None, render_mode: str | None = None, threads: int | None = None):
+        share_cores(threads)  # an env process: renderer threads sized to `threads` cores, waiting passively
         config = EnvConfig.model_validate(config)  # a mapping too: gymnasium.make passes plain keyword values
         self.sim = Simulator(Path(run_dir), config, scene_id=scene_id)
         self.config, self.render_mode = config, render_mode
@@ -100,6 +103,7 @@ class VectorNavEnv:
 
     def __init__(self, run_dir: Path, config: EnvConfig = EnvConfig(), *, scene_id: str | None = None,
                  threads: int = 2):
+        share_cores(threads)
         self.sim = Simulator(run_dir, config, scene_id=scene_id, threads=threads)
         self.config = config
         self.single_action_space = action_space(config)

@@ -30,6 +30,7 @@ from sagebench.navsim.observe import IMAGE_KEYS
 from sagebench.navsim.policies import BUILT_IN, built_in
 from sagebench.navsim.rollout import contact_sheet, rollout
 from sagebench.navsim.simulator import EnvConfig, Simulator
+from sagebench.threads import share_cores
 
 
 class RolloutConfig(BaseModel):
@@ -41,6 +42,8 @@ class RolloutConfig(BaseModel):
     episodes: int | None = Field(default=None, ge=1, description="Run a seeded sample of this many episodes.")
     seed: int = Field(default=0, description="Seed of the episode sample and of the random policy.")
     workers: int = Field(default=2, ge=1, description="Threads stepping MuJoCo and calling the policy server.")
+    threads: int | None = Field(default=None, ge=1, description="Cores the renderer's threads use (default: every "
+                                                                "core this process may run on).")
     batch: int = Field(default=8, ge=1, description="Episodes stepped together.")
     policy_timeout: float = Field(default=60.0, gt=0, description="Seconds to wait for a policy server's reply.")
     sheet_episodes: int = Field(default=4, ge=0, description="Episodes shown on the contact sheet.")
@@ -49,6 +52,7 @@ class RolloutConfig(BaseModel):
 
 # rollout's options and the RolloutConfig fields they set (their defaults and error names come from here)
 OPTIONS = {"--policy": "policy", "--episodes": "episodes", "--seed": "seed", "--workers": "workers",
+           "--threads": "threads",
            "--width": "env.width", "--height": "env.height", "--max-steps": "env.max_steps",
            "--obs": "env.observations"}
 
@@ -98,6 +102,7 @@ def sheet_path(out: Path) -> Path:
 def run_rollout(run_dir: Path, out: Path, config: RolloutConfig = RolloutConfig(), *,
                 scene_id: str | None = None) -> RolloutSummary:
     """Roll the policy out over the run's episodes (or a sample) and write `out` (and the contact sheet) whole."""
+    share_cores(config.threads)
     sim = Simulator(run_dir, config.env, scene_id=scene_id, threads=config.workers)
     ids = list(sim.order)
     if config.episodes is not None and config.episodes < len(ids):

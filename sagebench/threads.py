@@ -1,0 +1,90 @@
+"""How many cores a process's compute pools use and how their idle threads wait, set once per process.
+
+sagebench's kernels run on numba's OpenMP layer (libgomp). By default libgomp spins an idle worker thread for a
+while before it sleeps, so between two parallel regions a waiting thread burns a core that a policy model, a
+second env or another worker on the same machine needed: with other work on the cores one env stepped 1.8
+steps/s at 0.18-0.27 CPU-s per step, against 5.3-7.1 steps/s and 0.053-0.065 CPU-s with a passive wait
+(issue 27). `share_cores` therefore sets, before numba's thread pool starts:
+
+- OMP_WAIT_POLICY (PASSIVE by default: idle threads sleep at once), unless the environment already sets it;
+- numba's pool size (NUMBA_NUM_THREADS) and the calling thread's thread count to `threads`;
+- OMP_NUM_THREADS, OPENBLAS_NUM_THREADS, MKL_NUM_THREADS (unless set) for the child processes it starts, whose
+  BLAS libraries read them when they load (this process's are already loaded with numpy).
+
+Call it at a process's entry point (a command, an env's constructor, a worker's start). It is idempotent: the
+first call fixes the wait policy and the pool size; a later call can only lower the calling thread's count,
+since libgomp reads its settings once, when numba's pool starts.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import threading
+from dataclasses import dataclass
+from typing import Literal
+
+WaitPolicy = Literal["passive", "active", "openmp"]  # openmp: leave the OpenMP runtime's own default (spin, then sleep)
+_CHILD_THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+@dataclass(frozen=True)
+class ThreadSetup:
+    """What a process's pools use after `share_cores`."""
+
+    threads: int  # numba threads of the calling thread (and the pool's size when it started after the first call)
+    wait_policy: str  # OMP_WAIT_POLICY in effect: PASSIVE, ACTIVE or "default" (the runtime's own)
+    pool_started_before: bool  # numba's pool was already running: its size and wait policy could not change
+
+
+_lock = threading.Lock()
+_first: ThreadSetup | None = None
+
+
+def available_cores() -> int:
+    """Cores this process may run on (its CPU affinity), at least 1."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _pool_started() -> bool:
+    """Whether numba's threading layer is running (only then has libgomp read OMP_WAIT_POLICY)."""
+    if "numba" not in sys.modules:
+        return False
+    from numba.np.ufunc import parallel
+
+    return bool(getattr(parallel, "_is_initialized", False))
+
+
+def share_cores(threads: int | None = None, *, wait: WaitPolicy = "passive") -> ThreadSetup:
+    """Size this process's compute threads to `threads` cores (None: every core it may use) and make idle OpenMP
+    threads wait as `wait` says (module docstring); returns what is in effect."""
+    global _first
+    if threads is not None and threads < 1:
+        raise ValueError(f"threads must be at least 1, got {threads}")
+    n = min(threads or available_cores(), available_cores())
+    with _lock:
+        started = _pool_started()
+        if _first is None and not started:
+            if wait != "openmp":
+                os.environ.setdefault("OMP_WAIT_POLICY", wait.upper())
+            os.environ["NUMBA_NUM_THREADS"] = str(n)
+            for var in _CHILD_THREAD_VARS:
+                os.environ.setdefault(var, str(n))
+            if "numba" in sys.modules:  # imported, pool not started: numba read the size at import; set it again
+                import numba
+                from numba.np.ufunc import parallel
+
+                numba.config.NUMBA_NUM_THREADS = parallel.NUM_THREADS = n
+        if "numba" in sys.modules:
+            import numba
+
+            n = min(n, numba.config.NUMBA_NUM_THREADS)
+            numba.set_num_threads(n)
+        setup = ThreadSetup(threads=n, wait_policy=os.environ.get("OMP_WAIT_POLICY", "default"),
+                            pool_started_before=started)
+        if _first is None:
+            _first = setup
+        return setup
