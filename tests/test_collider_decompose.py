@@ -139,3 +139,12 @@ def test_quality_mode_is_never_farther_off_in_the_band_than_balanced(tmp_path, m
     balanced, _ = _band_errors(meshes, ColliderSettings(mode="balanced", max_parts=max_parts), tmp_path)
     quality, _ = _band_errors(meshes, ColliderSettings(mode="quality", max_parts=max_parts), tmp_path)
     assert {name: (e, balanced[name]) for name, e in quality.items() if e > balanced[name]} == {}
+
+
+def test_every_part_keeps_within_physx_64_hull_vertices(tmp_path):
+    # the demo plant's foliage: an icosphere of 162 vertices, a convex piece of its own (an exact part)
+    plant = trimesh.util.concatenate([trimesh.creation.icosphere(subdivisions=2, radius=0.3).apply_translation((0, 0, 0.9)),
+                                      trimesh.creation.cylinder(0.15, 0.4, sections=96).apply_translation((0, 0, 0.2))])
+    (mc,) = decompose_meshes({"plant": (plant.vertices, plant.faces)}, ColliderSettings(mode="fast"),
+                             cache=PartCache(tmp_path)).values()
+    assert len(mc.parts) == 2 and max(len(p.vertices) for p in mc.parts) == 64

@@ -55,7 +55,15 @@ OBJECTS = [
 ]
 
 
-BACKGROUND = gaussians(3, 0, degree=0, seed=3)
+def repeated_colours(g: Gaussians) -> Gaussians:
+    """`g` with every other Gaussian's DC term the first one's: colours a viewer sees repeat (as sampled
+    material colours do), which NVIDIA's validator wants indexed."""
+    sh = g.sh.copy()
+    sh[::2, 0] = sh[0, 0]
+    return Gaussians(g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, sh, g.instance_id)
+
+
+BACKGROUND = repeated_colours(gaussians(6, 0, degree=0, seed=3))
 
 
 @pytest.fixture(scope="module")
@@ -141,7 +149,7 @@ def test_gaussians_match_the_input_with_activations(stage):
         lo, hi = np.array(field.GetExtentAttr().Get())
         assert np.all(lo <= pos.min(axis=0)) and np.all(hi >= pos.max(axis=0))
     background = UsdVol.ParticleField3DGaussianSplat(stage.GetPrimAtPath("/World/Background/Gaussians"))
-    assert len(background.GetPositionsAttr().Get()) == 3
+    assert len(background.GetPositionsAttr().Get()) == 6
 
 
 def test_door_hinge_joint_frames_meet_at_the_hinge_at_the_state_angle(stage):
@@ -199,7 +207,74 @@ def test_sh_coefficients_are_a_vertex_primvar_with_display_colour(stage):
     colour = UsdGeom.PrimvarsAPI(field.GetPrim()).GetPrimvar("displayColor")
     assert colour.GetInterpolation() == "vertex"
     dc = OBJECTS[1].gaussians.sh[:, 0, :]
-    assert np.allclose(np.array(colour.Get()), np.clip(0.28209479177387814 * dc + 0.5, 0, 1), atol=1e-6)
+    assert np.allclose(np.array(colour.ComputeFlattened()), np.clip(0.28209479177387814 * dc + 0.5, 0, 1), atol=1e-6)
+
+
+def test_display_colours_are_indexed_each_distinct_colour_once(stage):
+    colour = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/World/Background/Gaussians")).GetPrimvar("displayColor")
+    assert colour.IsIndexed()
+    values, indices = np.array(colour.Get()), np.array(colour.GetIndices())
+    assert len(values) == 4 and len(np.unique(values, axis=0)) == 4  # 6 Gaussians, 3 of them one colour
+    dc = BACKGROUND.sh[:, 0, :]
+    assert np.allclose(values[indices], np.clip(0.28209479177387814 * dc + 0.5, 0, 1), atol=1e-6)
+
+
+def test_gaussians_carry_3dgrut_colour_space_and_sorting_hints(stage):
+    for path in ("/World/Objects/chair_2/Gaussians", "/World/Background/Gaussians"):
+        prim = stage.GetPrimAtPath(path)
+        field = UsdVol.ParticleField3DGaussianSplat(prim)
+        assert prim.HasAPI(Usd.ColorSpaceAPI)
+        assert Usd.ColorSpaceAPI(prim).GetColorSpaceNameAttr().Get() == "srgb_rec709_display"
+        assert field.GetSortingModeHintAttr().Get() == "cameraDistance"
+        assert field.GetProjectionModeHintAttr().Get() == "perspective"
+
+
+def test_semantic_labels_give_class_and_instance_for_segmentation(stage):
+    for obj in OBJECTS:
+        prim = stage.GetPrimAtPath(f"/World/Objects/{obj.category}_{obj.instance_id}")
+        assert UsdSemantics.LabelsAPI(prim, "instance").GetLabelsAttr().Get() == [str(obj.instance_id)]
+        assert set(UsdSemantics.LabelsAPI.GetDirectTaxonomies(prim)) >= {"class", "instance"}
+
+
+def test_every_collider_has_the_physics_material_mujoco_friction(stage):
+    from pxr import UsdShade
+
+    from sagebench.collider_export.bodies import FRICTION
+
+    material = UsdPhysics.MaterialAPI(stage.GetPrimAtPath("/World/PhysicsMaterial"))
+    assert (material.GetStaticFrictionAttr().Get(), material.GetDynamicFrictionAttr().Get(),
+            material.GetRestitutionAttr().Get()) == (FRICTION, FRICTION, 0.0)
+    for obj in OBJECTS:
+        for prim in stage.GetPrimAtPath(f"/World/Objects/{obj.category}_{obj.instance_id}/Colliders").GetChildren():
+            bound, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial("physics")
+            assert bound.GetPath() == "/World/PhysicsMaterial"
+
+
+def test_crate_layer_alone_has_stage_metadata_typed_prims_and_no_subdivision(tmp_path):
+    (tmp_path / "geometry.usdc").write_bytes(stage_files("tiny", OBJECTS, BACKGROUND)["geometry.usdc"])
+    crate = Usd.Stage.Open(str(tmp_path / "geometry.usdc"))
+    assert (UsdGeom.GetStageMetersPerUnit(crate), UsdGeom.GetStageUpAxis(crate)) == (1.0, "Z")
+    assert UsdPhysics.GetStageKilogramsPerUnit(crate) == 1.0 and crate.GetDefaultPrim().GetPath() == "/Geometry"
+    assert all(p.GetTypeName() for p in crate.Traverse())
+    meshes = [UsdGeom.Mesh(p) for p in crate.Traverse() if p.IsA(UsdGeom.Mesh)]
+    assert meshes and all(m.GetSubdivisionSchemeAttr().Get() == "none" for m in meshes)
+
+
+def test_nvidia_asset_validator_cli_exits_0_on_each_usd_file_alone(tmp_path):
+    """`omni_asset_validate FILE` (its default rules; warnings count) on scene.usda, scene.usdz and
+    geometry.usdc, each given alone, as a user runs it."""
+    import subprocess
+    import sys
+
+    files = stage_files("tiny", OBJECTS, BACKGROUND)
+    for name, data in files.items():
+        (tmp_path / name).write_bytes(data)
+    (tmp_path / "scene.usdz").write_bytes(usdz_package(files))
+    cli = Path(sys.executable).with_name("omni_asset_validate")
+    for name in ("scene.usda", "scene.usdz", "geometry.usdc"):
+        run = subprocess.run([str(cli), str(tmp_path / name)], capture_output=True, text=True)
+        problems = [line for line in (run.stdout + run.stderr).splitlines() if line.startswith(("WARNING", "ERROR"))]
+        assert (run.returncode, problems) == (0, []), name
 
 
 def test_collider_normals_point_out_of_each_part(stage):
@@ -220,10 +295,10 @@ def test_root_is_small_text_and_gaussian_arrays_live_in_the_crate_layer(stage):
     assert root.GetFileFormat().formatId == "usda"
     text = root.ExportToString()
     assert "positions" not in text and "sphericalHarmonicsCoefficients" not in text and "points" not in text
-    assert "@./geometry.usdc@</Gaussians/chair_2>" in text and "@./geometry.usdc@</Colliders/chair_2/part_001>" in text
+    assert "@./geometry.usdc@</Geometry/Gaussians/chair_2>" in text and "@./geometry.usdc@</Geometry/Colliders/chair_2/part_001>" in text
     crate = Sdf.Layer.FindOrOpen(str(Path(root.realPath).with_name("geometry.usdc")))
     assert crate.GetFileFormat().formatId == "usdc"
-    assert crate.GetPrimAtPath("/Gaussians/chair_2").GetAttributeAtPath(".positions").default is not None
+    assert crate.GetPrimAtPath("/Geometry/Gaussians/chair_2").GetAttributeAtPath(".positions").default is not None
 
 
 def test_crate_layer_round_trips_the_arrays_exactly(tmp_path):
@@ -232,13 +307,13 @@ def test_crate_layer_round_trips_the_arrays_exactly(tmp_path):
     (tmp_path / "geometry.usdc").write_bytes(files["geometry.usdc"])
     crate = Usd.Stage.Open(str(tmp_path / "geometry.usdc"))
     for name, g in (("chair_2", OBJECTS[1].gaussians), ("door_3", OBJECTS[2].gaussians), ("Background", BACKGROUND)):
-        field = UsdVol.ParticleField3DGaussianSplat(crate.GetPrimAtPath(f"/Gaussians/{name}"))
+        field = UsdVol.ParticleField3DGaussianSplat(crate.GetPrimAtPath(f"/Geometry/Gaussians/{name}"))
         assert np.array_equal(np.array(field.GetPositionsAttr().Get()), g.means)
         assert np.array_equal(np.array(field.GetRadianceSphericalHarmonicsCoefficientsAttr().Get()), g.sh.reshape(-1, 3))
         assert np.array_equal(np.array(field.GetScalesAttr().Get()), np.exp(g.log_scales.astype(np.float64)).astype(np.float32))
     for obj in OBJECTS:
         for i, part in enumerate(obj.parts):
-            mesh = UsdGeom.Mesh(crate.GetPrimAtPath(f"/Colliders/{obj.category}_{obj.instance_id}/part_{i:03d}"))
+            mesh = UsdGeom.Mesh(crate.GetPrimAtPath(f"/Geometry/Colliders/{obj.category}_{obj.instance_id}/part_{i:03d}"))
             assert np.array_equal(np.array(mesh.GetPointsAttr().Get()), part.vertices.astype(np.float32))
             assert np.array_equal(np.array(mesh.GetFaceVertexIndicesAttr().Get()), part.faces.reshape(-1))
 

@@ -20,6 +20,8 @@ CATEGORY_DENSITY_KG_M3: dict[str, float] = {
     "armchair": 70.0, "sofa": 70.0, "bed": 70.0, "cushion": 70.0, "pillow": 70.0, "toy": 70.0,
     "plant": 100.0,  # a pot of soil under foliage that is mostly air
 }
+FRICTION = 1.0  # sliding friction of every collider: MuJoCo's default, and the USD physics material's
+RESTITUTION = 0.0
 MIN_VOLUME_M3 = 1e-6  # a body with (nearly) no collider volume still gets a positive mass
 
 

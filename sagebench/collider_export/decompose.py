@@ -14,6 +14,7 @@ from sagebench.collider_export.fanout import map_processes
 from sagebench.collider_export.methods import LADDERS, ColliderSettings, agent_band, band_error_cm
 from sagebench.collider_export.pieces import Piece, decompose_pieces
 from sagebench.collider_export.quality import BandReach
+from sagebench.collider_export.vertex_limit import within_vertex_limit
 
 
 WHOLE_MESH_FACTOR = 4
@@ -45,7 +46,8 @@ def decompose_meshes(
     of its footprint where possible (merge_to_budget); one with more than WHOLE_MESH_FACTOR times that many
     pieces (a plant of a thousand leaves) becomes one voxel collider of the whole mesh within the budget.
     `quality` keeps balanced's parts for a mesh where they are closer in the band (or as close in fewer parts):
-    CoACD's parts merged to the budget were once 5 cm off where balanced's were 2.
+    CoACD's parts merged to the budget were once 5 cm off where balanced's were 2. Every part keeps within
+    PhysX's hull vertex limit (vertex_limit), so USD and MJCF collide with the same hulls.
     """
     runs = [_decompose(meshes, s, cache=cache, workers=workers, convex_tolerance=convex_tolerance,
                        floor_height=floor_height) for s in mode_passes(settings)]
@@ -72,13 +74,13 @@ def _decompose(meshes: Mapping[str, tuple[np.ndarray, np.ndarray]], settings: Co
     for name, split in plan.splits.items():
         if name in plan.over:
             result = next(results)
-            out[name] = MeshColliders(list(result.parts), 0, [result], whole=True)
+            out[name] = MeshColliders(within_vertex_limit(result.parts), 0, [result], whole=True)
             continue
         pieces = [next(results) for _ in split.concave]
         parts = list(split.parts) + [p for r in pieces for p in r.parts]
         kept = merge_to_budget(parts, meshes[name], settings, floor_height) if len(parts) > settings.max_parts else parts
         exact = len(split.parts) if kept is parts else 0
-        out[name] = MeshColliders(kept, exact, pieces, merged=len(parts) - len(kept))
+        out[name] = MeshColliders(within_vertex_limit(kept), exact, pieces, merged=len(parts) - len(kept))
     return {name: out[name] for name in meshes}
 
 

@@ -19,7 +19,7 @@ import math
 
 import mujoco
 
-from sagebench.collider_export.bodies import density_kg_m3
+from sagebench.collider_export.bodies import FRICTION, density_kg_m3
 from sagebench.collider_export.usd_writer import StageObject, is_body, prim_name
 
 GEOM_RGBA = (0.7, 0.7, 0.7, 1.0)
@@ -73,6 +73,7 @@ def build_spec(model: str, bodies: Sequence[MjcfBody], *, meshdir: str = "collid
     spec.option.gravity = [0.0, 0.0, -9.81]
     geom = spec.default.geom
     geom.contype, geom.conaffinity, geom.condim, geom.rgba = 1, 1, 3, list(GEOM_RGBA)
+    geom.friction = [FRICTION, 0.005, 0.0001]  # sliding as the USD physics material; torsion, rolling: MuJoCo's
     spec.worldbody.add_geom(name="ground", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 1.0],
                             pos=[0.0, 0.0, float(floor_height)], rgba=list(GROUND_RGBA))
     for body in bodies:
