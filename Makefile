@@ -8,7 +8,7 @@ LOCK := constraints.txt
 DEMO_OUT := out/demo
 SEED ?= 0
 
-.PHONY: demo test bench schemas mutants lock install clean
+.PHONY: demo test explore bench schemas mutants lock install clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -23,8 +23,16 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/sagebench demo --seed $(SEED) --out $(DEMO_OUT)
 
+# CI's profile: the same hypothesis examples on every run (tests/profiles.py)
 test: $(STAMP)
-	$(BIN)/python -m pytest -n 2
+	$(BIN)/python -m pytest -n 2 --hypothesis-profile=ci
+
+# before a release: the property tests alone, ten times the examples, from a fresh seed (printed; pass
+# EXPLORE_SEED=N to replay one); a failure found becomes an explicit @example on its test
+EXPLORE_SEED ?= $(shell $(PY) -c "import secrets; print(secrets.randbelow(2**32))")
+explore: $(STAMP)
+	@echo "make explore: hypothesis seed $(EXPLORE_SEED)"
+	$(BIN)/python -m pytest -n 2 -m hypothesis --hypothesis-profile=explore --hypothesis-seed=$(EXPLORE_SEED)
 
 bench: $(STAMP)
 	$(BIN)/python -m pip install -q -c $(LOCK) -e '.[test,bench]'

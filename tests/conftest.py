@@ -6,11 +6,15 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
+import profiles  # noqa: F401 - registers the hypothesis profiles
 from fake_llm import FakeLLM
 
 from sagebench.cli import main
 from sagebench.ui import SETTINGS
+
+settings.load_profile("ci")  # `--hypothesis-profile=explore` (make explore) replaces it
 
 
 @pytest.fixture

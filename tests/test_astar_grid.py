@@ -7,6 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from profiles import examples
+
 from sagebench.astar.dijkstra_reference import dijkstra_cost, path_cost
 from sagebench.astar.grid_astar import Workspace, astar
 
@@ -39,7 +41,7 @@ def rooms_and_endpoints(draw):
     return nav, start, goal
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300))
 @given(st.one_of(grid_and_endpoints(), rooms_and_endpoints()))
 def test_cost_equals_dijkstra_and_no_path_exactly_when_dijkstra_has_none(case):
     nav, start, goal = case
@@ -50,7 +52,7 @@ def test_cost_equals_dijkstra_and_no_path_exactly_when_dijkstra_has_none(case):
         assert got.cost == pytest.approx(want, rel=1e-12, abs=1e-12)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300))
 @given(st.one_of(grid_and_endpoints(), rooms_and_endpoints()))
 def test_path_is_legal_moves_on_navigable_cells(case):
     nav, start, goal = case

@@ -8,6 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from shapely.geometry import LineString, box
 
+from profiles import examples
+
 from sagebench.astar.grid_astar import astar
 from sagebench.astar.shortcut import polyline_length, segment_clear, shortcut_indices, supercover, waypoints
 
@@ -23,7 +25,7 @@ def _touched_by_geometry(r0, c0, r1, c1):
             if box(c, r, c + 1, r + 1).intersects(line)}
 
 
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=examples(400))
 @given(st.integers(-6, 6), st.integers(-6, 6), st.integers(-6, 6), st.integers(-6, 6))
 def test_supercover_is_every_cell_the_segment_touches(r0, c0, r1, c1):
     cells = supercover(r0, c0, r1, c1)
@@ -47,7 +49,7 @@ def grids_with_paths(draw):
     return nav, astar(nav, s, g, RES)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(300))
 @given(grids_with_paths())
 def test_shortcut_segments_never_touch_blocked_cells(case):
     nav, path = case

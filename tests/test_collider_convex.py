@@ -9,6 +9,8 @@ from scipy.spatial import ConvexHull
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from profiles import examples
+
 from sagebench.collider_export.convex import (
     FLAT_BRIDGE,
     MIN_THICKNESS,
@@ -137,7 +139,7 @@ def solids(draw):
     return kind, m
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=examples(40))
 @given(solids())
 def test_volume_test_agrees_with_face_plane_reference(case):
     kind, m = case

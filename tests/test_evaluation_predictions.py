@@ -8,6 +8,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from profiles import examples
+
 from sagebench.errors import DataError
 from sagebench.evaluation.predictions import (
     Prediction, dumps_prediction, match_episodes, read_predictions, write_predictions,
@@ -25,7 +27,7 @@ def _file(tmp_path, *rows) -> object:
 finite = st.floats(-50, 50, allow_nan=False)
 
 
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=examples(30))
 @given(st.lists(st.tuples(finite, finite, finite, finite), min_size=1, max_size=6), st.booleans(),
        st.booleans())
 def test_write_then_read_round_trips(tmp_path_factory, poses, stopped, with_c):

@@ -27,6 +27,8 @@ import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from profiles import examples
+
 from sagebench.errors import field_path
 
 # ---------------------------------------------------------------- the tiny valid scene
@@ -773,7 +775,7 @@ def test_debug_shows_the_traceback(tiny_scene, tmp_path):
 # ---------------------------------------------------------------- properties: any corruption is a DataError or a valid read
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=examples(150))
 @given(st.lists(st.tuples(st.integers(0, len(GOOD_PLY) - 1), st.integers(0, 255)), min_size=1, max_size=8),
        st.integers(0, len(GOOD_PLY)))
 def test_any_corrupted_ply_reads_finite_or_raises_one_data_error(flips, keep):
@@ -796,7 +798,7 @@ def test_any_corrupted_ply_reads_finite_or_raises_one_data_error(flips, keep):
         shutil.rmtree(path.parent)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(200))
 @given(st.sampled_from(_leaves(SPEC)), st.one_of(st.none(), st.booleans(), st.integers(), st.floats(),
                                                  st.text(max_size=20), st.lists(st.integers(), max_size=3)))
 def test_any_leaf_value_parses_or_raises_one_scene_error(leaf, value):

@@ -9,6 +9,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from profiles import examples
+
 from sagebench.instructions.balance import balance_types, quotas
 
 FIVE = ("A", "B", "C", "D", "E")
@@ -71,7 +73,7 @@ def test_same_seed_same_choice_other_seed_other_trajectories():
     assert a.chosen != balance_types([set(FIVE)] * 50, EQUAL, np.random.default_rng(4)).chosen
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=examples(150))
 @given(st.lists(st.sets(st.sampled_from("ABC")), min_size=1, max_size=6),
        st.fixed_dictionaries({t: st.integers(0, 3) for t in "ABC"}).filter(lambda s: any(s.values())),
        st.integers(0, 2**32 - 1))

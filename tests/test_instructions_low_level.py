@@ -10,6 +10,8 @@ from sagebench.instructions.base import TrajectoryText
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from profiles import examples
+
 from sagebench.instructions.execution import BlockedMap, execute_sentence, parse_actions
 from sagebench.instructions.low_level import ROUNDINGS, Step, base_action, path_steps, say_distance, say_turn
 
@@ -81,7 +83,7 @@ def test_a_bend_walked_straight_through_that_would_cross_a_blocked_cell_is_said_
 _LEGS = st.lists(st.tuples(st.floats(-170, 170), st.floats(0.3, 9.0)), min_size=1, max_size=6)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60))
 @given(_LEGS)
 def test_every_sentence_executed_literally_ends_within_the_goal_radius(legs):
     pts, heading = [np.zeros(2)], 0.0

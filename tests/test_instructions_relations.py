@@ -6,6 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from shapely.geometry import Polygon
 
+from profiles import examples
+
 from sagebench.instructions.relations import (between, layout, nearest, next_to, objects_passed, rooms_along,
                                               side_as_seen)
 
@@ -28,7 +30,7 @@ def test_gaps_are_footprint_distances_and_next_to_uses_them():
     assert lay.centroids[lay.index(1)].tolist() == pytest.approx([0.5, 0.5])
 
 
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=examples(30))
 @given(st.lists(st.tuples(st.floats(-5, 5), st.floats(-5, 5), st.floats(0.1, 2), st.floats(0.1, 2)), min_size=2,
                 max_size=6))
 def test_gap_matrix_matches_pairwise_shapely_distances(boxes):

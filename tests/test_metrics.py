@@ -10,6 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+from profiles import examples
+
 from sagebench.metrics import MetricConfig, score_episode
 from sagebench.metrics.dtw import dtw
 from sagebench.metrics.episode import path_smoothness
@@ -43,7 +45,7 @@ def test_dtw_tiny_paths_by_hand():
     assert dtw(np.array([[0, 0], [1, 0], [2, 0]]), np.array([[0, 0], [2, 0]])) == pytest.approx(1.0)
 
 
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=examples(50))
 @given(arrays(np.float64, st.tuples(st.integers(1, 12), st.just(2)), elements=st.floats(-5, 5)),
        arrays(np.float64, st.tuples(st.integers(1, 12), st.just(2)), elements=st.floats(-5, 5)))
 def test_dtw_matches_plain_dynamic_programme(p, r):

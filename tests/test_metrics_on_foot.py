@@ -9,6 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from profiles import examples
+
 from sagebench.evaluation.predictions import Prediction
 from sagebench.evaluation.scoring import (
     METRIC_NAMES, Episode, EpisodeScore, missing_metrics, score_prediction, summarise_scores,
@@ -99,7 +101,7 @@ _XY = st.tuples(st.floats(0.05, 5.95), st.floats(0.05, 3.95))
 _BETTER_HIGH = ("sr", "osr", "spl", "ndtw", "sdtw", "csr", "ps")
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=examples(40))
 @given(st.lists(st.tuples(st.lists(_XY, min_size=1, max_size=6), st.booleans(),
                           st.lists(st.floats(0, 1), min_size=6, max_size=6)), min_size=1, max_size=5),
        st.data())

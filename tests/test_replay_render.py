@@ -10,6 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from profiles import examples
+
 from sagebench.render.camera import Camera, agent_camera
 from sagebench.render.gaussians import Gaussians, logit, rgb_to_sh_dc
 from sagebench.render.sh import sh_basis
@@ -119,7 +121,7 @@ def test_faint_huge_and_thin_gaussians_match_the_reference():
     assert (fast.instance == ref.instance).all()
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60))
 @given(x=st.floats(-1.0, 1.0), y=st.floats(-1.0, 1.0), z=st.floats(0.3, 4.0),
        log_scales=st.tuples(*[st.floats(-5.0, 0.5)] * 3), quat=st.tuples(*[st.floats(-1.0, 1.0)] * 4),
        opacity=st.one_of(st.floats(MIN_ALPHA, 0.999), st.floats(MIN_ALPHA, MIN_ALPHA * 1.0001)))

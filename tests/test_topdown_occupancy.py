@@ -8,6 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+from profiles import examples
+
 from sagebench.scene import assets
 from sagebench.topdown.footprints import mesh_parts
 from sagebench.topdown.occupancy import band_occupancy, clip_to_band, inflate, inflate_reference
@@ -72,7 +74,7 @@ def test_table_in_a_low_band_is_only_its_legs():
     assert legs.sum() == 4 * 4 and top.sum() == 25 * 17 and (legs <= top).all()
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(60))
 @given(
     occ=arrays(np.uint8, st.tuples(st.integers(3, 14), st.integers(3, 14)), elements=st.sampled_from([0, 0, 0, 1])),
     radius=st.sampled_from([0.05, 0.1, 0.12, 0.2, 0.25]),

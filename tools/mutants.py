@@ -34,6 +34,8 @@ MUTANTS = (
     Mutant("oracle passes a station only by ending near it", "sagebench/navsim/policies.py",
            "_segment_distance(t[self.next[i]], moved_from, pose[:2])",
            "_segment_distance(t[self.next[i]], pose[:2], pose[:2])", ("tests/test_navsim_policies.py",)),
+    Mutant("oracle stops on passing the end, however far it then stands", "sagebench/navsim/policies.py",
+           "> self.actions.forward_step:", "> math.inf:", ("tests/test_navsim_policies.py",)),
     Mutant("collider pieces cached only in memory", "sagebench/collider_export/pieces.py",
            "        self.cache.put(result)\n", "", ("tests/test_collider_pieces.py",)),
     Mutant("balanced keeps the first method whatever its band error", "sagebench/collider_export/methods.py",

@@ -4,7 +4,8 @@ A policy sees, per running episode, its observation dict and info (and at `begin
 the baselines are privileged, the oracle reads the reference path and `straight` the goal).
 - `oracle` walks the reference path's stations (oracle_targets): it turns towards the next one
   while the heading error exceeds half a turn step, else moves forward; a station within half a forward step
-  of its last move (not only of where it ended) counts as passed; it stops after the last.
+  of its last move (not only of where it ended) counts as passed, the path's end only where the agent then stands
+  within a forward step of it; it stops after the end.
 - `straight` turns towards the goal and moves forward; it stops within the goal radius (straight distance) or
   after stall_patience forward moves in a row without min_progress towards the goal.
 - `random`: forward, or with random_turn_probability a turn of 15-90 degrees either way (as successive turn
@@ -105,6 +106,8 @@ class Oracle:
             pose, t = obs["pose"], self.targets[i]
             moved_from = pose[:2] if self.last[i] is None else self.last[i]
             while self.next[i] < len(t) and _segment_distance(t[self.next[i]], moved_from, pose[:2]) <= reach:
+                if self.next[i] == len(t) - 1 and np.hypot(*(t[-1] - pose[:2])) > self.actions.forward_step:
+                    break  # passing near the end is not enough: the oracle stops within a step of it
                 self.next[i] += 1
             self.last[i] = np.array(pose[:2], dtype=np.float64)
             out.append(Action.STOP if self.next[i] >= len(t)
