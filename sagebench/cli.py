@@ -39,7 +39,7 @@ def _defaults_from(settings: str, options: str = "OPTIONS") -> type[typer.core.T
                 defaults = option_defaults(getattr(module, model), getattr(module, options))
                 for param in self.params:
                     value = next((defaults[o] for o in param.opts if o in defaults), None)
-                    if value is not None and not isinstance(value, bool) and not param.required:
+                    if value not in (None, ()) and not isinstance(value, bool) and not param.required:
                         shown = f"{value:g}" if isinstance(value, float) else str(value)
                         param.help = f"{param.help.removesuffix('.')} (default {shown})."
                 self._defaults_shown = True
@@ -457,6 +457,10 @@ def evaluate_cmd(
     allow_missing: Annotated[
         bool, typer.Option("--allow-missing", help="Score episodes without a prediction as failures instead of stopping.")
     ] = False,
+    all_episodes: Annotated[
+        bool, typer.Option("--all-episodes", help="With a rollout's predictions: score every episode of the run (or "
+                                                  "--scene/--split), not only those the rollout was asked to run.")
+    ] = False,
     start_tolerance: Annotated[
         float | None, typer.Option(help="Largest distance of the first pose from the episode's start, m.")
     ] = None,
@@ -473,12 +477,17 @@ def evaluate_cmd(
     distance to the goal each metric used (on foot over the navigable map, or straight). Writes OUT
     (JSON: those means, every episode's metrics, missing episode ids, the settings) when given.
 
+    For the predictions of `sagebench rollout` it also reads PREDICTIONS' stem + _rollout.json and scores
+    exactly the episodes the rollout was asked to run (one without a prediction, such as one the policy
+    failed, scores the worst value of every metric), and prints the observations the agent had.
+
     Unknown or duplicate episode ids, and episodes without a prediction (unless --allow-missing), are
     errors (exit status 2, nothing written).
     """
     from sagebench.stages.evaluate import evaluate, make_config
 
-    config = make_config(allow_missing=allow_missing, start_tolerance=start_tolerance, workers=workers)
+    config = make_config(allow_missing=allow_missing, all_episodes=all_episodes, start_tolerance=start_tolerance,
+                         workers=workers)
     result = evaluate(run_dir, predictions, config, scene_id=scene, split=split, out=out)
     typer.echo(result.table())
     if result.missing:
@@ -519,32 +528,64 @@ def rollout_cmd(
     run_dir: Annotated[Path, typer.Option("--run", help="Run directory (build-scene, gen-trajectories, export-usd).")],
     out: Annotated[Path, typer.Option("--out", help="Predictions file to write (JSON Lines).")],
     policy: Annotated[str | None, typer.Option(help="A policy server's http(s):// URL, or oracle, straight, random.")] = None,
-    episodes: Annotated[int | None, typer.Option(help="Run a seeded sample of N episodes (default: all).")] = None,
-    obs: Annotated[str | None, typer.Option(help="Images to render: comma-separated rgb, depth, instance, or none.")] = None,
-    width: Annotated[int | None, typer.Option(help="Image width, px.")] = None,
-    height: Annotated[int | None, typer.Option(help="Image height, px.")] = None,
+    split: Annotated[str | None, typer.Option("--split", help="Only this split's episodes: train, val_seen, "
+                                                               "val_unseen or test.")] = None,
+    episode_id: Annotated[list[str] | None, typer.Option("--episode-id", help="Only this episode (repeat for "
+                                                                               "more).")] = None,
+    episodes: Annotated[int | None, typer.Option(help="Run a seeded sample of N of those episodes (default: all).")] = None,
+    scene: Annotated[str | None, typer.Option("--scene", help="Only this scene's episodes (default: every scene).")] = None,
+    preset: Annotated[str | None, typer.Option(help="Another benchmark's settings: vlnce (success distance 3 m, "
+                                                    "VLN-CE's body, camera and observations).")] = None,
+    profile: Annotated[str | None, typer.Option(help="Observations: custom (--obs at --width x --height), vlnce, "
+                                                     "sage or full (privileged included).")] = None,
+    obs: Annotated[str | None, typer.Option(help="custom profile: images to render, rgb and/or depth, or none.")] = None,
+    privileged: Annotated[str | None, typer.Option(
+        help="Privileged observations to add, comma-separated: pose, gps_compass, instance.")] = None,
+    width: Annotated[int | None, typer.Option(help="Image width, px (default: the profile's).")] = None,
+    height: Annotated[int | None, typer.Option(help="Image height, px (default: the profile's).")] = None,
+    action_space: Annotated[str | None, typer.Option("--action-space", help="discrete (STOP, MOVE_FORWARD, "
+                                                     "TURN_LEFT, TURN_RIGHT) or continuous (v m/s, omega rad/s, stop).")] = None,
     max_steps: Annotated[int | None, typer.Option(help="Actions per episode before it is cut off.")] = None,
+    policy_timeout: Annotated[float | None, typer.Option(
+        help="Deadline of one policy request, s: connecting, sending and the whole reply.")] = None,
+    policy_retries: Annotated[int | None, typer.Option(
+        help="Retries of a policy request after a connection error, with backoff, within its deadline.")] = None,
+    policy_encoding: Annotated[str | None, typer.Option(
+        help="How images go to a policy server: raw, png (RGB as PNG) or json (base64, as before).")] = None,
+    max_policy_failures: Annotated[int | None, typer.Option(
+        help="Episodes the policy may fail (a request that failed) before the rollout stops.")] = None,
+    resume: Annotated[bool, typer.Option("--resume", help="Run the episodes a killed or stopped rollout into OUT "
+                                                          "did not finish, with its settings.")] = False,
     workers: Annotated[int | None, typer.Option(help="Threads stepping MuJoCo and calling the policy server.")] = None,
     threads: Annotated[int | None, typer.Option(
         help="Cores the renderer's threads use, which wait passively when idle (default: every core this process "
              "may run on).")] = None,
     seed: Annotated[int | None, typer.Option(help="Seed of the episode sample and of the random policy.")] = None,
-    scene: Annotated[str | None, typer.Option("--scene", help="Only this scene's episodes (default: every scene).")] = None,
 ) -> None:
     """Run a policy closed-loop in the simulator: it sees rendered views, acts (STOP, MOVE_FORWARD 0.25 m,
-    TURN_LEFT / TURN_RIGHT 15 degrees), MuJoCo moves the agent and measures each step's collision intensity.
+    TURN_LEFT / TURN_RIGHT 15 degrees, or continuous v, omega, stop), MuJoCo moves the agent and measures each
+    step's collision intensity.
 
-    A URL policy gets one HTTP POST per step and episode (README: the policy protocol); oracle, straight and
-    random are the built-in baselines. Reads RUN/episodes/<id>/, RUN/scenes/<id>/ (scene.json, topdown.npz,
-    gaussians.ply, scene.xml, colliders/). Writes OUT (one JSON line per episode: poses, stopped, the
-    simulator's collision_intensity marked intensity_source "simulator") and, when rgb is rendered,
-    OUT's stem + _contact_sheet.png (start, middle and end views of the first 4 episodes).
+    A URL policy gets one HTTP POST per step and episode (docs: the policy protocol); oracle, straight and random
+    are the built-in baselines. Reads RUN/episodes/<id>/, RUN/scenes/<id>/ (scene.json, topdown.npz,
+    gaussians.ply, scene.xml, colliders/). Writes OUT (one JSON line per episode, appended as each ends, in run
+    order once all have: poses, stopped, the simulator's collision_intensity marked intensity_source
+    "simulator"), OUT's stem + _rollout.json (the episodes asked for, the observations the policy had, the
+    episodes the policy failed) and, when rgb is rendered, OUT's stem + _contact_sheet.png (start, middle and
+    end views of the first 4 episodes). Exit status 1 when episodes are left to run (--resume runs them).
     """
     from sagebench.stages.rollout import make_config, run_rollout
 
-    config = make_config(policy=policy, episodes=episodes, obs=obs, width=width, height=height, max_steps=max_steps,
-                         workers=workers, threads=threads, seed=seed)
-    typer.echo(run_rollout(run_dir, out, config, scene_id=scene).summary())
+    config = make_config(policy=policy, split=split, episode_ids=tuple(episode_id or ()), episodes=episodes,
+                         preset=preset, profile=profile, obs=obs, privileged=privileged, width=width, height=height,
+                         action_space=action_space, max_steps=max_steps, policy_timeout=policy_timeout,
+                         policy_retries=policy_retries, policy_encoding=policy_encoding,
+                         max_policy_failures=max_policy_failures, workers=workers, threads=threads, seed=seed,
+                         resume=resume)
+    result = run_rollout(run_dir, out, config, scene_id=scene, resume=resume)
+    typer.echo(result.summary())
+    if not result.complete:
+        raise typer.Exit(1)
 
 
 def main(argv: list[str] | None = None) -> None:

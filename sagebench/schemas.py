@@ -35,12 +35,19 @@ def _predictions_schema() -> dict[str, Any]:
     return Prediction.model_json_schema()
 
 
+def _rollout_record_schema() -> dict[str, Any]:
+    from sagebench.evaluation.record import RolloutRecord
+
+    return RolloutRecord.model_json_schema()
+
+
 # file name in schemas/ -> function returning the schema; later stages add their formats here.
 SCHEMAS: dict[str, Callable[[], dict[str, Any]]] = {
     "scene.schema.json": _scene_schema,
     "semantic_map.schema.json": _semantic_map_schema,
     "run_config.schema.json": _run_config_schema,
     "predictions.schema.json": _predictions_schema,
+    "rollout_record.schema.json": _rollout_record_schema,
 }
 
 

@@ -53,10 +53,11 @@ def test_the_oracle_scores_perfectly(demo_eval_run, oracle, tmp_path, run_cli):
     n = len(_lines(oracle))
     assert lines[0] == HEADER
     assert lines[1].startswith(f"overall                          {n:>8d}    1.000    1.000")
-    groups = [ln.split()[0] for ln in lines[2:-3]]
+    groups = [ln.split()[0] for ln in lines[2:-4]]
     assert groups == sorted(groups, key=("level", "type", "split").index) and lines[-1] == f"wrote {out}"  # levels, then types
-    assert lines[-3] == DISTANCES
-    assert lines[-2].startswith(f"ICP from c(t) self-reported in {n} episodes (measured: ")  # the baseline's own
+    assert lines[-4] == DISTANCES
+    assert lines[-3].startswith(f"ICP from c(t) self-reported in {n} episodes (measured: ")  # the baseline's own
+    assert lines[-2] == "observations: not recorded (predictions without a rollout record)"
     res = json.loads(out.read_text())
     o = res["overall"]
     assert (o["episodes"], o["sr"], o["osr"], o["csr"], o["icp"]) == (n, 1.0, 1.0, 1.0, 0.0)
@@ -67,7 +68,7 @@ def test_the_oracle_scores_perfectly(demo_eval_run, oracle, tmp_path, run_cli):
     assert set(res["by_type"]) >= {"Base_Action", "Single_Goal"} and set(res["by_level"]) >= {"low"}
     assert sum(g["episodes"] for g in res["by_type"].values()) == n
     assert sum(g["episodes"] for g in res["by_level"].values()) == n
-    assert len(lines) == 1 + 1 + len(res["by_level"]) + len(res["by_type"]) + len(res["by_split"]) + 3
+    assert len(lines) == 1 + 1 + len(res["by_level"]) + len(res["by_type"]) + len(res["by_split"]) + 4
     assert res["by_split"] == {"val_unseen": res["overall"]}  # the demo scene, held out at the default fractions
     assert res["distance_used"]["sr"] == "on_foot" and res["distance_used"]["ne_straight"] == "straight"
     first = out.read_bytes()

@@ -58,7 +58,7 @@ def test_help_shows_the_models_defaults(command, run_cli, monkeypatch):
     assert set(options) <= set(shown), "OPTIONS names an option the command does not have"
     for option, path in options.items():
         value = _default(model, path)
-        if value is None or isinstance(value, bool) or "[required]" in shown[option]:
+        if value in (None, ()) or isinstance(value, bool) or "[required]" in shown[option]:
             assert "(default " not in shown[option], option
         else:
             assert shown[option].endswith(f"(default {_shown(value)})."), (option, shown[option])

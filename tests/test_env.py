@@ -17,13 +17,12 @@ from gymnasium.utils.env_checker import check_env
 from sagebench.env import ENV_ID, NavEnv, VectorNavEnv
 from sagebench.metrics.episode import path_smoothness
 from sagebench.navsim.actions import Action
-from sagebench.navsim.http_policy import decode_image
+from sagebench.navsim.protocol import decode_request
 from sagebench.navsim.policies import RandomWalk, built_in
 from sagebench.navsim.rollout import rollout
 from sagebench.navsim.simulator import EnvConfig, Simulator
 
-SMALL = EnvConfig(width=32, height=24, observations=("rgb", "depth", "instance"))
-BLIND = EnvConfig(observations=())
+BLIND = EnvConfig(observations=(), privileged=("pose",))  # the built-in baselines steer by the pose
 
 
 # gymnasium's checker warns of any infinite Box limit: positions are scene metres and depth has no far plane
@@ -33,7 +32,7 @@ UNBOUNDED = {"A Box observation space maximum value is infinity. This is probabl
 
 def test_gymnasium_makes_and_accepts_the_env(demo_eval_run):
     made = gymnasium.make("sagebench.env:sagebench/Nav-v0", run_dir=str(demo_eval_run),
-                          config={"width": 32, "height": 24, "max_steps": 5})
+                          config={"width": 32, "height": 24, "max_steps": 5, "privileged": ["pose", "instance"]})
     env = made.unwrapped
     assert isinstance(env, NavEnv) and made.spec.id == ENV_ID and env.metadata["render_fps"] == 2.0
     with warnings.catch_warnings(record=True) as caught:
@@ -119,7 +118,7 @@ def test_vectorised_equals_sequential_byte_for_byte(demo_eval_run):
 @pytest.mark.parametrize("mode, vector_kwargs", [("sync", {}), ("async", {"context": "spawn"})])
 def test_gymnasiums_own_vector_envs_step_each_env_as_alone_and_autoreset_to_the_next_episode(demo_eval_run, mode,
                                                                                           vector_kwargs):
-    cfg = {"width": 16, "height": 12, "observations": ["rgb"], "max_steps": 2}
+    cfg = {"width": 16, "height": 12, "observations": ["rgb"], "max_steps": 2, "privileged": ["pose"]}
     alone = [NavEnv(demo_eval_run, cfg) for _ in range(2)]
     alone[0].reset(seed=0)  # renders here before the vector env starts its processes
     vec = gymnasium.make_vec("sagebench.env:sagebench/Nav-v0", num_envs=2, vectorization_mode=mode,
@@ -148,9 +147,9 @@ class _Policy(BaseHTTPRequestHandler):
     seen: list[dict] = []
 
     def do_POST(self):  # noqa: N802 - http.server's name
-        body = json.loads(self.rfile.read(int(self.headers["Content-Length"])))
+        body = decode_request(self.headers["Content-Type"], self.rfile.read(int(self.headers["Content-Length"])))
         _Policy.seen.append(body)
-        reply = json.dumps({"action": "MOVE_FORWARD" if body["step"] < 2 else "STOP"}).encode()
+        reply = json.dumps({"action": "MOVE_FORWARD" if body[0]["step"] < 2 else "STOP"}).encode()
         self.send_response(200)
         self.send_header("Content-Type", "application/json")
         self.send_header("Content-Length", str(len(reply)))
@@ -181,11 +180,12 @@ def test_an_http_policy_server_drives_an_episode(demo_eval_run, policy_server, t
     assert code == 0, err
     (row,) = [json.loads(line) for line in out.read_text().splitlines()]
     assert len(row["poses"]) == 3 and row["stopped"] and row["intensity_source"] == "simulator"
-    assert [b["step"] for b in _Policy.seen] == [0, 1, 2]
-    first = _Policy.seen[0]
-    assert first["episode_id"] == row["episode_id"] and first["instruction"] and first["pose"] == row["poses"][0]
-    assert decode_image(first["observations"]["rgb"]).shape == (24, 32, 3)
-    depth = decode_image(first["observations"]["depth"])
+    assert [b["step"] for b, _ in _Policy.seen] == [0, 1, 2]
+    first, images = _Policy.seen[0]
+    assert len(first["episode_id"]) == 16 and first["episode_id"] != row["episode_id"]  # opaque
+    assert first["instruction"] and "pose" not in first and first["profile"] == "custom"
+    assert images["rgb"].shape == (24, 32, 3)
+    depth = images["depth"]
     assert depth.shape == (24, 32) and depth.dtype == np.float32 and depth.max() > 0
     assert (tmp_path / "p_contact_sheet.png").is_file()
     assert stdout.startswith("rollout http://127.0.0.1:")
@@ -207,7 +207,8 @@ def test_rollout_predictions_are_scored_as_measured(demo_eval_run, tmp_path, run
 
 @pytest.mark.parametrize("args, message", [
     (("--policy", "nope"), "error: --policy: 'nope' is neither an http(s):// URL nor one of oracle, straight, random"),
-    (("--obs", "rgb,colour"), "error: --obs: 'colour' is not one of rgb, depth, instance (or none)"),
+    (("--obs", "rgb,colour"), "error: --obs: 'colour' is not one of rgb, depth (or none)"),
+    (("--obs", "rgb,instance"), "error: --obs: instance ids are privileged: ask for them with --privileged instance"),
     (("--width", "0"), "error: --width: "),
 ])
 def test_bad_options_are_one_line_and_write_nothing(demo_eval_run, tmp_path, run_cli, args, message):
@@ -217,9 +218,13 @@ def test_bad_options_are_one_line_and_write_nothing(demo_eval_run, tmp_path, run
     assert not list(tmp_path.iterdir())
 
 
-def test_an_unreachable_policy_server_fails_on_one_line(demo_eval_run, tmp_path, run_cli):
+def test_an_unreachable_policy_server_fails_its_episodes_and_says_how_to_resume(demo_eval_run, tmp_path, run_cli):
     out = tmp_path / "p.jsonl"
-    code, _, err = run_cli("rollout", "--run", demo_eval_run, "--out", out, "--obs", "none", "--episodes", "1",
-                           "--policy", "http://127.0.0.1:9/act")
-    assert code == 1 and err.startswith("error: policy http://127.0.0.1:9/act (episode ") and len(err.splitlines()) == 1
-    assert not list(tmp_path.iterdir())
+    code, stdout, err = run_cli("rollout", "--run", demo_eval_run, "--out", out, "--obs", "none", "--episodes", "1",
+                                "--policy", "http://127.0.0.1:9/act", "--policy-retries", "1")
+    record = json.loads((tmp_path / "p_rollout.json").read_text())
+    (eid,) = record["episodes"]
+    assert code == 1 and not err and out.read_text() == "" and not record["complete"]
+    assert f"  FAILED by the policy: {eid}: policy http://127.0.0.1:9/act (step 0): connection error: " in stdout
+    assert "1 episodes to go: sagebench rollout --resume" in stdout
+    assert [f["episode_id"] for f in record["failed_by_policy"]] == [eid]

@@ -210,6 +210,20 @@ MUTANTS = (
            "    if gap > HINGE_TOLERANCE_M:\n", "    if gap > 100 * HINGE_TOLERANCE_M:\n", ("tests/test_fuzz_inputs.py",)),
     Mutant("env and rollout processes keep OpenMP's spin-wait", "sagebench/threads.py",
            'os.environ.setdefault("OMP_WAIT_POLICY", wait.upper())', "pass", ("tests/test_threads.py",)),
+    Mutant("a policy server gets the run's episode ids", "sagebench/navsim/http_policy.py",
+           "self.ids = [self.opaque_id(e.episode_id) for e in episodes]",
+           "self.ids = [e.episode_id for e in episodes]", ("tests/test_navsim_http_policy.py",)),
+    Mutant("every profile observes the pose", "sagebench/navsim/simulator.py",
+           '    if "pose" in sensors.privileged:\n', "    if True:\n", ("tests/test_navsim_profiles.py",)),
+    Mutant("a policy request's timeout is per socket read", "sagebench/navsim/http_policy.py",
+           "    timer.start()\n", "", ("tests/test_navsim_http_policy.py",)),
+    Mutant("an HTTP error status is retried", "sagebench/navsim/http_policy.py",
+           "retry = isinstance(err, _CONNECTION_ERRORS)", "retry = True", ("tests/test_navsim_http_policy.py",)),
+    Mutant("resume keeps a torn last line", "sagebench/navsim/journal.py",
+           'whole = text[: text.rfind("\\n") + 1]', "whole = text", ("tests/test_navsim_journal.py",)),
+    Mutant("evaluate scores a rollout's unasked episodes too", "sagebench/stages/evaluate.py",
+           "asked_only = record is not None and not config.all_episodes", "asked_only = False",
+           ("tests/test_cli_rollout.py",)),
 )
 
 

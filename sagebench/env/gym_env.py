@@ -2,8 +2,9 @@
 
 Constructing one sizes the process's renderer threads and makes idle ones wait passively (sagebench.threads).
 reset(options={"episode_id": ID}) starts that episode; without one, episodes come in an order shuffled by the
-reset seed (each once, then again). Observations: rgb [H, W, 3] uint8, depth [H, W] float32 m, instance [H, W]
-int32 (those asked for), pose [4] (x, y, z, yaw), instruction (text) and collided (this step). info: episode_id,
+reset seed (each once, then again). Observations: those of the config's profile (sagebench.navsim.profiles;
+by default rgb [H, W, 3] uint8, depth [H, W] float32 m, instruction text and collided), pose, gps/compass and
+instance ids only when asked for (EnvConfig.privileged) or in the `full` profile. info: episode_id,
 distance_to_goal (on foot, m), success (SR so far), collision_intensity (c of this step), steps, outcome.
 """
 
@@ -20,6 +21,7 @@ from gymnasium import spaces
 from sagebench.navsim.actions import Action
 from sagebench.navsim.simulator import EnvConfig, Simulator, StepResult
 from sagebench.threads import share_cores
+from sagebench.vlnce.vocab import TOKENS_PER_INSTRUCTION
 
 MAX_INSTRUCTION = 4096  # characters
 
@@ -33,19 +35,26 @@ def action_space(config: EnvConfig) -> spaces.Space:
                       high=np.array([r.max_speed, r.max_turn_rate, 1.0], np.float32), dtype=np.float32)
 
 
-def observation_space(config: EnvConfig, instructions: Sequence[str] = ()) -> spaces.Dict:
-    """The observation dict's space; the instruction's charset holds printable ASCII and every character used."""
-    h, w = config.height, config.width
-    images = {"rgb": spaces.Box(0, 255, (h, w, 3), np.uint8),
-              "depth": spaces.Box(0.0, np.inf, (h, w), np.float32),
-              "instance": spaces.Box(0, np.iinfo(np.int32).max, (h, w), np.int32)}
+def observation_space(config: EnvConfig, instructions: Sequence[str] = (), vocabulary: int = 0) -> spaces.Dict:
+    """The observation dict's space (the profile's keys); the instruction's charset holds printable ASCII and every
+    character used; token ids are below `vocabulary` (its size)."""
+    sensors = config.sensors()
+    size = {k: (h, w) for k, (w, h) in sensors.images.items()}
+    low, high = sensors.depth.bounds()
     charset = sorted(set(string.printable) | {ch for text in instructions for ch in text})
-    return spaces.Dict({
-        **{k: images[k] for k in config.observations},
-        "pose": spaces.Box(-np.inf, np.inf, (4,), np.float64),
-        "instruction": spaces.Text(max_length=MAX_INSTRUCTION, min_length=0, charset="".join(charset)),
-        "collided": spaces.Discrete(2),
-    })
+    every = {
+        "rgb": lambda: spaces.Box(0, 255, (*size["rgb"], 3), np.uint8),
+        "depth": lambda: spaces.Box(low, high, (*size["depth"], 1) if sensors.depth.channel else size["depth"],
+                                    np.float32),
+        "instance": lambda: spaces.Box(0, np.iinfo(np.int32).max, size["instance"], np.int32),
+        "instruction": lambda: spaces.Text(max_length=MAX_INSTRUCTION, min_length=0, charset="".join(charset)),
+        "instruction_tokens": lambda: spaces.Box(0, max(vocabulary - 1, 0), (TOKENS_PER_INSTRUCTION,), np.int64),
+        "pose": lambda: spaces.Box(-np.inf, np.inf, (4,), np.float64),
+        "gps": lambda: spaces.Box(-np.inf, np.inf, (2,), np.float32),
+        "compass": lambda: spaces.Box(-np.pi, np.pi, (1,), np.float32),
+        "collided": lambda: spaces.Discrete(2),
+    }
+    return spaces.Dict({k: every[k]() for k in sensors.keys})
 
 
 class NavEnv(gym.Env):
@@ -61,7 +70,8 @@ class NavEnv(gym.Env):
         self.config, self.render_mode = config, render_mode
         self.metadata = {**self.metadata, "render_fps": 1.0 / config.actions.control_interval}  # a frame per action
         self.action_space = action_space(config)
-        self.observation_space = observation_space(config, list(self.sim.instructions.values()))
+        self.observation_space = observation_space(config, list(self.sim.instructions.values()),
+                                                   len(self.sim.vocabulary.word_list) if self.sim.vocabulary else 0)
         self._queue: list[str] = []
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -85,7 +95,7 @@ class NavEnv(gym.Env):
         return r.observation, r.reward, r.terminated, r.truncated, r.info
 
     def render(self):
-        if "rgb" not in self.config.observations:
+        if "rgb" not in self.sim.sensors.images:
             return None
         return self.sim.slots[0].last["rgb"] if self.sim.slots else None
 
@@ -107,7 +117,9 @@ class VectorNavEnv:
         self.sim = Simulator(run_dir, config, scene_id=scene_id, threads=threads)
         self.config = config
         self.single_action_space = action_space(config)
-        self.single_observation_space = observation_space(config, list(self.sim.instructions.values()))
+        self.single_observation_space = observation_space(
+            config, list(self.sim.instructions.values()),
+            len(self.sim.vocabulary.word_list) if self.sim.vocabulary else 0)
 
     def reset(self, episode_ids: Sequence[str]) -> tuple[list[dict], list[dict]]:
         results = self.sim.start(list(episode_ids))

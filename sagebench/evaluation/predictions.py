@@ -66,8 +66,9 @@ def parse_line(text: str, path: Path, line: int) -> Prediction:
         raise DataError(msg, path=f"{path}:{line}", field=field) from None
 
 
-def read_predictions(path: Path) -> list[tuple[int, Prediction]]:
-    """(line number, prediction) for every non-blank line of a JSON Lines file, in file order."""
+def read_predictions(path: Path, *, allow_empty: bool = False) -> list[tuple[int, Prediction]]:
+    """(line number, prediction) for every non-blank line of a JSON Lines file, in file order; an empty file is
+    a DataError unless `allow_empty` (a rollout whose policy failed every episode)."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -76,7 +77,7 @@ def read_predictions(path: Path) -> list[tuple[int, Prediction]]:
     except (OSError, UnicodeDecodeError) as err:
         raise DataError(f"cannot read: {err}", path=path) from None
     rows = [(n, parse_line(t, path, n)) for n, t in enumerate(text.splitlines(), start=1) if t.strip()]
-    if not rows:
+    if not rows and not allow_empty:
         raise DataError("no predictions (the file is empty)", path=path)
     return rows
 

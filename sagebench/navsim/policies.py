@@ -18,6 +18,7 @@ from __future__ import annotations
 import hashlib
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
@@ -66,12 +67,20 @@ def episode_rng(seed: int, episode_id: str) -> np.random.Generator:
     return np.random.default_rng([seed, digest])
 
 
+@dataclass(frozen=True)
+class PolicyFailure:
+    """In place of an action: the policy could not answer for this episode (why, one line); the rollout ends the
+    episode as failed by the policy and goes on with the others."""
+
+    reason: str
+
+
 class Policy(Protocol):
     def begin(self, episodes: Sequence[Episode]) -> None:
         """A new batch of episodes (slot i is episodes[i])."""
 
     def act(self, slots: Sequence[int], observations: Sequence[dict], infos: Sequence[dict]) -> list:
-        """One action per running slot."""
+        """One action (or PolicyFailure) per running slot."""
 
 
 def _heading_action(pose: np.ndarray, target: np.ndarray, turn: float) -> Action:

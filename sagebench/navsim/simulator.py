@@ -13,12 +13,12 @@ the same check evaluate derives c(t) with), so sliding along a wall at full spee
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from sagebench.config import AgentConfig
 from sagebench.evaluation.predictions import Prediction
@@ -26,12 +26,12 @@ from sagebench.evaluation.scoring import Episode
 from sagebench.navsim.actions import ActionConfig, continuous_commands, discrete_commands
 from sagebench.navsim.motion import Agents, MotionConfig, wrap
 from sagebench.navsim.observe import observe
-from sagebench.navsim.world import World, open_world, run_episodes
+from sagebench.navsim.profiles import PrivilegedKey, ProfileName, Sensors, gps_compass, resolve
+from sagebench.navsim.world import World, open_world, run_episodes, run_vocabulary
 from sagebench.replay.contact import contact_share
 from sagebench.replay.physics import ReplayConfig
 
 POSE_DECIMALS = 6  # predictions are written to the micrometre / microradian
-ImageKey = Literal["rgb", "depth", "instance"]
 
 
 class EnvConfig(BaseModel):
@@ -39,16 +39,33 @@ class EnvConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    width: int = Field(default=224, ge=1, le=4096, description="Image width, px.")
-    height: int = Field(default=224, ge=1, le=4096, description="Image height, px.")
+    profile: ProfileName = Field(default="custom", description="Observation profile: custom, vlnce, sage or full "
+                                                               "(sagebench.navsim.profiles).")
+    width: int | None = Field(default=None, ge=1, le=4096, description="Image width, px (default: the profile's).")
+    height: int | None = Field(default=None, ge=1, le=4096, description="Image height, px (default: the profile's).")
     agent: AgentConfig = AgentConfig()
-    observations: tuple[ImageKey, ...] = Field(default=("rgb", "depth", "instance"),
-                                               description="Images to render (none: pose and instruction only).")
+    observations: tuple[str, ...] | None = Field(
+        default=None, description="custom profile: images to render, of rgb and depth (default both; none: the "
+                                  "instruction only).")
+    privileged: tuple[PrivilegedKey, ...] = Field(
+        default=(), description="Privileged observations to add: pose, gps_compass, instance (full has them all).")
+    success_distance: float | None = Field(
+        default=None, gt=0, description="Success radius instead of each episode's goal_radius, m.")
     max_steps: int = Field(default=500, ge=1, description="Actions per episode before it is cut off.")
     action_space: Literal["discrete", "continuous"] = Field(default="discrete", description="Which action space.")
     actions: ActionConfig = ActionConfig()
     motion: MotionConfig = MotionConfig()
     replay: ReplayConfig = ReplayConfig()
+
+    @model_validator(mode="after")
+    def _profile_allows(self) -> EnvConfig:
+        self.sensors()
+        return self
+
+    def sensors(self) -> Sensors:
+        """The observations this config gives a policy."""
+        return resolve(self.profile, width=self.width, height=self.height, observations=self.observations,
+                       privileged=self.privileged)
 
 
 @dataclass
@@ -64,9 +81,10 @@ class Slot:
     distance: float  # on foot to the goal now, m
     steps: int = 0
     stopped: bool = False
-    outcome: str = ""  # "" while running, else stop / step_limit / left_map
+    outcome: str = ""  # "" while running, else stop / step_limit / left_map / policy_failed
     collided: bool = False
     last: dict[str, np.ndarray] = field(default_factory=dict)
+    tokens: np.ndarray | None = None  # [TOKENS_PER_INSTRUCTION] int64 when the profile gives them
 
     @property
     def done(self) -> bool:
@@ -97,7 +115,11 @@ class Simulator:
     def __init__(self, run_dir: Path, config: EnvConfig = EnvConfig(), *, scene_id: str | None = None,
                  threads: int = 1):
         self.run_dir, self.config, self.threads = Path(run_dir), config, threads
+        self.sensors = config.sensors()
         episodes, self.instructions = run_episodes(self.run_dir, scene_id)
+        if config.success_distance is not None:
+            episodes = [replace(e, goal_radius=config.success_distance) for e in episodes]
+        self.vocabulary = run_vocabulary(self.run_dir) if self.sensors.tokens else None
         self.episodes = {e.episode_id: e for e in episodes}
         self.order = [e.episode_id for e in episodes]
         self._worlds: dict[str, World] = {}
@@ -108,7 +130,7 @@ class Simulator:
         if scene_id not in self._worlds:
             c = self.config
             self._worlds[scene_id] = open_world(self.run_dir, scene_id, agent=c.agent, replay=c.replay,
-                                                images=bool(c.observations))
+                                                images=bool(self.sensors.images))
         return self._worlds[scene_id]
 
     def start(self, episode_ids: Sequence[str]) -> list[StepResult]:
@@ -123,9 +145,11 @@ class Simulator:
             w = self.world(e.scene_id)
             rows = by_scene.setdefault(e.scene_id, [])
             pose = (float(e.start[0]), float(e.start[1]), w.model.floor_z, float(wrap(e.start_yaw)))
-            self.slots.append(Slot(episode=e, instruction=self.instructions.get(eid, ""), world=w, row=len(rows),
-                                   poses=[_rounded(pose)], intensity=[0.0],
-                                   distance=float(w.navmap.field(e.goal).distance(e.start[None])[0])))
+            text = self.instructions.get(eid, "")
+            tokens = np.array(self.vocabulary.encode(text), np.int64) if self.vocabulary is not None else None
+            self.slots.append(Slot(episode=e, instruction=text, world=w, row=len(rows), poses=[_rounded(pose)],
+                                   intensity=[0.0], distance=float(w.navmap.field(e.goal).distance(e.start[None])[0]),
+                                   tokens=tokens))
             rows.append(i)
         for sid, rows in by_scene.items():
             starts = np.array([[self.slots[i].episode.start[0], self.slots[i].episode.start[1],
@@ -180,26 +204,46 @@ class Simulator:
             out.append(self._result(s, gained, s.intensity[-1] if i in moved else 0.0))
         return out
 
+    def fail(self, slot: int) -> None:
+        """End a running slot because its policy could not answer (it takes no further step)."""
+        self.slots[slot].outcome = "policy_failed"
+
     def _render(self, slots: Sequence[int]) -> None:
-        c = self.config
+        """Each slot's images, one renderer call per scene and image size; depth as the profile gives it."""
+        c, sensors = self.config, self.sensors
         by_scene: dict[str, list[int]] = {}
         for i in slots:
             by_scene.setdefault(self.slots[i].episode.scene_id, []).append(i)
         for sid, rows in by_scene.items():
             w = self._worlds[sid]
             poses = np.array([self.slots[i].poses[-1] for i in rows])
-            images = observe(w.gaussians, poses, c.observations, floor_z=w.model.floor_z,
-                             camera_height=c.agent.camera_height, hfov_deg=c.agent.hfov_deg, width=c.width,
-                             height=c.height) if c.observations else [{} for _ in rows]
+            images: list[dict[str, np.ndarray]] = [{} for _ in rows]
+            for (width, height), keys in sensors.sizes().items():
+                views = observe(w.gaussians, poses, keys, floor_z=w.model.floor_z,
+                                camera_height=c.agent.camera_height, hfov_deg=c.agent.hfov_deg, width=width,
+                                height=height)
+                for img, view in zip(images, views):
+                    img.update(view)
             for i, img in zip(rows, images):
-                self.slots[i].last = img
+                if "depth" in img:
+                    img["depth"] = sensors.depth.apply(img["depth"])
+                self.slots[i].last = {k: img[k] for k in sensors.keys if k in img}
 
     def _result(self, s: Slot, reward: float, c_t: float) -> StepResult:
-        obs = {**{k: v.copy() for k, v in s.last.items()}, "pose": np.array(s.poses[-1], dtype=np.float64), "instruction": s.instruction,
-               "collided": s.collided}
+        obs = observation(self.sensors, s)
         info = {"episode_id": s.episode.episode_id, "distance_to_goal": s.distance, "success": s.success,
                 "collision_intensity": float(c_t), "steps": s.steps, "outcome": s.outcome or "running"}
         return StepResult(obs, float(reward), s.outcome in ("stop", "left_map"), s.outcome == "step_limit", info)
+
+
+def observation(sensors: Sensors, s: Slot) -> dict:
+    """The observation dict of a slot now: the profile's keys only (sagebench.navsim.profiles)."""
+    extra = {"instruction": s.instruction, "instruction_tokens": s.tokens, "collided": s.collided}
+    if "pose" in sensors.privileged:
+        extra["pose"] = np.array(s.poses[-1], dtype=np.float64)
+    if "gps_compass" in sensors.privileged:
+        extra["gps"], extra["compass"] = gps_compass(np.array(s.poses[-1]), s.episode.start, s.episode.start_yaw)
+    return {k: s.last[k].copy() if k in s.last else extra[k] for k in sensors.keys}
 
 
 def _rounded(pose: tuple[float, float, float, float]) -> tuple[float, float, float, float]:

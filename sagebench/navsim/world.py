@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from sagebench.config import AgentConfig
-from sagebench.episodes.load import load_episodes
+from sagebench.episodes.load import load_episodes, scene_ids
 from sagebench.episodes.shards import read_episodes
 from sagebench.evaluation.scoring import Episode
 from sagebench.metrics.on_foot import NavigableMap
@@ -18,6 +18,7 @@ from sagebench.replay.physics import ReplayConfig, ReplayModel
 from sagebench.replay.scene_model import open_replay_model
 from sagebench.run_layout import GAUSSIANS, TOPDOWN, run_episodes_dir, run_scene_dir
 from sagebench.topdown.grid_file import read_topdown_grids
+from sagebench.vlnce.vocab import Vocabulary
 
 
 @dataclass(frozen=True)
@@ -48,6 +49,16 @@ def open_world(run_dir: Path, scene_id: str, *, agent: AgentConfig, replay: Repl
     model = open_replay_model(run_dir, scene_id, agent=agent, replay=replay)
     gaussians = pack(read_ply(scene_dir / GAUSSIANS)) if images else None
     return World(scene_id=scene_id, model=model, navmap=navmap, gaussians=gaussians, bounds=bounds)
+
+
+def run_vocabulary(run_dir: Path) -> Vocabulary:
+    """The vocabulary of every instruction of the run, every scene's: the one export-vlnce writes, so tokens
+    in the closed loop are the word ids of the exported dataset."""
+    texts = []
+    for sid in scene_ids(run_dir, None):
+        table = read_episodes(run_episodes_dir(run_dir, sid)).select(["instruction_text"])
+        texts += [t for t in table.column("instruction_text").to_pylist() if t is not None]
+    return Vocabulary.from_texts(texts)
 
 
 def run_episodes(run_dir: Path, scene_id: str | None = None) -> tuple[list[Episode], dict[str, str]]:

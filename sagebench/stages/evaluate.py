@@ -9,7 +9,7 @@ episode, the ids of missing episodes and the settings.
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +23,7 @@ from sagebench.errors import ConfigError, DataError
 from sagebench.evaluation.intensity import ICP_NOTE, STEP_REPLAY, replay_intensity
 from sagebench.replay.contact import contact_share
 from sagebench.evaluation.predictions import Prediction, match_episodes, read_predictions
+from sagebench.evaluation.record import RolloutRecord, read_record, record_path
 from sagebench.evaluation.scoring import (
     DISTANCE_USED, ICP_SOURCES, METRIC_NAMES, Episode, EpisodeScore, Summary, icp_source, missing_metrics,
     score_prediction, summarise_scores,
@@ -46,11 +47,14 @@ class EvaluateConfig(BaseModel):
     start_tolerance: float = Field(
         default=0.10, gt=0, description="The first pose must lie this close to the episode's start (XY), m.")
     allow_missing: bool = Field(default=False, description="Score episodes without a prediction as failures.")
+    all_episodes: bool = Field(default=False, description="Score every episode of the run (or --scene/--split), "
+                                                          "not only those the rollout was asked to run.")
     workers: int = Field(default=2, ge=1, description="Threads replaying poses for collision intensity.")
 
 
 # evaluate's options and the EvaluateConfig fields they set (their defaults and error names come from here)
-OPTIONS = {"--workers": "workers", "--start-tolerance": "start_tolerance", "--allow-missing": "allow_missing"}
+OPTIONS = {"--workers": "workers", "--start-tolerance": "start_tolerance", "--allow-missing": "allow_missing",
+           "--all-episodes": "all_episodes"}
 
 
 def make_config(**fields: object) -> EvaluateConfig:
@@ -83,6 +87,8 @@ class Evaluation:
     predictions_sha256: str
     config: EvaluateConfig
     split: str | None = None  # the split scored (evaluate --split), None for all
+    record: RolloutRecord | None = None  # the rollout's record beside the predictions, when there is one
+    asked_only: bool = False  # only the episodes the rollout was asked to run were scored
 
     def to_json(self) -> dict:
         def rounded(d: dict[str, float]) -> dict[str, float]:
@@ -99,6 +105,11 @@ class Evaluation:
             "by_type": {k: rounded(v) for k, v in self.summary.by_type.items()},
             "by_split": {k: rounded(v) for k, v in self.summary.by_split.items()},
             "split": self.split,
+            "observations": self.record.observations.model_dump() if self.record else None,
+            "rollout": None if self.record is None else {
+                "asked": len(self.record.episodes), "scored_asked_only": self.asked_only,
+                "complete": self.record.complete, "success_distance": self.record.success_distance,
+                "failed_by_policy": [f.episode_id for f in self.record.failed_by_policy]},
             "per_episode": [{"episode_id": s.episode.episode_id, "scene_id": s.episode.scene_id,
                              "instruction_level": s.episode.level, "instruction_type": s.episode.type,
                              "split": s.episode.split,
@@ -129,7 +140,25 @@ class Evaluation:
         counts = {k: sum(s.icp_source == k for s in self.scores) for k in ICP_SOURCES}
         lines.append("ICP from c(t) " + ", ".join(f"{k} in {n} episodes" for k, n in counts.items() if n)
                      + f" ({ICP_NOTE})")
+        lines.append(self.observed())
         return "\n".join(lines)
+
+    def observed(self) -> str:
+        """What the agent observed, from the rollout's record (one line, or more when it is incomplete)."""
+        r = self.record
+        if r is None:
+            return "observations: not recorded (predictions without a rollout record)"
+        out = [f"observations ({r.observations.line()})"]
+        scored = "exactly the" if self.asked_only else "every episode, not only the"
+        out.append(f"scored {scored} {len(r.episodes)} episodes the rollout was asked to run"
+                   + (f"; success within {r.success_distance:g} m" if r.success_distance is not None else ""))
+        if r.failed_by_policy:
+            out.append(f"{len(r.failed_by_policy)} episodes failed by the policy (scored as missing): "
+                       + ", ".join(f.episode_id for f in r.failed_by_policy[:5])
+                       + (", ..." if len(r.failed_by_policy) > 5 else ""))
+        if not r.complete:
+            out.append("the rollout is incomplete: sagebench rollout --resume runs the rest")
+        return "\n".join(out)
 
 
 def read_navigable_map(run_dir: Path, scene_id: str, agent_radius: float) -> NavigableMap:
@@ -151,7 +180,20 @@ def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = Evaluate
     """
     run_dir, predictions = Path(run_dir), Path(predictions)
     episodes = load_episodes(run_dir, scene_id)
-    rows = read_predictions(predictions)
+    rows = read_predictions(predictions, allow_empty=True)
+    record = read_record(predictions)
+    asked_only = record is not None and not config.all_episodes
+    if record is not None:
+        if record.success_distance is not None:
+            episodes = [replace(e, goal_radius=record.success_distance) for e in episodes]
+        if asked_only:
+            wanted = set(record.episodes)
+            episodes = [e for e in episodes if e.episode_id in wanted]
+            if not episodes:
+                raise DataError("none of the episodes the rollout was asked to run is in this run (or --scene)",
+                                path=record_path(predictions))
+    elif not rows:
+        raise DataError("no predictions (the file is empty)", path=predictions)
     if split is not None:
         if split not in SPLITS:
             raise ConfigError(f"{split!r} is not a split (one of {', '.join(SPLITS)})", field="--split")
@@ -161,7 +203,7 @@ def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = Evaluate
             raise DataError(f"no episodes in split {split!r}", path=run_dir)
         rows = [(n, p) for n, p in rows if p.episode_id not in others]
     by_id = {e.episode_id: e for e in episodes}
-    matched, missing = match_episodes(rows, by_id, predictions, allow_missing=config.allow_missing)
+    matched, missing = match_episodes(rows, by_id, predictions, allow_missing=config.allow_missing or asked_only)
     _check_start(by_id, rows, predictions, config.start_tolerance)
     need_replay = sorted({by_id[p.episode_id].scene_id for p in matched.values() if p.collision_intensity is None})
     maps = {sid: read_navigable_map(run_dir, sid, config.agent.radius) for sid in sorted({e.scene_id for e in episodes})}
@@ -187,7 +229,7 @@ def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = Evaluate
                                    missing=False, icp_source=source))
     result = Evaluation(scores=scores, summary=summarise_scores(scores), missing=missing, predictions=predictions,
                         predictions_sha256=hashlib.sha256(predictions.read_bytes()).hexdigest(), config=config,
-                        split=split)
+                        split=split, record=record, asked_only=asked_only)
     if out is not None:
         write_json(Path(out), result.to_json())
     return result

@@ -17,18 +17,20 @@ from pathlib import Path
 from typing import Literal
 
 import cv2
-import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench import ui
+from sagebench.adapters.vlnce import PRESETS, preset_differences, preset_env
 from sagebench.config import from_options
-from sagebench.errors import ConfigError
-from sagebench.evaluation.predictions import write_predictions
+from sagebench.errors import ConfigError, DataError, Interrupted
+from sagebench.evaluation.record import Observed, RolloutRecord, read_record, record_path
 from sagebench.fileio import write_bytes
 from sagebench.navsim.http_policy import HttpPolicy
-from sagebench.navsim.observe import IMAGE_KEYS
-from sagebench.navsim.policies import BUILT_IN, built_in
-from sagebench.navsim.rollout import contact_sheet, rollout
+from sagebench.navsim.policies import BUILT_IN, Policy, built_in
+from sagebench.navsim.profiles import PRIVILEGED, ProfileError, Sensors, resolve
+from sagebench.navsim.protocol import Encoding
+from sagebench.navsim.resumable import run_into
+from sagebench.navsim.rollout import contact_sheet, select_episodes
 from sagebench.navsim.simulator import EnvConfig, Simulator
 from sagebench.threads import share_cores
 
@@ -39,43 +41,93 @@ class RolloutConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     policy: str = Field(default="oracle", description="An http(s):// URL of a policy server, or oracle, straight, random.")
+    split: str | None = Field(default=None, description="Run only this split's episodes.")
+    episode_ids: tuple[str, ...] = Field(default=(), description="Run only these episodes.")
     episodes: int | None = Field(default=None, ge=1, description="Run a seeded sample of this many episodes.")
     seed: int = Field(default=0, description="Seed of the episode sample and of the random policy.")
+    preset: Literal["vlnce"] | None = Field(default=None, description="Another benchmark's settings: vlnce.")
     workers: int = Field(default=2, ge=1, description="Threads stepping MuJoCo and calling the policy server.")
     threads: int | None = Field(default=None, ge=1, description="Cores the renderer's threads use (default: every "
                                                                 "core this process may run on).")
     batch: int = Field(default=8, ge=1, description="Episodes stepped together.")
-    policy_timeout: float = Field(default=60.0, gt=0, description="Seconds to wait for a policy server's reply.")
+    policy_timeout: float = Field(default=60.0, gt=0, description="Deadline of one policy request: connecting, "
+                                                                  "sending and the whole reply, s.")
+    policy_retries: int = Field(default=3, ge=0, description="Retries of a policy request after a connection "
+                                                             "error, with backoff, within its deadline.")
+    policy_encoding: Encoding = Field(default="raw", description="How images go to a policy server: raw, png "
+                                                                 "(RGB as PNG) or json (base64 PNG and .npy).")
+    max_policy_failures: int = Field(default=10, ge=0, description="Episodes the policy may fail before the "
+                                                                   "rollout stops.")
     sheet_episodes: int = Field(default=4, ge=0, description="Episodes shown on the contact sheet.")
-    env: EnvConfig = EnvConfig(observations=("rgb", "depth"))
+    env: EnvConfig = EnvConfig()
+
+    def decisive(self) -> dict:
+        """The settings that decide the predictions (the record keeps them for --resume)."""
+        return self.model_dump(mode="json", include={"policy", "seed", "preset", "env"})
 
 
 # rollout's options and the RolloutConfig fields they set (their defaults and error names come from here)
-OPTIONS = {"--policy": "policy", "--episodes": "episodes", "--seed": "seed", "--workers": "workers",
-           "--threads": "threads",
-           "--width": "env.width", "--height": "env.height", "--max-steps": "env.max_steps",
-           "--obs": "env.observations"}
+OPTIONS = {"--policy": "policy", "--split": "split", "--episode-id": "episode_ids", "--episodes": "episodes",
+           "--seed": "seed", "--preset": "preset", "--workers": "workers", "--threads": "threads",
+           "--policy-timeout": "policy_timeout", "--policy-retries": "policy_retries",
+           "--policy-encoding": "policy_encoding", "--max-policy-failures": "max_policy_failures",
+           "--profile": "env.profile", "--width": "env.width", "--height": "env.height",
+           "--max-steps": "env.max_steps", "--obs": "env.observations", "--privileged": "env.privileged",
+           "--action-space": "env.action_space"}
+# options that decide the predictions: a resumed rollout takes them from its record
+DECISIVE_OPTIONS = ("--split", "--episode-id", "--episodes", "--seed", "--preset", "--profile", "--width", "--height",
+                    "--max-steps", "--obs", "--privileged", "--action-space")
+PROFILE_FIELDS = {"profile": "--profile", "width": "--width", "observations": "--obs"}
 
 
-def parse_obs(text: str) -> tuple[str, ...]:
-    """'rgb,depth' -> ('rgb', 'depth'); 'none' -> (); an unknown name is a ConfigError."""
+def parse_names(text: str, allowed: tuple[str, ...], option: str) -> tuple[str, ...]:
+    """'rgb,depth' -> ('rgb', 'depth'); 'none' -> (); a name not in `allowed` is a ConfigError naming `option`."""
     names = () if text.strip() == "none" else tuple(p.strip() for p in text.split(",") if p.strip())
-    bad = [n for n in names if n not in IMAGE_KEYS]
+    bad = [n for n in names if n not in allowed]
+    if bad == ["instance"] and option == "--obs":
+        raise ConfigError("instance ids are privileged: ask for them with --privileged instance", field=option)
     if bad or not text.strip():
-        raise ConfigError(f"{(bad[0] if bad else text)!r} is not one of {', '.join(IMAGE_KEYS)} (or none)", field="--obs")
+        raise ConfigError(f"{(bad[0] if bad else text)!r} is not one of {', '.join(allowed)} (or none)", field=option)
     return names
 
 
 def make_config(*, width: int | None = None, height: int | None = None, max_steps: int | None = None,
-                obs: str | None = None, **fields: object) -> RolloutConfig:
-    """A RolloutConfig from the options given (None = default); a bad value is a ConfigError naming the option."""
-    env = {"width": width, "height": height, "max_steps": max_steps,
-           "observations": parse_obs(obs) if obs is not None else None}
-    default_obs = RolloutConfig().env.observations
-    config = from_options(RolloutConfig, {**fields, "env": {"observations": default_obs, **env}}, OPTIONS)
+                obs: str | None = None, profile: str | None = None, privileged: str | None = None,
+                action_space: str | None = None, resume: bool = False, **fields: object) -> RolloutConfig:
+    """A RolloutConfig from the options given (None = default); a bad value is a ConfigError naming the option.
+    With `resume`, options that decide the predictions are refused (the record's are used)."""
+    given = {"--width": width, "--height": height, "--max-steps": max_steps, "--obs": obs, "--profile": profile,
+             "--privileged": privileged, "--action-space": action_space,
+             **{opt: fields.get(path) for opt, path in OPTIONS.items() if "." not in path}}
+    if resume:
+        clash = [opt for opt in DECISIVE_OPTIONS if given.get(opt) not in (None, ())]
+        if clash:
+            raise ConfigError("not with --resume: a resumed rollout keeps the settings it was started with",
+                              field=clash[0])
+        if fields.get("policy") in BUILT_IN:
+            raise ConfigError("with --resume, only a policy server's new URL", field="--policy")
+    env = {"profile": profile, "width": width, "height": height, "max_steps": max_steps, "action_space": action_space,
+           "observations": parse_names(obs, ("rgb", "depth"), "--obs") if obs is not None else None,
+           "privileged": parse_names(privileged, PRIVILEGED, "--privileged") if privileged is not None else None}
+    preset = fields.get("preset")
+    if preset is not None and preset not in PRESETS:
+        raise ConfigError(f"{preset!r} is not a preset (one of {', '.join(PRESETS)})", field="--preset")
+    base = preset_env(preset) if preset is not None else {}
+    merged = {**base, **{k: v for k, v in env.items() if v is not None}}
+    try:
+        resolve(merged.get("profile", "custom"), width=width, height=height,
+                observations=merged.get("observations"), privileged=merged.get("privileged") or ())
+    except ProfileError as err:
+        raise ConfigError(str(err), field=PROFILE_FIELDS[err.field]) from None
+    config = from_options(RolloutConfig, {**fields, "env": merged}, OPTIONS)
     p = config.policy
     if p not in BUILT_IN and not p.startswith(("http://", "https://")):
         raise ConfigError(f"{p!r} is neither an http(s):// URL nor one of {', '.join(BUILT_IN)}", field="--policy")
+    if p in BUILT_IN and config.env.action_space != "discrete":
+        raise ConfigError(f"the built-in policy {p} acts in the discrete action space", field="--action-space")
+    if p in BUILT_IN and "pose" not in config.env.privileged:  # the baselines steer by the pose: say so
+        env_fields = {**merged, "privileged": (*config.env.privileged, "pose")}
+        config = from_options(RolloutConfig, {**fields, "env": env_fields}, OPTIONS)
     return config
 
 
@@ -84,15 +136,35 @@ class RolloutSummary:
     policy: str
     out: Path
     sheet: Path | None
-    episodes: int
-    stopped: int
-    steps: int
+    asked: int  # episodes the rollout was asked to run
+    episodes: int  # of them, with a prediction in `out`
+    stopped: int  # predictions whose policy stopped
+    steps: int  # actions taken in this run
     seconds: float
+    failed: list[tuple[str, str]]  # (episode id, why) the policy failed in this run
+    stopped_early: bool  # the failure budget ran out
+    preset: list[str]  # what the preset set differently from the defaults
+
+    @property
+    def complete(self) -> bool:
+        return self.episodes == self.asked
+
+    def lines(self) -> list[str]:
+        sheet = f" and {self.sheet}" if self.sheet else ""
+        out = [f"preset: {'; '.join(self.preset)}"] if self.preset else []
+        out.append(f"rollout {self.policy}: {self.episodes} of {self.asked} episodes ({self.stopped} stopped by the "
+                   f"policy), {self.steps} steps, {self.steps / max(self.seconds, 1e-9):.1f} steps/s -> "
+                   f"{self.out}{sheet}")
+        out += [f"  FAILED by the policy: {eid}: {why}" for eid, why in self.failed]
+        if self.stopped_early:
+            out.append(f"stopped: more than the allowed policy failures ({len(self.failed)})")
+        if not self.complete:
+            out.append(f"{self.asked - self.episodes} episodes to go: sagebench rollout --resume with the same --run "
+                       f"and --out runs them")
+        return out
 
     def summary(self) -> str:
-        sheet = f" and {self.sheet}" if self.sheet else ""
-        return (f"rollout {self.policy}: {self.episodes} episodes ({self.stopped} stopped by the policy), "
-                f"{self.steps} steps, {self.steps / max(self.seconds, 1e-9):.1f} steps/s -> {self.out}{sheet}")
+        return "\n".join(self.lines())
 
 
 def sheet_path(out: Path) -> Path:
@@ -100,34 +172,84 @@ def sheet_path(out: Path) -> Path:
 
 
 def run_rollout(run_dir: Path, out: Path, config: RolloutConfig = RolloutConfig(), *,
-                scene_id: str | None = None) -> RolloutSummary:
-    """Roll the policy out over the run's episodes (or a sample) and write `out` (and the contact sheet) whole."""
+                scene_id: str | None = None, resume: bool = False) -> RolloutSummary:
+    """Roll the policy out over the episodes asked for into `out` (sagebench.navsim.resumable) and write the
+    contact sheet; with `resume`, run those an earlier rollout into `out` left, with its settings."""
     share_cores(config.threads)
+    out = Path(out)
+    earlier = read_record(out) if resume else None
+    config = resumed(config, earlier, out) if resume else config
     sim = Simulator(run_dir, config.env, scene_id=scene_id, threads=config.workers)
-    ids = list(sim.order)
-    if config.episodes is not None and config.episodes < len(ids):
-        pick = np.sort(np.random.default_rng(config.seed).permutation(len(ids))[: config.episodes])
-        ids = [ids[i] for i in pick]
-    if config.policy in BUILT_IN:
-        policy = built_in(config.policy, seed=config.seed, actions=config.env.actions)
-    else:
-        policy = HttpPolicy(config.policy, action_space=config.env.action_space, timeout=config.policy_timeout,
-                            workers=config.workers)
+    asked = earlier.episodes if earlier is not None else select_episodes(
+        [sim.episodes[i] for i in sim.order], split=config.split, ids=config.episode_ids, sample=config.episodes,
+        seed=config.seed)
+    open_inputs(sim, asked, out)
+    record = RolloutRecord(policy=config.policy, episodes=asked, observations=observed(sim.sensors, config.policy),
+                           success_distance=config.env.success_distance, settings=config.decisive())
+    policy = make_policy(config)
+    sheet = sheet_path(out)
     start = time.perf_counter()
-    with ui.progress(len(ids), f"rollout {config.policy}") as update:
-        def on_step(done: int, steps: int) -> None:
-            update(done, f"{steps / max(time.perf_counter() - start, 1e-9):.1f} steps/s")
+    try:
+        with ui.progress(len(asked), f"rollout {config.policy}") as update:
+            def on_step(done: int, steps: int) -> None:
+                update(done, f"{steps / max(time.perf_counter() - start, 1e-9):.1f} steps/s")
 
-        result = rollout(sim, policy, ids, batch=config.batch, sheet=config.sheet_episodes, on_step=on_step)
-    seconds = time.perf_counter() - start
-    sheet = None
-    if result.views:
-        sheet = sheet_path(out)
-        _, png = cv2.imencode(".png", contact_sheet(result.views)[:, :, ::-1])
-        write_bytes(sheet, png.tobytes())
-    write_predictions(Path(out), result.predictions)
-    return RolloutSummary(policy=config.policy, out=Path(out), sheet=sheet, episodes=len(result.predictions),
-                          stopped=sum(p.stopped for p in result.predictions), steps=result.steps, seconds=seconds)
+            written = run_into(out, sim, policy, record, resume=resume, batch=config.batch, on_step=on_step,
+                               sheet=[] if resume and sheet.exists() else asked[: config.sheet_episodes],
+                               max_failures=config.max_policy_failures)
+    except KeyboardInterrupt:
+        raise Interrupted(f"interrupted: the finished episodes are in {out}; sagebench rollout --resume with the "
+                          f"same --run and --out runs the rest") from None
+    finally:
+        if isinstance(policy, HttpPolicy):
+            policy.close()
+    result = written.result
+    if result.views and len(result.views) == min(config.sheet_episodes, len(asked)):
+        write_bytes(sheet, cv2.imencode(".png", contact_sheet(result.views)[:, :, ::-1])[1].tobytes())
+    return RolloutSummary(policy=config.policy, out=out, sheet=sheet if sheet.exists() else None, asked=len(asked),
+                          episodes=len(written.predictions), stopped=sum(p.stopped for p in written.predictions),
+                          steps=result.steps, seconds=time.perf_counter() - start, failed=result.failed,
+                          stopped_early=result.stopped_early,
+                          preset=preset_differences(config.env, EnvConfig()) if config.preset else [])
+
+
+def open_inputs(sim: Simulator, asked: list[str], out: Path) -> None:
+    """Every input the rollout reads, read before a byte is written: the asked episodes and their scenes."""
+    gone = [i for i in asked if i not in sim.episodes]
+    if gone:
+        raise DataError(f"episode {gone[0]!r} of the rollout is not in this run", path=record_path(out))
+    for sid in dict.fromkeys(sim.episodes[i].scene_id for i in asked):
+        sim.world(sid)
+
+
+def make_policy(config: RolloutConfig) -> Policy:
+    """The built-in policy the config names, or a client of its policy server."""
+    if config.policy in BUILT_IN:
+        return built_in(config.policy, seed=config.seed, actions=config.env.actions)
+    return HttpPolicy(config.policy, action_space=config.env.action_space, profile=config.env.profile,
+                      timeout=config.policy_timeout, retries=config.policy_retries, encoding=config.policy_encoding,
+                      workers=config.workers)
+
+
+def resumed(config: RolloutConfig, earlier: RolloutRecord | None, out: Path) -> RolloutConfig:
+    """`config` with the settings of the rollout into `out` being resumed; a policy server may have a new URL."""
+    if earlier is None:
+        raise ConfigError(f"nothing to resume: no {record_path(out).name} beside {out}", field="--resume")
+    policy = earlier.policy
+    if config.policy.startswith(("http://", "https://")):
+        if not policy.startswith(("http://", "https://")):
+            raise ConfigError(f"the rollout being resumed ran the built-in policy {policy}", field="--policy")
+        policy = config.policy
+    return RolloutConfig.model_validate({**config.model_dump(), **earlier.settings, "policy": policy})
+
+
+def observed(sensors: Sensors, policy: str) -> Observed:
+    """The record's `observations`: the profile's, plus what a built-in baseline reads of the episode itself."""
+    seen = sensors.describe()
+    if policy in BUILT_IN:
+        seen["privileged"] = [*seen["privileged"], "episode"]
+        seen["keys"]["episode"] = "the goal and the reference path (a built-in baseline)"
+    return Observed.model_validate(seen)
 
 
 class BaselineConfig(BaseModel):
@@ -143,7 +265,7 @@ class BaselineConfig(BaseModel):
     def rollout(self) -> RolloutConfig:
         """The rollout these settings name."""
         return RolloutConfig(policy=self.agent_name, seed=self.seed, workers=self.workers, sheet_episodes=0,
-                             env=EnvConfig(observations=(), max_steps=self.max_actions))
+                             env=EnvConfig(observations=(), privileged=("pose",), max_steps=self.max_actions))
 
 
 # baseline's options and the BaselineConfig fields they set (their defaults and error names come from here)

@@ -1,0 +1,101 @@
+"""The HTTP transport against local policy servers that drip, hang, fail or close connections: one deadline per
+request, retries for connection errors only, a failed request fails its slot alone, opaque episode ids.
+
+The two deadline tests bound a request's wall time by its timeout plus 5 s (the rollout's promise to the user);
+they measure a hang being cut, not the machine's speed, and hold with seconds to spare under any load."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+import pytest
+
+from fake_policy import FakePolicy
+from sagebench.evaluation.scoring import Episode
+from sagebench.navsim.actions import Action
+from sagebench.navsim.http_policy import HttpPolicy, RequestFailed, post
+from sagebench.navsim.policies import PolicyFailure
+from sagebench.navsim.protocol import encode_request, request_fields
+
+OBS = {"depth": np.full((4, 4), 2.0, np.float32), "instruction": "go on"}
+
+
+def body(step: int = 0) -> tuple[str, bytes]:
+    return encode_request(OBS, request_fields(OBS, episode_id="e", step=step, action_space="discrete",
+                                              profile="custom"))
+
+
+@pytest.fixture
+def server():
+    made: list[FakePolicy] = []
+
+    def start(*args, **kwargs) -> FakePolicy:
+        made.append(FakePolicy(*args, **kwargs))
+        return made[-1]
+
+    yield start
+    for s in made:
+        s.close()
+
+
+@pytest.mark.parametrize("fault", ["drip", "hang"])
+def test_a_slow_or_hung_server_is_cut_at_the_deadline(server, fault):
+    s = server(fault)
+    content_type, data = body()
+    start = time.monotonic()
+    with pytest.raises(RequestFailed, match=r"^no reply within 1 s$"):
+        post(s.url, data, content_type, timeout=1.0)
+    assert time.monotonic() - start < 1.0 + 5.0
+    assert s.requests == 1  # a timeout is not retried
+
+
+def test_a_closed_connection_is_retried_and_then_answered(server):
+    s = server("close", faulty=lambda n: n <= 2)
+    content_type, data = body()
+    assert json.loads(post(s.url, data, content_type, timeout=30.0, retries=3)) == {"action": "MOVE_FORWARD"}
+    assert s.requests == 3
+
+
+def test_connections_that_keep_closing_fail_after_the_retries(server):
+    s = server("close")
+    content_type, data = body()
+    with pytest.raises(RequestFailed, match="^connection error: RemoteDisconnected"):
+        post(s.url, data, content_type, timeout=30.0, retries=2)
+    assert s.requests == 3
+
+
+def test_an_http_error_is_not_retried(server):
+    s = server("status500")
+    content_type, data = body()
+    with pytest.raises(RequestFailed, match="^HTTP 500 policy crashed$"):
+        post(s.url, data, content_type, timeout=30.0, retries=3)
+    assert s.requests == 1
+
+
+def test_a_refused_connection_fails_within_the_deadline():
+    content_type, data = body()
+    with pytest.raises(RequestFailed, match="^connection error: ConnectionRefusedError"):
+        post("http://127.0.0.1:9/act", data, content_type, timeout=30.0, retries=1)
+
+
+def episode(eid: str) -> Episode:
+    z = np.zeros(3)
+    return Episode(eid, "s", "low", "Base_Action", z, 0.0, z, 1.0, 1.0, np.zeros((2, 4)))
+
+
+def test_a_failed_request_fails_its_slot_only_and_ids_are_opaque_per_rollout(server):
+    s = server("status500", faulty=lambda n: n == 2)
+    policy = HttpPolicy(s.url, timeout=30.0, workers=1)
+    policy.begin([episode("ep-a"), episode("ep-b"), episode("ep-c")])
+    infos = [{"steps": 0}] * 3
+    actions = policy.act([0, 1, 2], [OBS] * 3, infos)
+    assert actions[0] == actions[2] == Action.MOVE_FORWARD and isinstance(actions[1], PolicyFailure)
+    assert actions[1].reason == f"policy {s.url} (step 0): HTTP 500 policy crashed"
+    sent = [fields["episode_id"] for fields, _ in s.seen]
+    assert sent == policy.ids[::2] and all(len(i) == 16 and not i.startswith("ep") for i in policy.ids)
+    other = HttpPolicy(s.url)
+    other.begin([episode("ep-a")])
+    assert policy.opaque_id("ep-a") == policy.ids[0] != other.ids[0]  # stable in a rollout, new in the next
+    policy.close()
