@@ -527,7 +527,9 @@ def baseline_cmd(
 def rollout_cmd(
     run_dir: Annotated[Path, typer.Option("--run", help="Run directory (build-scene, gen-trajectories, export-usd).")],
     out: Annotated[Path, typer.Option("--out", help="Predictions file to write (JSON Lines).")],
-    policy: Annotated[str | None, typer.Option(help="A policy server's http(s):// URL, or oracle, straight, random.")] = None,
+    policy: Annotated[str | None, typer.Option(
+        help="A policy server's http(s):// URL, oracle, straight, random, or vlnce:MODULE:NAME (a VLN-CE agent class "
+             "or object, run in-process).")] = None,
     split: Annotated[str | None, typer.Option("--split", help="Only this split's episodes: train, val_seen, "
                                                                "val_unseen or test.")] = None,
     episode_id: Annotated[list[str] | None, typer.Option("--episode-id", help="Only this episode (repeat for "
@@ -560,6 +562,7 @@ def rollout_cmd(
     threads: Annotated[int | None, typer.Option(
         help="Cores the renderer's threads use, which wait passively when idle (default: every core this process "
              "may run on).")] = None,
+    batch: Annotated[int | None, typer.Option(help="Episodes stepped together (results do not depend on it).")] = None,
     seed: Annotated[int | None, typer.Option(help="Seed of the episode sample and of the random policy.")] = None,
 ) -> None:
     """Run a policy closed-loop in the simulator: it sees rendered views, acts (STOP, MOVE_FORWARD 0.25 m,
@@ -567,7 +570,8 @@ def rollout_cmd(
     step's collision intensity.
 
     A URL policy gets one HTTP POST per step and episode (docs: the policy protocol); oracle, straight and random
-    are the built-in baselines. Reads RUN/episodes/<id>/, RUN/scenes/<id>/ (scene.json, topdown.npz,
+    are the built-in baselines; vlnce:MODULE:NAME imports an agent with habitat's Agent interface and runs it
+    in-process with VLN-CE's observations and actions. Reads RUN/episodes/<id>/, RUN/scenes/<id>/ (scene.json, topdown.npz,
     gaussians.ply, scene.xml, colliders/). Writes OUT (one JSON line per episode, appended as each ends, in run
     order once all have: poses, stopped, the simulator's collision_intensity marked intensity_source
     "simulator"), OUT's stem + _rollout.json (the episodes asked for, the observations the policy had, the
@@ -580,8 +584,8 @@ def rollout_cmd(
                          preset=preset, profile=profile, obs=obs, privileged=privileged, width=width, height=height,
                          action_space=action_space, max_steps=max_steps, policy_timeout=policy_timeout,
                          policy_retries=policy_retries, policy_encoding=policy_encoding,
-                         max_policy_failures=max_policy_failures, workers=workers, threads=threads, seed=seed,
-                         resume=resume)
+                         max_policy_failures=max_policy_failures, workers=workers, threads=threads, batch=batch,
+                         seed=seed, resume=resume)
     result = run_rollout(run_dir, out, config, scene_id=scene, resume=resume)
     typer.echo(result.summary())
     if not result.complete:

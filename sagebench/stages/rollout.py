@@ -11,6 +11,8 @@ kept for its options: one implementation of the baselines, their c(t) the simula
 
 from __future__ import annotations
 
+import importlib
+import re
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,7 +22,7 @@ import cv2
 from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench import ui
-from sagebench.adapters.vlnce import PRESETS, preset_differences, preset_env
+from sagebench.adapters.vlnce import PRESETS, VlnceAgents, preset_differences, preset_env
 from sagebench.config import from_options
 from sagebench.errors import ConfigError, DataError, Interrupted
 from sagebench.evaluation.record import Observed, RolloutRecord, read_record, record_path
@@ -40,7 +42,8 @@ class RolloutConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    policy: str = Field(default="oracle", description="An http(s):// URL of a policy server, or oracle, straight, random.")
+    policy: str = Field(default="oracle", description="An http(s):// URL of a policy server, oracle, straight, "
+                                                      "random, or vlnce:MODULE:NAME (a VLN-CE agent in-process).")
     split: str | None = Field(default=None, description="Run only this split's episodes.")
     episode_ids: tuple[str, ...] = Field(default=(), description="Run only these episodes.")
     episodes: int | None = Field(default=None, ge=1, description="Run a seeded sample of this many episodes.")
@@ -66,9 +69,11 @@ class RolloutConfig(BaseModel):
         return self.model_dump(mode="json", include={"policy", "seed", "preset", "env"})
 
 
+AGENT_SPEC = re.compile(r"vlnce:(?P<module>[\w.]+):(?P<name>\w+)")  # a VLN-CE agent (class or object) to import
+
 # rollout's options and the RolloutConfig fields they set (their defaults and error names come from here)
 OPTIONS = {"--policy": "policy", "--split": "split", "--episode-id": "episode_ids", "--episodes": "episodes",
-           "--seed": "seed", "--preset": "preset", "--workers": "workers", "--threads": "threads",
+           "--seed": "seed", "--preset": "preset", "--workers": "workers", "--threads": "threads", "--batch": "batch",
            "--policy-timeout": "policy_timeout", "--policy-retries": "policy_retries",
            "--policy-encoding": "policy_encoding", "--max-policy-failures": "max_policy_failures",
            "--profile": "env.profile", "--width": "env.width", "--height": "env.height",
@@ -121,10 +126,14 @@ def make_config(*, width: int | None = None, height: int | None = None, max_step
         raise ConfigError(str(err), field=PROFILE_FIELDS[err.field]) from None
     config = from_options(RolloutConfig, {**fields, "env": merged}, OPTIONS)
     p = config.policy
-    if p not in BUILT_IN and not p.startswith(("http://", "https://")):
-        raise ConfigError(f"{p!r} is neither an http(s):// URL nor one of {', '.join(BUILT_IN)}", field="--policy")
+    if p not in BUILT_IN and not p.startswith(("http://", "https://")) and not AGENT_SPEC.fullmatch(p):
+        raise ConfigError(f"{p!r} is neither an http(s):// URL, vlnce:MODULE:NAME nor one of {', '.join(BUILT_IN)}",
+                          field="--policy")
     if p in BUILT_IN and config.env.action_space != "discrete":
         raise ConfigError(f"the built-in policy {p} acts in the discrete action space", field="--action-space")
+    if AGENT_SPEC.fullmatch(p) and (config.env.profile, config.env.action_space) != ("vlnce", "discrete"):
+        raise ConfigError("a VLN-CE agent needs the vlnce profile and discrete actions (--preset vlnce)",
+                          field="--profile")
     if p in BUILT_IN and "pose" not in config.env.privileged:  # the baselines steer by the pose: say so
         env_fields = {**merged, "privileged": (*config.env.privileged, "pose")}
         config = from_options(RolloutConfig, {**fields, "env": env_fields}, OPTIONS)
@@ -194,7 +203,8 @@ def run_rollout(run_dir: Path, out: Path, config: RolloutConfig = RolloutConfig(
             def on_step(done: int, steps: int) -> None:
                 update(done, f"{steps / max(time.perf_counter() - start, 1e-9):.1f} steps/s")
 
-            written = run_into(out, sim, policy, record, resume=resume, batch=config.batch, on_step=on_step,
+            batch = 1 if isinstance(policy, VlnceAgents) and not policy.fresh else config.batch
+            written = run_into(out, sim, policy, record, resume=resume, batch=batch, on_step=on_step,
                                sheet=[] if resume and sheet.exists() else asked[: config.sheet_episodes],
                                max_failures=config.max_policy_failures)
     except KeyboardInterrupt:
@@ -223,9 +233,16 @@ def open_inputs(sim: Simulator, asked: list[str], out: Path) -> None:
 
 
 def make_policy(config: RolloutConfig) -> Policy:
-    """The built-in policy the config names, or a client of its policy server."""
+    """The built-in policy the config names, a VLN-CE agent in-process, or a client of its policy server."""
     if config.policy in BUILT_IN:
         return built_in(config.policy, seed=config.seed, actions=config.env.actions)
+    spec = AGENT_SPEC.fullmatch(config.policy)
+    if spec:
+        try:
+            agent = getattr(importlib.import_module(spec["module"]), spec["name"])
+            return VlnceAgents(agent)
+        except (ImportError, AttributeError, ValueError) as err:
+            raise ConfigError(f"cannot run {config.policy!r}: {err}", field="--policy") from None
     return HttpPolicy(config.policy, action_space=config.env.action_space, profile=config.env.profile,
                       timeout=config.policy_timeout, retries=config.policy_retries, encoding=config.policy_encoding,
                       workers=config.workers)

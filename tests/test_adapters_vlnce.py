@@ -1,0 +1,110 @@
+"""The VLN-CE adapter: an agent written as vlnce_baselines writes them (tests/vlnce_agents.py) runs unchanged
+in-process and behind the policy protocol with identical predictions; the vlnce preset's settings and their
+effect on scoring."""
+
+from __future__ import annotations
+
+import json
+import threading
+
+import numpy as np
+import pytest
+
+from sagebench.adapters.vlnce import serve, vlnce_action, vlnce_observations
+from sagebench.navsim.actions import Action
+
+VLNCE_RUN = ("--preset", "vlnce", "--episodes", "3", "--seed", "1")
+
+
+@pytest.fixture
+def agent_server():
+    servers = []
+
+    def start(agent):
+        server = serve(agent)
+        thread = threading.Thread(target=server.serve_forever, daemon=True)
+        thread.start()
+        servers.append((server, thread))
+        return f"http://127.0.0.1:{server.server_address[1]}/act"
+
+    yield start
+    for server, thread in servers:
+        server.shutdown()
+        server.server_close()
+        thread.join(timeout=10)
+
+
+def test_an_agent_runs_unchanged_in_process_and_over_http_with_identical_results(demo_eval_run, tmp_path, run_cli,
+                                                                               agent_server):
+    import vlnce_agents
+
+    inproc, http, one = tmp_path / "in.jsonl", tmp_path / "http.jsonl", tmp_path / "one.jsonl"
+    code, stdout, err = run_cli("rollout", "--run", demo_eval_run, "--out", inproc, "--policy",
+                                "vlnce:vlnce_agents:DepthAgent", *VLNCE_RUN)
+    assert code == 0, err
+    assert stdout.startswith("preset: success distance 3 m (default: each episode's goal_radius); agent radius 0.1 m "
+                             "(default 0.2); agent height 1.5 m (default 1.2); camera height 1.25 m (default 1.2); "
+                             "observations: the vlnce profile (default custom)\n")
+    code, _, err = run_cli("rollout", "--run", demo_eval_run, "--out", http, "--policy",
+                           agent_server(vlnce_agents.DepthAgent), *VLNCE_RUN)
+    assert code == 0, err
+    assert http.read_bytes() == inproc.read_bytes()
+    rows = [json.loads(t) for t in inproc.read_text().splitlines()]
+    assert len(rows) == 3 and all(r["stopped"] for r in rows) and max(len(r["poses"]) for r in rows) >= 5
+    moved = [np.hypot(*np.diff(np.array(r["poses"])[:, :2], axis=0).T).sum() for r in rows]
+    assert max(moved) > 0.5  # it walked, not only turned
+    assert run_cli("rollout", "--run", demo_eval_run, "--out", one, "--policy", "vlnce:vlnce_agents:ONE_AGENT",
+                   *VLNCE_RUN)[0] == 0
+    assert one.read_bytes() == inproc.read_bytes()  # one object, one episode at a time: the same
+    # what the agent saw: VLN-CE's shapes and dtypes
+    assert set(vlnce_agents.ONE_AGENT.checked) == {((224, 224, 3), np.dtype(np.uint8), (256, 256, 1), np.dtype(np.float32), 200)}
+
+
+def test_the_agent_gets_vlnces_observation_keys():
+    obs = {"rgb": np.zeros((224, 224, 3), np.uint8), "depth": np.zeros((256, 256, 1), np.float32),
+           "instruction": "go", "instruction_tokens": np.array([5, 0], np.int64), "gps": np.zeros(2, np.float32)}
+    seen = vlnce_observations(obs, 42)
+    assert set(seen) == {"rgb", "depth", "instruction", "gps"}
+    assert seen["instruction"] == {"text": "go", "tokens": [5, 0], "trajectory_id": 42}
+    with pytest.raises(ValueError, match="needs the vlnce profile's observations .*; instruction_tokens is missing"):
+        vlnce_observations({k: v for k, v in obs.items() if k != "instruction_tokens"}, 1)
+
+
+@pytest.mark.parametrize("reply, expected", [
+    ({"action": 0}, Action.STOP), ({"action": np.int64(1)}, Action.MOVE_FORWARD), (2, Action.TURN_LEFT),
+    ("TURN_RIGHT", Action.TURN_RIGHT), ({"action": {"action": "STOP"}}, Action.STOP),
+])
+def test_habitat_style_actions_are_vlnces_ids(reply, expected):
+    assert vlnce_action(reply) == expected
+
+
+@pytest.mark.parametrize("reply", [{"action": 4}, {"action": True}, {"action": "JUMP"}, None])
+def test_anything_else_is_refused(reply):
+    with pytest.raises(ValueError, match="is not one of VLN-CE's 0 STOP, 1 MOVE_FORWARD, 2 TURN_LEFT, 3 TURN_RIGHT"):
+        vlnce_action(reply)
+
+
+def test_a_vlnce_agent_without_the_vlnce_profile_is_refused(demo_eval_run, tmp_path, run_cli):
+    code, _, err = run_cli("rollout", "--run", demo_eval_run, "--out", tmp_path / "p.jsonl", "--policy",
+                           "vlnce:vlnce_agents:DepthAgent")
+    assert code == 2 and err == ("error: --profile: a VLN-CE agent needs the vlnce profile and discrete actions "
+                                 "(--preset vlnce)\n")
+    code, _, err = run_cli("rollout", "--run", demo_eval_run, "--out", tmp_path / "p.jsonl", "--policy",
+                           "vlnce:vlnce_agents:Nobody", "--preset", "vlnce")
+    assert code == 2 and err.startswith("error: --policy: cannot run 'vlnce:vlnce_agents:Nobody': ")
+    assert not list(tmp_path.iterdir())
+
+
+def test_the_preset_scores_success_within_3_m(demo_eval_run, tmp_path, run_cli):
+    out, res = tmp_path / "s.jsonl", tmp_path / "r.json"
+    assert run_cli("rollout", "--run", demo_eval_run, "--out", out, "--policy", "straight", "--preset", "vlnce",
+                   "--obs", "none")[0] == 2  # the vlnce profile renders its own images
+    assert run_cli("rollout", "--run", demo_eval_run, "--out", out, "--policy", "straight", "--preset", "vlnce",
+                   "--episodes", "6", "--max-steps", "40")[0] == 0
+    code, stdout, _ = run_cli("evaluate", "--run", demo_eval_run, "--predictions", out, "--out", res)
+    data = json.loads(res.read_text())
+    stopped = {json.loads(t)["episode_id"]: json.loads(t)["stopped"] for t in out.read_text().splitlines()}
+    assert code == 0 and data["rollout"]["success_distance"] == 3.0 and "success within 3 m" in stdout
+    for e in data["per_episode"]:
+        assert e["sr"] == float(stopped[e["episode_id"]] and e["ne"] <= 3.0)
+    assert any(e["sr"] == 1.0 and e["ne"] > 1.0 for e in data["per_episode"])  # a success at 1 m would fail it
