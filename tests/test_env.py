@@ -228,3 +228,23 @@ def test_an_unreachable_policy_server_fails_its_episodes_and_says_how_to_resume(
     assert f"  FAILED by the policy: {eid}: policy http://127.0.0.1:9/act (step 0): connection error: " in stdout
     assert "1 episodes to go: sagebench rollout --resume" in stdout
     assert [f["episode_id"] for f in record["failed_by_policy"]] == [eid]
+
+
+def test_turning_in_place_beside_a_wall_scores_no_contact(demo_eval_run):
+    from sagebench.replay.contact import contact_share
+
+    env = NavEnv(demo_eval_run, BLIND.model_copy(update={"max_steps": 80}))
+    for seed in range(10):  # walk straight ahead until a wall stops the agent dead
+        env.reset(seed=seed)
+        while True:
+            obs, _, terminated, truncated, info = env.step(Action.MOVE_FORWARD)
+            if info["collision_intensity"] > 0.9 or terminated or truncated:
+                break
+        if info["collision_intensity"] > 0.9:
+            break
+    assert info["collision_intensity"] > 0.9, "no episode walked into a wall"
+    pressed = obs["pose"]
+    obs, _, _, _, info = env.step(Action.TURN_LEFT)
+    rm = env.sim.world(env.sim.slots[0].episode.scene_id).model
+    assert contact_share(rm, [np.array([pressed, obs["pose"]])])[0][1] == 1.0  # within 1 cm of the wall
+    assert info["collision_intensity"] == 0.0 and obs["pose"][:2].tolist() == pytest.approx(pressed[:2].tolist(), abs=1e-3)

@@ -8,7 +8,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from sagebench.evaluation.intensity import STEP_REPLAY, blocked_fraction, replay_intensity
+from sagebench.evaluation.intensity import (
+    STEP_REPLAY, blocked_fraction, derive_intensity, pure_turns, replay_intensity,
+)
 from sagebench.replay.contact import contact_share
 from sagebench.replay.physics import build_replay_model, replay_one
 
@@ -84,3 +86,12 @@ def test_contact_share_counts_positions_within_the_contact_distance(rm):
     assert c[1] == 1.0 and c[2] == pytest.approx(1 / 11)
     free = np.array([[0.0, -2.0, 0, 0], [0.5, -2.5, 0, 0]])
     assert contact_share(rm, [free])[0].tolist() == [0.0, 0.0]
+
+
+def test_a_derived_turn_in_place_counts_no_contact_but_pressing_does(rm):
+    touch = 2.95 - 0.2 - 0.005  # within the contact distance of the wall
+    poses = np.array([[touch, -2.0, 0, 0.0], [touch, -2.0, 0, 0.26], [touch, -2.0, 0, 0.26], [touch, -2.0, 0, -0.1]])
+    assert pure_turns(poses, min_step=rm.config.waypoint_tolerance).tolist() == [False, True, False, True]
+    (c,) = derive_intensity(rm, [poses])
+    assert c.tolist() == [0.0, 0.0, 1.0, 0.0]  # turn; pressed (no move, no turn); turn
+    assert contact_share(rm, [poses])[0].tolist() == [0.0, 1.0, 1.0, 1.0]  # what contact alone counted before

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from sagebench.navsim.actions import Action, ActionConfig, continuous_commands, discrete_commands
-from sagebench.navsim.motion import Agents, MotionConfig
+from sagebench.navsim.motion import Agents, MotionConfig, blocked_share
 from sagebench.replay.physics import ReplayConfig, build_replay_model
 
 WALL_X = 2.95  # the room's wall face (conftest.room_mjcf); agent radius 0.2
@@ -94,3 +94,31 @@ def test_bad_actions_are_refused():
         discrete_commands(np.array([4]), ActionConfig())
     with pytest.raises(ValueError, match="top speed"):
         ActionConfig(forward_step=1.0, control_interval=0.5)
+
+
+@pytest.mark.parametrize("commanded, achieved, turn, turned, touched, c", [
+    ((0.25, 0.0), (0.0, 0.0), 0.0, 0.0, True, 1.0),  # a move stopped dead
+    ((0.25, 0.0), (0.125, 0.05), 0.0, 0.0, True, 0.5),  # half of it along the commanded direction
+    ((0.25, 0.0), (0.0, 0.0), 0.0, 0.0, False, 0.0),  # no contact, no intensity
+    ((0.0, 0.0), (0.0, 0.0), 0.26, 0.26, True, 0.0),  # a turn beside a wall that turned in full
+    ((0.0, 0.0), (0.001, 0.0), -0.26, -0.13, True, 0.5),  # a turn half blocked
+    ((0.0, 0.0), (0.0, 0.0), 0.26, -0.1, True, 1.0),  # turned back: clipped to 1
+    ((0.0, 0.0), (0.0, 0.0), 0.0, 0.0, True, 0.0),  # told to stand still
+])
+def test_blocked_share_known_answers(commanded, achieved, turn, turned, touched, c):
+    got = blocked_share(np.array([commanded]), np.array([achieved]), np.array([turn]), np.array([turned]),
+                        np.array([touched]))
+    assert got[0] == pytest.approx(c)
+
+
+def test_turning_in_place_against_a_wall_is_not_a_collision(room):
+    cfg = ActionConfig()
+    agents = Agents(room, np.array([[2.0, -2.0, 0.0]]))
+    forward = discrete_commands(np.array([Action.MOVE_FORWARD]), cfg)
+    for _ in range(6):  # up against the wall
+        motion = agents.move(np.array([0]), *forward[:2], cfg.control_interval)
+    assert motion.collided[0] and motion.intensity[0] == pytest.approx(1.0, abs=0.02)
+    for action in (Action.TURN_LEFT, Action.TURN_LEFT, Action.TURN_RIGHT):
+        motion = agents.move(np.array([0]), *discrete_commands(np.array([action]), cfg)[:2], cfg.control_interval)
+        assert motion.collided[0]  # it touches the wall while it turns
+        assert motion.intensity[0] == pytest.approx(0.0, abs=1e-9)  # the prism turned in full: nothing blocked it

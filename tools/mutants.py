@@ -224,6 +224,13 @@ MUTANTS = (
     Mutant("evaluate scores a rollout's unasked episodes too", "sagebench/stages/evaluate.py",
            "asked_only = record is not None and not config.all_episodes", "asked_only = False",
            ("tests/test_cli_rollout.py",)),
+    Mutant("turning beside a wall counts as contact (simulator)", "sagebench/navsim/simulator.py",
+           "np.where(translating, np.maximum(motion.intensity, near), motion.intensity)",
+           "np.maximum(motion.intensity, near)", ("tests/test_env.py",)),
+    Mutant("a derived turn in place counts the contact around it", "sagebench/evaluation/intensity.py",
+           "np.where(pure_turns(p, min_step=tol), 0.0, n)", "n", ("tests/test_evaluation_intensity.py",)),
+    Mutant("a blocked turn costs nothing", "sagebench/navsim/motion.py",
+           "np.where(turning, 1.0 - share, 0.0)", "0.0", ("tests/test_navsim_motion.py",)),
 )
 
 

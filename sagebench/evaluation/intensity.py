@@ -20,8 +20,11 @@ reports), so evaluate also derives contact: `sagebench.replay.contact.contact_sh
 measured c(t) uses it too) is the share of the positions along a step (its
 start, its end and every SAMPLE_SPACING between) where the agent's cylinder comes within CONTACT_DISTANCE
 (0.01 m) of a collider, and a derived c(t) is the larger of the two. A step that stays where it is counts its
-one pose: an agent pressed against a wall scores 1 there. Paths planned on the navigable map keep at least
-0.02 m from the colliders (the demo's oracle: 0.020 m at its closest), so following them costs nothing.
+one pose: an agent pressed against a wall scores 1 there — unless the step turned in place (its heading changed):
+a turn counts only when the turn itself is blocked, which poses that show it completed rule out, so a pure turn
+derives c(t) = 0 (the simulator measures a blocked turn: sagebench.navsim.motion). Paths planned on the navigable
+map keep at least 0.02 m from the colliders (the demo's oracle: 0.020 m at its closest), so following them costs
+nothing.
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from sagebench.replay.contact import CONTACT_DISTANCE
+from sagebench.replay.contact import CONTACT_DISTANCE, contact_share
 from sagebench.replay.physics import ReplayConfig, ReplayModel, replay_batch
 
 # Replay settings for single agent steps: a step ends within 5 mm of its target (not 2 cm: the deadbeat drive
@@ -40,7 +43,8 @@ from sagebench.replay.physics import ReplayConfig, ReplayModel, replay_batch
 STEP_REPLAY = ReplayConfig(stall_time=0.5, time_slack=1.0, waypoint_tolerance=0.005)
 ICP_NOTE = ("measured: c(t) from sagebench rollout's simulator; self-reported: the agent's own; derived: evaluate "
             "replayed each step from pose t-1 towards pose t, c(t) = the larger of the share of the motion contact "
-            f"blocked and the share of the step within {CONTACT_DISTANCE} m of a collider")
+            f"blocked and the share of the step within {CONTACT_DISTANCE} m of a collider; a turn in place counts "
+            "only when the turn itself is blocked")
 ARRIVAL_TOLERANCE = 0.05  # m, one map cell: a step that ended this close to its target was not blocked (a brush)
 
 
@@ -76,3 +80,21 @@ def replay_intensity(rm: ReplayModel, poses: Sequence[np.ndarray], *, threads: i
         c[moving] = blocked_fraction(starts[moving], targets[moving], end, min_step=tol)
     bounds = np.cumsum([0] + [len(s) - 1 for s in seqs])
     return [np.concatenate([[0.0], c[bounds[i]: bounds[i + 1]]]) for i in range(len(seqs))]
+
+
+def pure_turns(poses: np.ndarray, *, min_step: float) -> np.ndarray:
+    """[T] bool for poses [T, 4] (x, y, z, yaw): the steps that turned in place (moved less than `min_step` m in XY,
+    heading changed); row 0 is False."""
+    p = np.asarray(poses, dtype=np.float64)
+    still = np.linalg.norm(np.diff(p[:, :2], axis=0), axis=1) < min_step
+    turned = np.abs(np.remainder(np.diff(p[:, 3]) + np.pi, 2 * np.pi) - np.pi) > 1e-9
+    return np.concatenate([[False], still & turned])
+
+
+def derive_intensity(rm: ReplayModel, poses: Sequence[np.ndarray], *, threads: int = 2) -> list[np.ndarray]:
+    """Derived c(t) [T_i] per pose sequence [T_i, 4]: the larger of the replayed motion shortfall and the share of
+    the step in contact, a pure turn's contact left out (module docstring)."""
+    blocked = replay_intensity(rm, poses, threads=threads)
+    near = contact_share(rm, poses, threads=threads)
+    tol = rm.config.waypoint_tolerance
+    return [np.maximum(b, np.where(pure_turns(p, min_step=tol), 0.0, n)) for p, b, n in zip(poses, blocked, near)]

@@ -10,6 +10,9 @@ Per agent and interval, from the poses p_0 (start) .. p_S (end) and their contac
 - commanded motion: the sum over steps of v dt along the heading at that step (contact never turns the agent);
 - c(t) = clip(1 - (achieved . commanded) / |commanded|^2, 0, 1) when the agent touched a collider at any
   p_k and was commanded to move, else 0 (DESIGN.md's definition, the simulator's own measurement);
+- a pure turn (no translation commanded) is blocked only by the turn itself: c(t) = clip(1 - achieved / commanded
+  rotation, 0, 1) when the agent touched a collider, else 0 (the agent's prism is not round, so a wall can stop
+  its corners; standing near a wall while turning costs nothing);
 - recovery: when p_S penetrates deeper than recovery_depth, the agent returns to the last p_k that does not,
   at rest (p_0 if none).
 
@@ -106,10 +109,8 @@ class Agents:
         commanded = (np.asarray(v, dtype=np.float64)[:, None, None] * dt * heading).sum(axis=1)
         achieved = pose[:, steps, :2] - pose[:, 0, :2]
         touched = (found > 0).any(axis=1)
-        norm2 = (commanded**2).sum(axis=1)
-        moving = norm2 > 1e-18
-        ratio = np.divide((achieved * commanded).sum(axis=1), norm2, out=np.ones(b), where=moving)
-        intensity = np.where(touched & moving, np.clip(1.0 - ratio, 0.0, 1.0), 0.0)
+        turn = np.asarray(omega, dtype=np.float64) * dt * steps
+        intensity = blocked_share(commanded, achieved, turn, pose[:, steps, 2] - pose[:, 0, 2], touched)
         recover = depth[:, steps] > config.recovery_depth
         end = states[:, steps].copy()
         for i in np.flatnonzero(recover):
@@ -119,6 +120,20 @@ class Agents:
         self.state[rows] = end
         return Motion(pose=end[:, self._qcols], collided=touched, intensity=intensity, recovered=recover,
                       penetration=depth[:, steps])
+
+
+def blocked_share(commanded: np.ndarray, achieved: np.ndarray, turn: np.ndarray, turned: np.ndarray,
+                  touched: np.ndarray) -> np.ndarray:
+    """c(t) [b] of intervals (module docstring) from the commanded and achieved XY motion [b, 2] (m), the commanded
+    and achieved rotation [b] (rad) and whether the agent touched a collider [b]: the share of the commanded
+    translation contact blocked, or for a pure turn the share of the rotation; 0 without contact."""
+    norm2 = (commanded**2).sum(axis=1)
+    moving = norm2 > 1e-18
+    ratio = np.divide((achieved * commanded).sum(axis=1), norm2, out=np.ones(len(norm2)), where=moving)
+    turning = ~moving & (np.abs(turn) > 1e-12)
+    share = np.divide(turned, turn, out=np.ones(len(turn)), where=turning)
+    shortfall = np.where(moving, 1.0 - ratio, np.where(turning, 1.0 - share, 0.0))
+    return np.where(touched, np.clip(shortfall, 0.0, 1.0), 0.0)
 
 
 def wrap(yaw: np.ndarray | float) -> np.ndarray:

@@ -5,9 +5,11 @@ MuJoCo call (motion.py), ends slots on STOP, on the step limit or on leaving the
 running slot's view in one renderer call per scene (observe.py). Slots never influence each other: stepping
 episodes together gives byte for byte what stepping them one at a time gives (tests/test_navsim_simulator.py).
 Running metrics per slot: the distance on foot to the goal, success (stopped within the goal radius on foot)
-and c(t) of the last action: the larger of the motion shortfall motion.py measures and the share of the step
-(from the pose before to the pose after, every 2 cm) within 0.01 m of a collider (sagebench.replay.contact,
-the same check evaluate derives c(t) with), so sliding along a wall at full speed counts too; the reward is the step's progress on foot towards the goal.
+and c(t) of the last action: for an action that translates, the larger of the motion shortfall motion.py
+measures and the share of the step (from the pose before to the pose after, every 2 cm) within 0.01 m of a
+collider (sagebench.replay.contact, the same check evaluate derives c(t) with), so sliding along a wall at full
+speed counts too; for a pure turn, only the share of the rotation contact blocked (motion.py): turning in place
+beside a wall is not a collision. The reward is the step's progress on foot towards the goal.
 """
 
 from __future__ import annotations
@@ -184,7 +186,8 @@ class Simulator:
                                             np.array([x[2] for x in items]), c.actions.control_interval, c.motion)
             steps = [np.array([s.poses[-1][:2], p[:2]]) for s, p in zip(slots, motion.pose)]
             near = [share[1] for share in contact_share(self._worlds[sid].model, steps, threads=self.threads)]
-            intensity = np.maximum(motion.intensity, near)
+            translating = np.array([x[1] for x in items]) > 0  # a pure turn counts only its own blocking
+            intensity = np.where(translating, np.maximum(motion.intensity, near), motion.intensity)
             for k, s in enumerate(slots):
                 x, y, yaw = motion.pose[k]
                 s.poses.append(_rounded((float(x), float(y), s.world.model.floor_z, float(wrap(yaw)))))

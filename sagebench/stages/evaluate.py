@@ -20,8 +20,7 @@ from sagebench.config import AgentConfig, from_options
 from sagebench.episodes.load import load_episodes
 from sagebench.episodes.splits import SPLITS
 from sagebench.errors import ConfigError, DataError
-from sagebench.evaluation.intensity import ICP_NOTE, STEP_REPLAY, replay_intensity
-from sagebench.replay.contact import contact_share
+from sagebench.evaluation.intensity import ICP_NOTE, STEP_REPLAY, derive_intensity
 from sagebench.evaluation.predictions import Prediction, match_episodes, read_predictions
 from sagebench.evaluation.record import RolloutRecord, read_record, record_path
 from sagebench.evaluation.scoring import (
@@ -214,8 +213,7 @@ def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = Evaluate
         ids = [e.episode_id for e in episodes if e.scene_id == sid and e.episode_id in matched
                and matched[e.episode_id].collision_intensity is None]
         poses = [np.asarray(matched[i].poses) for i in ids]
-        blocked = replay_intensity(models[sid], poses, threads=config.workers)
-        intensity.update((i, np.maximum(b, near)) for i, b, near in zip(ids, blocked, contact_share(models[sid], poses)))
+        intensity.update(zip(ids, derive_intensity(models[sid], poses, threads=config.workers)))
     scores = []
     for e in episodes:
         p = matched.get(e.episode_id)
