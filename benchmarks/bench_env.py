@@ -2,7 +2,8 @@
 it (target: 20 steps/s for one env on the 2-core machine). Wall times move with the shared machine's load, so
 each row also gives CPU seconds (user + sys of this process, all its threads), the rollouts alternate (one env,
 four together, three times; medians) so a change of load hits both alike, and the load average is printed at
-the start and the end."""
+the start and the end. The last rows (env_fairness.py): OpenMP's default wait against a passive one under a
+competing load, and a policy over HTTP in each request encoding against the same policy in-process."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.env_fairness import transport_rows, wait_rows
 from sagebench.navsim.motion import Agents
 from sagebench.navsim.observe import observe
 from sagebench.navsim.policies import RandomWalk
@@ -84,6 +86,7 @@ def run() -> list[dict]:
         (one, one_cpu), (four, four_cpu) = (np.median([r[k] for r in rounds], axis=0) for k in (0, 1))
         blind, blind_cpu = _steps_per_s(run_dir, cfg.model_copy(update={"observations": ()}), ids, batch=1, threads=1)
         load_end = os.getloadavg()[0]
+        fair = wait_rows(run_dir) + transport_rows(run_dir)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     bound = 1.0 / (render_s + physics_s)
@@ -106,6 +109,7 @@ def run() -> list[dict]:
                   f"{four_apart[1] / 4:.4f} CPU-s"},
         {"name": "physics of one action (0.5 s, 11 MuJoCo steps)", "reference": "-", "seconds": physics_s,
          "speed-up": 1.0, "cpu-s": physics_cpu, "notes": f"bound: {bound:.1f} steps/s with the render"},
+        *fair,
     ]
 
 
