@@ -30,6 +30,8 @@ from typing import Literal
 
 import numpy as np
 
+from sagebench.vlnce.vocab import TOKENS_PER_INSTRUCTION
+
 ProfileName = Literal["custom", "vlnce", "sage", "full"]
 PROFILES: tuple[str, ...] = ("custom", "vlnce", "sage", "full")
 PrivilegedKey = Literal["pose", "gps_compass", "instance"]
@@ -117,14 +119,9 @@ class Sensors:
                 what[key] = DESCRIPTIONS[key]
         return {"profile": self.profile, "keys": what, "privileged": list(self.privileged)}
 
-    def summary(self) -> str:
-        """One line: the profile, its observations, the privileged ones."""
-        d = self.describe()
-        shown = ", ".join(f"{k} {v}" for k, v in d["keys"].items())
-        return f"{self.profile} ({shown}); privileged: {', '.join(self.privileged) or 'none'}"
 
-
-DESCRIPTIONS = {"instruction": "text", "instruction_tokens": "200 int64 word ids (the run's vocabulary)",
+DESCRIPTIONS = {"instruction": "text",
+                "instruction_tokens": f"{TOKENS_PER_INSTRUCTION} int64 word ids (the run's vocabulary)",
                 "pose": "[x, y, z, yaw] float64 world m, rad", "gps": "[forward, right] float32 m from the start",
                 "compass": "[heading] float32 rad from the start's", "collided": "bool, contact in the last action"}
 
