@@ -88,3 +88,29 @@ def share_cores(threads: int | None = None, *, wait: WaitPolicy = "passive") -> 
         if _first is None:
             _first = setup
         return setup
+
+
+def share(workers: int, cores: int | None = None) -> int:
+    """Threads each of `workers` processes sharing `cores` (default: this process's) gets: cores // workers, >= 1."""
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    return max(1, (available_cores() if cores is None else cores) // workers)
+
+
+def thread_env(threads: int) -> dict[str, str]:
+    """The environment of a process started to use `threads` threads (a Ray task's runtime env): every pool starts
+    that size and idle OpenMP threads sleep."""
+    if threads < 1:
+        raise ValueError(f"threads must be >= 1, got {threads}")
+    return {"OMP_WAIT_POLICY": "PASSIVE", "NUMBA_NUM_THREADS": str(threads),
+            **dict.fromkeys(_CHILD_THREAD_VARS, str(threads))}
+
+
+def worker_init(threads: int) -> None:
+    """A worker sharing the machine (a run's pool process, a Ray task): `share_cores(threads)`, and the BLAS pools
+    numpy may already have started lowered to `threads` too (they read their variables only when they load)."""
+    share_cores(threads)
+    if "numpy" in sys.modules:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(threads)

@@ -1,6 +1,9 @@
 """sagebench.threads: each case runs in a fresh interpreter (a process's OpenMP runtime reads its settings once),
 and libgomp's own report (OMP_DISPLAY_ENV=VERBOSE) says how numba's pool waits: GOMP_SPINCOUNT 0 is passive
-(idle threads sleep at once), 300000 the runtime's default spin before sleeping."""
+(idle threads sleep at once), 300000 the runtime's default spin before sleeping.
+
+Workers share the machine: each process of a run's pool, and each Ray task, runs its native pools on its share
+of the cores, with idle OpenMP threads asleep."""
 
 from __future__ import annotations
 
@@ -11,7 +14,7 @@ import textwrap
 
 import pytest
 
-from sagebench.threads import available_cores, share_cores
+from sagebench.threads import available_cores, share, share_cores, thread_env
 
 PASSIVE, DEFAULT_SPIN = "GOMP_SPINCOUNT = '0'", "GOMP_SPINCOUNT = '300000'"
 KERNEL = """
@@ -116,3 +119,65 @@ def test_an_env_process_and_rollout_share_cores_by_default(demo_eval_run, tmp_pa
         print(os.environ["OMP_WAIT_POLICY"], numba.get_num_threads())
     """)
     assert out.split()[-2:] == ["PASSIVE", "1"] and PASSIVE in err
+
+
+@pytest.mark.parametrize(("workers", "cores", "threads"), [(1, 16, 16), (2, 16, 8), (3, 16, 5), (16, 16, 1),
+                                                            (4, 2, 1), (2, 2, 1), (1, 2, 2)])
+def test_each_worker_gets_its_share_of_the_cores(workers, cores, threads):
+    assert share(workers, cores) == threads
+
+
+def test_thread_env_sets_every_pool_and_passive_wait():
+    env = thread_env(3)
+    assert {env[k] for k in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")} == {"3"}
+    assert env["OMP_WAIT_POLICY"] == "PASSIVE"
+
+
+def pools(_: object) -> dict:
+    """What a worker's native pools use (run in the worker)."""
+    import numba
+    import numpy as np
+    from threadpoolctl import threadpool_info
+
+    @numba.njit(parallel=True)
+    def total(a):
+        s = 0.0
+        for i in numba.prange(len(a)):
+            s += a[i]
+        return s
+
+    total(np.ones(64))
+    return {"numba_pool": numba.config.NUMBA_NUM_THREADS, "numba": numba.get_num_threads(),
+            "blas": max([p["num_threads"] for p in threadpool_info()] or [0]),
+            "wait": os.environ.get("OMP_WAIT_POLICY"), "pid": os.getpid()}
+
+
+def test_pool_workers_take_their_share():
+    from sagebench.pipeline.executors import PoolExecutor
+
+    pool = PoolExecutor(2)
+    try:
+        (_, got), = pool.wait_any([pool.submit(pools, None)])
+    finally:
+        pool.close()
+    want = share(2)
+    assert got["pid"] != os.getpid()
+    assert (got["numba_pool"], got["numba"], got["blas"], got["wait"]) == (want, want, want, "PASSIVE")
+
+
+def test_ray_tasks_use_the_cpus_they_ask_for():
+    pytest.importorskip("ray")
+    import sys
+
+    from ray import cloudpickle
+
+    from sagebench.pipeline.executors import RayExecutor
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])  # Ray's workers cannot import the tests
+
+    ray = RayExecutor(None)
+    try:
+        (_, got), = ray.wait_any([ray.submit(pools, None, cpus=1)])
+    finally:
+        ray.close()
+    assert (got["numba_pool"], got["numba"], got["blas"], got["wait"]) == (1, 1, 1, "PASSIVE")

@@ -31,6 +31,10 @@ class Mutant:
 
 
 MUTANTS = (
+    Mutant("run's pool workers start with every core's threads, spinning", "sagebench/pipeline/executors.py",
+           "initializer=worker_init, initargs=(self.threads,)", "", ("tests/test_threads.py",)),
+    Mutant("kernels warmed before fan-out miss the DTW kernel", "sagebench/pipeline/kernels.py",
+           "    dtw(np.zeros((2, 2)), np.ones((3, 2)))\n", "", ("tests/test_pipeline_kernels.py",)),
     Mutant("oracle passes a station only by ending near it", "sagebench/navsim/policies.py",
            "_segment_distance(t[self.next[i]], moved_from, pose[:2])",
            "_segment_distance(t[self.next[i]], pose[:2], pose[:2])", ("tests/test_navsim_policies.py",)),

@@ -1,5 +1,8 @@
 """Where a run's tasks (a stage of a scene, a collider piece) run: in this process, a local process pool, or
-Ray. Outputs never depend on which."""
+Ray. Outputs never depend on which.
+
+Workers share the machine: a pool of N processes gives each cores // N threads, a Ray task as many threads as
+the CPUs it asks for, and idle threads sleep (sagebench.threads)."""
 
 from __future__ import annotations
 
@@ -8,6 +11,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from typing import Any, Protocol, TypeVar
 
 from sagebench.errors import ConfigError
+from sagebench.threads import share, thread_env, worker_init
 
 T = TypeVar("T")
 
@@ -45,13 +49,15 @@ class InlineExecutor:
 
 
 class PoolExecutor:
-    """A local process pool of `workers` processes."""
+    """A local process pool of `workers` processes, each using its share of the cores."""
 
     def __init__(self, workers: int):
         import multiprocessing
 
         # spawn: forking a process that has started numba or MuJoCo threads is not safe
-        self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+        self.threads = share(workers)
+        self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                         initializer=worker_init, initargs=(self.threads,))
         self.capacity = workers
 
     def submit(self, fn: Callable[[Any], T], arg: Any, *, cpus: int = 1) -> Future:
@@ -78,14 +84,15 @@ class RayExecutor:
         self._started = not ray.is_initialized()
         if self._started:
             ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False)
-        self._remote: dict[Callable, Any] = {}
+        self._remote: Any = None
         self.capacity = max(1, int(ray.cluster_resources().get("CPU", 1)))
 
     def submit(self, fn: Callable[[Any], T], arg: Any, *, cpus: int = 1) -> Any:
-        remote = self._remote.get(fn)
-        if remote is None:
-            remote = self._remote[fn] = self._ray.remote(fn)
-        return remote.options(num_cpus=cpus).remote(arg)
+        # a worker process started for this many threads (its pools read the environment when they start)
+        if self._remote is None:
+            self._remote = self._ray.remote(_with_threads)
+        env = {"env_vars": thread_env(cpus)}
+        return self._remote.options(num_cpus=cpus, runtime_env=env).remote(fn, arg, cpus)
 
     def wait_any(self, pending: list[Any]) -> list[tuple[Any, Any]]:
         done, _ = self._ray.wait(pending, num_returns=1)
@@ -94,6 +101,12 @@ class RayExecutor:
     def close(self) -> None:
         if self._started:
             self._ray.shutdown()
+
+
+def _with_threads(fn: Callable[[Any], T], arg: Any, threads: int) -> T:
+    """A Ray task: `fn(arg)` on `threads` threads (a reused worker may have run a task of another size)."""
+    worker_init(threads)
+    return fn(arg)
 
 
 def make_executor(kind: str, workers: int, ray_address: str | None) -> Executor:

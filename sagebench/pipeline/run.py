@@ -14,6 +14,7 @@ from sagebench.episodes.card import card_text
 from sagebench.errors import ConfigError
 from sagebench.pipeline.config import RunConfig, resolve_scenes
 from sagebench.pipeline.executors import make_executor
+from sagebench.pipeline.kernels import compile_kernels
 from sagebench.pipeline.pieces import PieceOutcome
 from sagebench.pipeline.schedule import RunScheduler
 from sagebench.pipeline.manifest import sha256_file, write_manifest
@@ -89,6 +90,8 @@ def _run_locked(config: RunConfig, config_path: Path, sources: dict[str, Path], 
     summary = RunSummary(run_dir=run_dir, scenes=sorted(sources))
     executor = make_executor(config.executor, config.workers, config.ray_address)
     try:
+        if executor.capacity > 1:  # workers side by side would each compile the kernels a cold cache lacks
+            compile_kernels()
         scheduler = RunScheduler(executor, sources, run_dir, settings, config.cache_dir)
         for outcome in ui.track(scheduler.outcomes(), "scenes x stages", total=len(sources) * len(STAGES)):
             summary.outcomes.append(outcome)
