@@ -71,13 +71,13 @@ def run() -> list[dict]:
         kw = dict(floor_z=w.model.floor_z, camera_height=cfg.agent.camera_height, hfov_deg=cfg.agent.hfov_deg,
                   width=width, height=height)
         views = [poses + [0, 0, 0.3 * k] for k in range(10)]
-        observe(w.gaussians, poses, ("rgb", "depth"), **kw)
+        observe(w.renderer, poses, ("rgb", "depth"), **kw)
         it = iter(range(10**9))
-        render_s, render_cpu = _timed(lambda: observe(w.gaussians, views[next(it) % 10][:1], ("rgb", "depth"), **kw),
+        render_s, render_cpu = _timed(lambda: observe(w.renderer, views[next(it) % 10][:1], ("rgb", "depth"), **kw),
                                       20)
-        four_apart = _timed(lambda: [observe(w.gaussians, p[None], ("rgb", "depth"), **kw)
+        four_apart = _timed(lambda: [observe(w.renderer, p[None], ("rgb", "depth"), **kw)
                                      for p in views[next(it) % 10]], 10)
-        four_side = _timed(lambda: observe(w.gaussians, views[next(it) % 10], ("rgb", "depth"), **kw), 10)
+        four_side = _timed(lambda: observe(w.renderer, views[next(it) % 10], ("rgb", "depth"), **kw), 10)
         agents = Agents(w.model, poses)
         physics_s, physics_cpu = _timed(lambda: agents.move(np.array([0]), np.array([0.5]), np.array([0.2]),
                                                             cfg.actions.control_interval), 50)

@@ -48,6 +48,7 @@ def _defaults_from(settings: str, options: str = "OPTIONS") -> type[typer.core.T
     return Command
 
 
+RENDERER_HELP = "Renderer: cpu (the reference), gsplat (CUDA GPU, pip install 'sagebench[gpu]') or auto (gsplat when it can run here)."
 GLOBAL_FLAGS = ("--quiet", "-q", "--debug")  # accepted before or after the command
 
 
@@ -268,8 +269,9 @@ def render_cmd(
     height: Annotated[int | None, typer.Option(help="Image height, px.")] = None,
     depth_out: Annotated[Path | None, typer.Option("--depth-out", help="Also write depth, float32 .npy, m.")] = None,
     instance_out: Annotated[Path | None, typer.Option("--instance-out", help="Also write instance ids, int32 .npy.")] = None,
+    renderer: Annotated[str | None, typer.Option(help=RENDERER_HELP)] = None,
 ) -> None:
-    """Render one view of a built scene's 3D Gaussians on the CPU.
+    """Render one view of a built scene's 3D Gaussians (on the CPU unless --renderer says otherwise).
 
     The camera stands at (X, Y, floor + camera height), looks along YAW (radians, counter-clockwise
     from +X), Z up, tilted by PITCH.
@@ -281,8 +283,10 @@ def render_cmd(
     """
     from sagebench.stages.render import make_render_config, parse_pose, render_view, write_frame
 
-    config = make_render_config(camera_height=camera_height, hfov=hfov, pitch_deg=pitch, width=width, height=height)
-    frame = render_view(run_dir, scene, parse_pose(pose), config)
+    config = make_render_config(camera_height=camera_height, hfov=hfov, pitch_deg=pitch, width=width, height=height,
+                                renderer=renderer)
+    needs = ("rgb", *(["depth"] if depth_out else []), *(["instance"] if instance_out else []))
+    frame = render_view(run_dir, scene, parse_pose(pose), config, needs=needs)
     for path in write_frame(frame, out, depth_out=depth_out, instance_out=instance_out):
         typer.echo(f"wrote {path}")
 
@@ -349,6 +353,7 @@ def validate_cmd(
         float | None, typer.Option(help="Largest median |splat - collider depth| per frame, m.")
     ] = None,
     workers: Annotated[int | None, typer.Option(help="Threads stepping the MuJoCo replays.")] = None,
+    renderer: Annotated[str | None, typer.Option(help=RENDERER_HELP + " Instance-id frames come from the CPU.")] = None,
 ) -> None:
     """Replay every trajectory in MuJoCo, score it and spot-check appearance against physics.
 
@@ -363,7 +368,8 @@ def validate_cmd(
     """
     from sagebench.stages.validate import make_config, validate_run
 
-    config = make_config(frames_per_scene=frames_per_scene, depth_tolerance=depth_tolerance, workers=workers)
+    config = make_config(frames_per_scene=frames_per_scene, depth_tolerance=depth_tolerance, workers=workers,
+                         renderer=renderer)
     failed = False
     for result in validate_run(run_dir, config, scene_id=scene):
         typer.echo(result.summary())
@@ -564,6 +570,7 @@ def rollout_cmd(
              "may run on).")] = None,
     batch: Annotated[int | None, typer.Option(help="Episodes stepped together (results do not depend on it).")] = None,
     seed: Annotated[int | None, typer.Option(help="Seed of the episode sample and of the random policy.")] = None,
+    renderer: Annotated[str | None, typer.Option(help=RENDERER_HELP)] = None,
 ) -> None:
     """Run a policy closed-loop in the simulator: it sees rendered views, acts (STOP, MOVE_FORWARD 0.25 m,
     TURN_LEFT / TURN_RIGHT 15 degrees, or continuous v, omega, stop), MuJoCo moves the agent and measures each
@@ -585,7 +592,7 @@ def rollout_cmd(
                          action_space=action_space, max_steps=max_steps, policy_timeout=policy_timeout,
                          policy_retries=policy_retries, policy_encoding=policy_encoding,
                          max_policy_failures=max_policy_failures, workers=workers, threads=threads, batch=batch,
-                         seed=seed, resume=resume)
+                         seed=seed, resume=resume, renderer=renderer)
     result = run_rollout(run_dir, out, config, scene_id=scene, resume=resume)
     typer.echo(result.summary())
     if not result.complete:

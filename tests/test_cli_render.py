@@ -62,6 +62,9 @@ def test_camera_height_and_pitch_move_the_view(run_cli, run_dir, tmp_path):
         (["--pose", "1,2,3", "--hfov", "180"], "error: --hfov: Input should be less than 180"),
         (["--pose", "1,2,3", "--width", "0"], "error: --width: Input should be greater than or equal to 1"),
         (["--pose", "1,2,3", "--pitch", "95"], "error: --pitch: Input should be less than 90"),
+        (["--pose", "1,2,3", "--renderer", "vulkan"], "error: --renderer: Input should be 'auto', 'cpu' or 'gsplat'"),
+        (["--pose", "1,2,3", "--renderer", "gsplat", "--instance-out", "i.npy"],
+         "error: --renderer: the gsplat renderer draws no instance images; use --renderer cpu or auto"),
     ],
 )
 def test_bad_options_exit_2_and_write_nothing(run_cli, run_dir, tmp_path, args, message):
@@ -69,6 +72,21 @@ def test_bad_options_exit_2_and_write_nothing(run_cli, run_dir, tmp_path, args, 
     code, _, err = run_cli("render", run_dir, "--scene", "s", "--out", out, *args)
     assert code == 2 and err.startswith(message)
     assert not out.exists()
+
+
+def test_auto_renders_the_cpu_frame_where_gsplat_cannot_run(run_cli, run_dir, tmp_path, monkeypatch):
+    from sagebench.render import backends
+
+    monkeypatch.setattr(backends, "gsplat_missing", lambda: "torch is not installed (pip install 'sagebench[gpu]')")
+    a, b = tmp_path / "auto.png", tmp_path / "cpu.png"
+    assert run_cli("render", run_dir, "--scene", "s", "--pose", "0,0,0", "--out", a, "--renderer", "auto")[0] == 0
+    assert run_cli("render", run_dir, "--scene", "s", "--pose", "0,0,0", "--out", b)[0] == 0
+    assert a.read_bytes() == b.read_bytes()
+    code, _, err = run_cli("render", run_dir, "--scene", "s", "--pose", "0,0,0", "--out", tmp_path / "g.png",
+                           "--renderer", "gsplat")
+    assert (code, err.strip()) == (2, "error: --renderer: the gsplat renderer cannot run here: torch is not "
+                                      "installed (pip install 'sagebench[gpu]')")
+    assert not (tmp_path / "g.png").exists()
 
 
 def test_missing_scene_names_the_file(run_cli, run_dir, tmp_path):

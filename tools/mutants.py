@@ -31,6 +31,16 @@ class Mutant:
 
 
 MUTANTS = (
+    Mutant("gsplat gets log-scales instead of standard deviations", "sagebench/render/gsplat_convention.py",
+           "scales=np.exp(g.log_scales.astype(np.float64)).astype(np.float32)",
+           "scales=g.log_scales.astype(np.float32)", ("tests/test_render_gsplat_convention.py",)),
+    Mutant("gsplat gets quaternions x first", "sagebench/render/gsplat_convention.py",
+           "quats=np.ascontiguousarray(g.quats_wxyz, np.float32)",
+           "quats=np.ascontiguousarray(g.quats_wxyz[:, [1, 2, 3, 0]], np.float32)",
+           ("tests/test_render_gsplat_convention.py",)),
+    Mutant("auto picks gsplat even for instance ids", "sagebench/render/backends.py",
+           'return "gsplat" if not lacking and gsplat_missing() is None else "cpu"',
+           'return "gsplat" if gsplat_missing() is None else "cpu"', ("tests/test_render_backends.py",)),
     Mutant("run's pool workers start with every core's threads, spinning", "sagebench/pipeline/executors.py",
            "initializer=worker_init, initargs=(self.threads,)", "", ("tests/test_threads.py",)),
     Mutant("kernels warmed before fan-out miss the DTW kernel", "sagebench/pipeline/kernels.py",

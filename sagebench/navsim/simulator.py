@@ -30,6 +30,7 @@ from sagebench.navsim.motion import Agents, MotionConfig, wrap
 from sagebench.navsim.observe import observe
 from sagebench.navsim.profiles import PrivilegedKey, ProfileName, Sensors, gps_compass, resolve
 from sagebench.navsim.world import World, open_world, run_episodes, run_vocabulary
+from sagebench.render.backends import RendererChoice
 from sagebench.replay.contact import contact_share
 from sagebench.replay.physics import ReplayConfig
 
@@ -58,6 +59,8 @@ class EnvConfig(BaseModel):
     actions: ActionConfig = ActionConfig()
     motion: MotionConfig = MotionConfig()
     replay: ReplayConfig = ReplayConfig()
+    renderer: RendererChoice = Field(default="auto", description=(
+        "Renderer backend: gsplat on a CUDA GPU when installed (auto), else the CPU splat renderer."))
 
     @model_validator(mode="after")
     def _profile_allows(self) -> EnvConfig:
@@ -132,7 +135,7 @@ class Simulator:
         if scene_id not in self._worlds:
             c = self.config
             self._worlds[scene_id] = open_world(self.run_dir, scene_id, agent=c.agent, replay=c.replay,
-                                                images=bool(self.sensors.images))
+                                                images=tuple(self.sensors.images), renderer=c.renderer)
         return self._worlds[scene_id]
 
     def start(self, episode_ids: Sequence[str]) -> list[StepResult]:
@@ -222,7 +225,7 @@ class Simulator:
             poses = np.array([self.slots[i].poses[-1] for i in rows])
             images: list[dict[str, np.ndarray]] = [{} for _ in rows]
             for (width, height), keys in sensors.sizes().items():
-                views = observe(w.gaussians, poses, keys, floor_z=w.model.floor_z,
+                views = observe(w.renderer, poses, keys, floor_z=w.model.floor_z,
                                 camera_height=c.agent.camera_height, hfov_deg=c.agent.hfov_deg, width=width,
                                 height=height)
                 for img, view in zip(images, views):

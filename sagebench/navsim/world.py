@@ -1,8 +1,9 @@
-"""One scene of a run, opened for closed-loop episodes: the replay's MuJoCo model, the packed Gaussians, the
-navigable map (distances on foot, the map's extent) and the episodes with their instructions."""
+"""One scene of a run, opened for closed-loop episodes: the replay's MuJoCo model, the packed Gaussians and their
+renderer, the navigable map (distances on foot, the map's extent) and the episodes with their instructions."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -13,6 +14,7 @@ from sagebench.episodes.load import load_episodes, scene_ids
 from sagebench.episodes.shards import read_episodes
 from sagebench.evaluation.scoring import Episode
 from sagebench.metrics.on_foot import NavigableMap
+from sagebench.render.backends import Renderer, open_renderer
 from sagebench.render.chunks import PackedGaussians, pack
 from sagebench.replay.physics import ReplayConfig, ReplayModel
 from sagebench.replay.scene_model import open_replay_model
@@ -27,6 +29,7 @@ class World:
     model: ReplayModel
     navmap: NavigableMap
     gaussians: PackedGaussians | None  # None when no image is rendered
+    renderer: Renderer | None  # draws the Gaussians (None when no image is rendered)
     bounds: tuple[float, float, float, float]  # x0, y0, x1, y1 of the map: leaving it ends an episode, m
 
     def inside(self, xy: np.ndarray) -> np.ndarray:
@@ -36,8 +39,10 @@ class World:
         return (xy[:, 0] >= x0) & (xy[:, 0] <= x1) & (xy[:, 1] >= y0) & (xy[:, 1] <= y1)
 
 
-def open_world(run_dir: Path, scene_id: str, *, agent: AgentConfig, replay: ReplayConfig, images: bool) -> World:
-    """Load one scene of a run (Gaussians only when `images`)."""
+def open_world(run_dir: Path, scene_id: str, *, agent: AgentConfig, replay: ReplayConfig,
+               images: Sequence[str] = (), renderer: str = "cpu") -> World:
+    """Load one scene of a run (Gaussians and a renderer by `renderer`, auto, cpu or gsplat, only when `images`
+    names some)."""
     from sagebench.splats.ply import read_ply
 
     scene_dir = run_scene_dir(run_dir, scene_id)
@@ -48,7 +53,8 @@ def open_world(run_dir: Path, scene_id: str, *, agent: AgentConfig, replay: Repl
     bounds = (ox, oy, ox + w * grids.resolution, oy + h * grids.resolution)
     model = open_replay_model(run_dir, scene_id, agent=agent, replay=replay)
     gaussians = pack(read_ply(scene_dir / GAUSSIANS)) if images else None
-    return World(scene_id=scene_id, model=model, navmap=navmap, gaussians=gaussians, bounds=bounds)
+    drawn = open_renderer(gaussians, renderer, needs=images) if gaussians is not None else None
+    return World(scene_id=scene_id, model=model, navmap=navmap, gaussians=gaussians, renderer=drawn, bounds=bounds)
 
 
 def run_vocabulary(run_dir: Path) -> Vocabulary:

@@ -35,12 +35,13 @@ class Frame:
     depth     [H, W] float32     expected camera-z depth of the blended Gaussians, m; 0 where alpha is 0
     alpha     [H, W] float32     1 - final transmittance
     instance  [H, W] int32       instance id of the Gaussian with the largest blending weight; 0 where none
+                                 (None from a backend that draws no instance ids: gsplat)
     """
 
     rgb: np.ndarray
     depth: np.ndarray
     alpha: np.ndarray
-    instance: np.ndarray
+    instance: np.ndarray | None
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from sagebench.config import AgentConfig, from_options
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import write_bytes
+from sagebench.render.backends import RendererChoice, open_renderer
 from sagebench.render.camera import agent_camera
 from sagebench.render.splat_reference import Frame
 from sagebench.run_layout import CONTRACT, GAUSSIANS, SCENE_FILE, run_scene_dir
@@ -31,11 +32,13 @@ class RenderConfig(BaseModel):
     pitch_deg: float = Field(default=0.0, gt=-90, lt=90, description="Camera tilt up (negative: down), degrees.")
     width: int = Field(default=640, ge=1, le=8192, description="Image width, px.")
     height: int = Field(default=480, ge=1, le=8192, description="Image height, px.")
+    renderer: RendererChoice = Field(default="cpu", description=(
+        "Renderer backend: cpu (the reference), gsplat (CUDA GPU), or auto (gsplat when it can run here)."))
 
 
 # render's options and the RenderConfig fields they set (their defaults and error names come from here)
 OPTIONS = {"--camera-height": "agent.camera_height", "--hfov": "agent.hfov_deg", "--pitch": "pitch_deg",
-           "--width": "width", "--height": "height"}
+           "--width": "width", "--height": "height", "--renderer": "renderer"}
 
 
 def make_render_config(*, camera_height: float | None = None, hfov: float | None = None, **fields: object) -> RenderConfig:
@@ -56,9 +59,10 @@ def parse_pose(text: str) -> tuple[float, float, float]:
     return values  # type: ignore[return-value]
 
 
-def render_view(run_dir: Path, scene_id: str, pose: tuple[float, float, float], config: RenderConfig) -> Frame:
-    """Render RUN/scenes/<scene_id>'s Gaussians from the agent camera at `pose` (x, y, yaw)."""
-    from sagebench.render.splat_render import render
+def render_view(run_dir: Path, scene_id: str, pose: tuple[float, float, float], config: RenderConfig, *,
+                needs: tuple[str, ...] = ("rgb",)) -> Frame:
+    """Render RUN/scenes/<scene_id>'s Gaussians from the agent camera at `pose` (x, y, yaw); `needs` names the
+    images wanted (rgb, depth, instance), which decides what `auto` may pick."""
     from sagebench.splats.ply import read_ply
 
     scene_dir = run_scene_dir(run_dir, scene_id)
@@ -71,7 +75,7 @@ def render_view(run_dir: Path, scene_id: str, pose: tuple[float, float, float], 
     cam = agent_camera(x, y, yaw, floor_z=spec.floor_height, camera_height=config.agent.camera_height,
                        pitch_deg=config.pitch_deg, hfov_deg=config.agent.hfov_deg, width=config.width,
                        height=config.height)
-    return render(read_ply(ply_path), cam)
+    return open_renderer(read_ply(ply_path), config.renderer, needs=needs).render([cam])[0]
 
 
 def png_bytes(rgb: np.ndarray) -> bytes:

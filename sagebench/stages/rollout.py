@@ -78,7 +78,7 @@ OPTIONS = {"--policy": "policy", "--split": "split", "--episode-id": "episode_id
            "--policy-encoding": "policy_encoding", "--max-policy-failures": "max_policy_failures",
            "--profile": "env.profile", "--width": "env.width", "--height": "env.height",
            "--max-steps": "env.max_steps", "--obs": "env.observations", "--privileged": "env.privileged",
-           "--action-space": "env.action_space"}
+           "--action-space": "env.action_space", "--renderer": "env.renderer"}
 # options that decide the predictions: a resumed rollout takes them from its record
 DECISIVE_OPTIONS = ("--split", "--episode-id", "--episodes", "--seed", "--preset", "--profile", "--width", "--height",
                     "--max-steps", "--obs", "--privileged", "--action-space")
@@ -98,7 +98,8 @@ def parse_names(text: str, allowed: tuple[str, ...], option: str) -> tuple[str, 
 
 def make_config(*, width: int | None = None, height: int | None = None, max_steps: int | None = None,
                 obs: str | None = None, profile: str | None = None, privileged: str | None = None,
-                action_space: str | None = None, resume: bool = False, **fields: object) -> RolloutConfig:
+                action_space: str | None = None, renderer: str | None = None, resume: bool = False,
+                **fields: object) -> RolloutConfig:
     """A RolloutConfig from the options given (None = default); a bad value is a ConfigError naming the option.
     With `resume`, options that decide the predictions are refused (the record's are used)."""
     given = {"--width": width, "--height": height, "--max-steps": max_steps, "--obs": obs, "--profile": profile,
@@ -112,6 +113,7 @@ def make_config(*, width: int | None = None, height: int | None = None, max_step
         if fields.get("policy") in BUILT_IN:
             raise ConfigError("with --resume, only a policy server's new URL", field="--policy")
     env = {"profile": profile, "width": width, "height": height, "max_steps": max_steps, "action_space": action_space,
+           "renderer": renderer,
            "observations": parse_names(obs, ("rgb", "depth"), "--obs") if obs is not None else None,
            "privileged": parse_names(privileged, PRIVILEGED, "--privileged") if privileged is not None else None}
     preset = fields.get("preset")

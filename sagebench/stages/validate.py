@@ -24,6 +24,7 @@ from sagebench.config import AgentConfig, from_options
 from sagebench.fileio import dumps_json, staged_dir, write_bytes, write_text
 from sagebench.episodes.load import Trajectory, read_trajectories, scene_ids
 from sagebench.instructions.execution import BlockedMap, execute_sentence
+from sagebench.render.backends import RendererChoice
 from sagebench.topdown.grid_file import read_topdown_grids
 from sagebench.replay.physics import AGENT_BODY, ReplayConfig, ReplayRecord, replay_batch
 from sagebench.replay.scene_model import open_replay_model
@@ -56,10 +57,14 @@ class ValidateConfig(BaseModel):
         "sampled ones fails alignment."))
     workers: int = Field(default=2, ge=1, description="Threads stepping the MuJoCo replays.")
     seed: int = Field(default=0, description="Picks the spot-checked trajectories.")
+    renderer: RendererChoice = Field(default="cpu", description=(
+        "Renderer of the spot-check frames: cpu (the reference), gsplat (CUDA GPU; the instance-id frames still "
+        "come from the CPU renderer) or auto."))
 
 
 # validate's options and the ValidateConfig fields they set (their defaults and error names come from here)
-OPTIONS = {"--frames-per-scene": "frames_per_scene", "--depth-tolerance": "depth_tolerance", "--workers": "workers"}
+OPTIONS = {"--frames-per-scene": "frames_per_scene", "--depth-tolerance": "depth_tolerance", "--workers": "workers",
+           "--renderer": "renderer"}
 
 
 def make_config(**fields: object) -> ValidateConfig:
@@ -224,11 +229,12 @@ def _spot_checks(scene_dir: Path, rm, picks: list[tuple[Trajectory, ReplayRecord
     if not picks:
         return []
     from sagebench.replay.alignment import collider_depth, compare_depth, frame_problem, pixel_grid
+    from sagebench.render.backends import CpuRenderer, open_renderer
     from sagebench.render.camera import agent_camera
-    from sagebench.render.splat_render import render
     from sagebench.splats.ply import read_ply
 
     gaussians = read_ply(scene_dir / GAUSSIANS)
+    renderer = open_renderer(gaussians, config.renderer, needs=("rgb", "depth", "alpha"))
     data = mujoco.MjData(rm.model)
     mujoco.mj_kinematics(rm.model, data)
     agent_body = rm.model.body(AGENT_BODY).id
@@ -239,12 +245,13 @@ def _spot_checks(scene_dir: Path, rm, picks: list[tuple[Trajectory, ReplayRecord
             x, y, _, yaw = rec.poses[k]
             cam = agent_camera(x, y, yaw, floor_z=rm.floor_z, camera_height=config.agent.camera_height,
                                hfov_deg=config.agent.hfov_deg, width=config.frame_width, height=config.frame_height)
-            frame = render(gaussians, cam)
+            frame = renderer.render([cam])[0]
             grid = pixel_grid(cam, config.ray_stride)
             a = compare_depth(frame.depth, frame.alpha, grid,
                               collider_depth(rm.model, data, cam, grid, bodyexclude=agent_body),
                               min_alpha=config.min_alpha)
-            rgb, ids = _rgb8(frame.rgb), _id_colours(frame.instance)
+            instance = frame.instance if frame.instance is not None else CpuRenderer(gaussians).render([cam])[0].instance
+            rgb, ids = _rgb8(frame.rgb), _id_colours(instance)
             name = f"{traj.trajectory_id}_{point}"
             write_bytes(frames_dir / f"{name}.png", _png(rgb))
             write_bytes(frames_dir / f"{name}_ids.png", _png(ids))

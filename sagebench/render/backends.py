@@ -1,0 +1,156 @@
+"""Renderer backends behind one interface: the CPU splat renderer (the reference) and gsplat on a CUDA GPU.
+
+A caller opens a renderer for one scene's Gaussians (`open_renderer`) and hands it every view it needs at once
+(`render(cams)`: the env, all its batched episodes' views in one call). `auto` takes gsplat when a CUDA device,
+torch and gsplat (`pip install 'sagebench[gpu]'`) are present and gsplat draws every image asked for, else the
+CPU renderer. gsplat builds its CUDA kernels on first use (about a minute) into the user cache directory, once.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import sys
+from collections.abc import Collection, Sequence
+from importlib import metadata
+from pathlib import Path
+from typing import Literal, Protocol
+
+from sagebench import ui
+from sagebench.errors import ConfigError
+from sagebench.render.camera import Camera
+from sagebench.render.chunks import PackedGaussians
+from sagebench.render.gaussians import Gaussians
+from sagebench.render.splat_reference import Frame
+
+RendererChoice = Literal["auto", "cpu", "gsplat"]
+CHOICES: tuple[str, ...] = ("auto", "cpu", "gsplat")
+OUTPUTS = {"cpu": frozenset({"rgb", "depth", "alpha", "instance"}), "gsplat": frozenset({"rgb", "depth", "alpha"})}
+Background = tuple[float, float, float]
+
+
+class Renderer(Protocol):
+    name: str  # the backend: cpu or gsplat
+
+    def render(self, cams: Sequence[Camera]) -> list[Frame]:
+        """One frame per camera (all of one image size for gsplat); `instance` is None where the backend draws
+        no instance ids."""
+        ...
+
+
+class CpuRenderer:
+    """The CPU splat renderer (splat_render): packed Gaussians are culled by chunk, frames render side by side."""
+
+    name = "cpu"
+
+    def __init__(self, gaussians: Gaussians | PackedGaussians, background: Background = (0.0, 0.0, 0.0)):
+        self.gaussians, self.background = gaussians, background
+
+    def render(self, cams: Sequence[Camera]) -> list[Frame]:
+        from sagebench.render.splat_render import render, render_packed
+
+        if isinstance(self.gaussians, PackedGaussians):
+            return render_packed(self.gaussians, cams, background=self.background)
+        return [render(self.gaussians, cam, background=self.background) for cam in cams]
+
+
+class GsplatRenderer:
+    """gsplat's `rasterization` on a CUDA device: the Gaussians stay on the device, one call renders every view."""
+
+    name = "gsplat"
+
+    def __init__(self, gaussians: Gaussians | PackedGaussians, background: Background = (0.0, 0.0, 0.0), *,
+                 device: str = "cuda"):
+        from sagebench.render.gsplat_convention import scene_arrays
+
+        self._torch, self._rasterization = load_gsplat()
+        g = gaussians.gaussians if isinstance(gaussians, PackedGaussians) else gaussians
+        s = scene_arrays(g)
+        put = lambda a: self._torch.from_numpy(a).to(device)  # noqa: E731
+        self._scene = {"means": put(s.means), "quats": put(s.quats), "scales": put(s.scales),
+                       "opacities": put(s.opacities), "colors": put(s.colors)}
+        self._sh_degree, self._device = s.sh_degree, device
+        self._background = self._torch.tensor(background, dtype=self._torch.float32, device=device)
+
+    def render(self, cams: Sequence[Camera]) -> list[Frame]:
+        from sagebench.render.gsplat_convention import camera_arrays, frames_from_gsplat, raster_settings
+
+        if not cams:
+            return []
+        c = camera_arrays(cams)
+        torch = self._torch
+        with torch.no_grad():
+            colors, alphas, _ = self._rasterization(
+                **self._scene, viewmats=torch.from_numpy(c.viewmats).to(self._device),
+                Ks=torch.from_numpy(c.Ks).to(self._device), width=c.width, height=c.height,
+                sh_degree=self._sh_degree, backgrounds=self._background.expand(len(cams), 3), packed=False,
+                **raster_settings())
+        return frames_from_gsplat(colors.cpu().numpy(), alphas.cpu().numpy())
+
+
+def gsplat_missing() -> str | None:
+    """Why gsplat cannot render here, or None when it can (torch and gsplat installed, a CUDA device seen)."""
+    for module in ("torch", "gsplat"):
+        if importlib.util.find_spec(module) is None:
+            return f"{module} is not installed (pip install 'sagebench[gpu]')"
+    import torch
+
+    if not torch.cuda.is_available():
+        return "torch sees no CUDA device"
+    return None
+
+
+def choose_backend(choice: str, needs: Collection[str]) -> str:
+    """The backend that renders `needs` (image names: rgb, depth, alpha, instance) for `choice` (auto, cpu or
+    gsplat); an explicit gsplat that cannot draw them or cannot run here is a ConfigError naming --renderer."""
+    if choice not in CHOICES:
+        raise ConfigError(f"{choice!r} is not one of {', '.join(CHOICES)}", field="--renderer")
+    lacking = sorted(set(needs) - OUTPUTS["gsplat"])
+    if choice == "cpu":
+        return "cpu"
+    if choice == "auto":
+        return "gsplat" if not lacking and gsplat_missing() is None else "cpu"
+    if lacking:
+        raise ConfigError(f"the gsplat renderer draws no {lacking[0]} images; use --renderer cpu or auto",
+                          field="--renderer")
+    why = gsplat_missing()
+    if why:
+        raise ConfigError(f"the gsplat renderer cannot run here: {why}", field="--renderer")
+    return "gsplat"
+
+
+def open_renderer(gaussians: Gaussians | PackedGaussians, choice: str = "cpu", *, needs: Collection[str] = ("rgb",),
+                  background: Background = (0.0, 0.0, 0.0)) -> Renderer:
+    """A renderer of these Gaussians by the backend `choose_backend(choice, needs)` picks."""
+    if choose_backend(choice, needs) == "gsplat":
+        return GsplatRenderer(gaussians, background)
+    return CpuRenderer(gaussians, background)
+
+
+def extensions_dir() -> Path:
+    """Where gsplat's CUDA build is cached: the user cache directory, one folder per Python, torch and gsplat
+    version (torch's TORCH_EXTENSIONS_DIR holds builds by name only)."""
+    import platformdirs
+
+    tag = f"py{sys.version_info.major}{sys.version_info.minor}-torch{metadata.version('torch')}-" \
+          f"gsplat{metadata.version('gsplat')}"
+    return Path(platformdirs.user_cache_dir("sagebench")) / "torch_extensions" / tag
+
+
+def load_gsplat():
+    """(torch, gsplat.rasterization), gsplat's CUDA kernels built (saying so first) or loaded from the cache."""
+    why = gsplat_missing()
+    if why:
+        raise ConfigError(f"the gsplat renderer cannot run here: {why}", field="--renderer")
+    os.environ.setdefault("TORCH_EXTENSIONS_DIR", str(extensions_dir()))
+    build = Path(os.environ["TORCH_EXTENSIONS_DIR"]) / "gsplat_cuda"
+    if not any(build.glob("gsplat_cuda.*")):
+        ui.info(f"gsplat: compiling its CUDA kernels, once (about a minute); cached in {build}")
+    import torch
+    from gsplat import rasterization
+    from gsplat.cuda._backend import _C
+
+    if _C is None:
+        raise ConfigError("gsplat could not build its CUDA kernels: no CUDA toolkit (nvcc) found",
+                          field="--renderer")
+    return torch, rasterization
