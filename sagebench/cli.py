@@ -402,6 +402,38 @@ def export_vlnce_cmd(
         typer.echo(line)
 
 
+@app.command("export-training", cls=_defaults_from("sagebench.stages.export_training:TrainingExportConfig"))
+def export_training_cmd(
+    run_dir: Annotated[Path, typer.Argument(help="Run directory (build-scene, gen-trajectories, export-usd).")],
+    out: Annotated[Path, typer.Option("--out", help="Directory to write: new, or an interrupted export to resume.")],
+    split: Annotated[str | None, typer.Option("--split", help="Export only this split (default: every split).")] = None,
+    depth: Annotated[bool | None, typer.Option("--depth", help="Also write each view's depth (16-bit PNG, mm).")] = None,
+    width: Annotated[int | None, typer.Option(help="View width, px.")] = None,
+    height: Annotated[int | None, typer.Option(help="View height, px.")] = None,
+    renderer: Annotated[str | None, typer.Option(help=RENDERER_HELP)] = None,
+    episodes_per_shard: Annotated[int | None, typer.Option(help="Episodes per tar shard.")] = None,
+    batch: Annotated[int | None, typer.Option(help="Episodes stepped and rendered together.")] = None,
+    workers: Annotated[int | None, typer.Option(help="Threads stepping MuJoCo.")] = None,
+) -> None:
+    """Export imitation-learning data: each episode's reference path as discrete actions (SAGE-3D's derivation:
+    turn towards each segment, then MOVE_FORWARD 0.25 m steps; TURN 15 degrees; STOP), executed in the
+    simulator, with the view before every action (what the agent sees after the previous one, collisions
+    included), the instruction and the action label.
+
+    Reads RUN_DIR/episodes/<id>/part-*.parquet and RUN_DIR/scenes/<id>/ (scene.json, topdown.npz,
+    gaussians.ply, scene.xml, colliders/); never writes into RUN_DIR.
+
+    Writes OUT/export.json (settings, input hashes), OUT/shards/<split>-NNNNNN.tar (WebDataset: per step
+    <key>.rgb.png, <key>.json and with --depth <key>.depth.png) and OUT/index.json. Deterministic; rerun the
+    same command after an interruption to resume at the first unfinished shard.
+    """
+    from sagebench.stages.export_training import make_config, run_export_training
+
+    config = make_config(split=split, depth=depth, width=width, height=height, renderer=renderer,
+                         episodes_per_shard=episodes_per_shard, batch=batch, workers=workers)
+    typer.echo(run_export_training(run_dir, out, config).summary())
+
+
 @app.command("run")
 def run_cmd(
     config: Annotated[Path, typer.Argument(help="TOML run config (scenes, out, per-stage settings).")],

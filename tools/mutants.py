@@ -31,6 +31,10 @@ class Mutant:
 
 
 MUTANTS = (
+    Mutant("export-training rewrites the shards an interrupted export finished", "sagebench/training/export.py",
+           "        if path.is_file():\n", "        if False:\n", ("tests/test_cli_export_training.py",)),
+    Mutant("export-training turns by truncating, as SAGE's generate_actions.py", "sagebench/training/actions.py",
+           "turns = round(abs(change) / turn)", "turns = int(abs(change) / turn)", ("tests/test_training_actions.py",)),
     Mutant("gsplat gets log-scales instead of standard deviations", "sagebench/render/gsplat_convention.py",
            "scales=np.exp(g.log_scales.astype(np.float64)).astype(np.float32)",
            "scales=g.log_scales.astype(np.float32)", ("tests/test_render_gsplat_convention.py",)),

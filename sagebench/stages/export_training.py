@@ -1,0 +1,35 @@
+"""`export-training`: a run's episodes as imitation-learning data, the reference path's discrete actions executed in
+the simulator with every step's view (sagebench/training/export.py; layout in docs/training_export.md).
+
+Reads RUN/episodes/<id>/part-*.parquet and RUN/scenes/<id>/ (scene.json, topdown.npz, gaussians.ply, scene.xml,
+colliders/). Writes OUT/export.json, OUT/shards/<split>-NNNNNN.tar (WebDataset) and OUT/index.json; never the run.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from sagebench import ui
+from sagebench.config import from_options
+from sagebench.training.export import TrainingExport, TrainingExportConfig, export_training
+
+# export-training's options and the TrainingExportConfig fields they set (defaults and error names come from there)
+OPTIONS = {"--split": "split", "--depth": "depth", "--width": "width", "--height": "height", "--renderer": "renderer",
+           "--episodes-per-shard": "episodes_per_shard", "--batch": "batch", "--workers": "workers"}
+
+
+def make_config(**fields: object) -> TrainingExportConfig:
+    """A TrainingExportConfig from the options given (None = default); a bad value is a ConfigError naming it."""
+    return from_options(TrainingExportConfig, fields, OPTIONS)
+
+
+def run_export_training(run_dir: Path, out: Path, config: TrainingExportConfig) -> TrainingExport:
+    """Export with a progress bar (episodes, frames/s)."""
+    from sagebench.navsim.world import run_episodes
+
+    total = len([e for e in run_episodes(run_dir)[0] if config.split is None or e.split == config.split])
+    start = time.perf_counter()
+    with ui.progress(total, "export-training") as update:
+        return export_training(run_dir, out, config, on_progress=lambda episodes, frames: update(
+            episodes, f"{frames / max(time.perf_counter() - start, 1e-9):.1f} frames/s"))

@@ -1,0 +1,197 @@
+"""Imitation-learning data from a run: each episode's reference path as discrete actions (actions.py), executed in
+the simulator, every step's view (RGB, optionally depth) with its action label and the instruction, written as
+WebDataset tar shards (shards.py).
+
+Sample k of an episode is the view the agent has before its k-th action and that action: view 0 is the start,
+view k (k > 0) what the simulator rendered after action k - 1, collisions included; the last sample's action is
+STOP. An episode the simulator ends early (it left the map) keeps the samples up to there.
+
+Layout of OUT: `export.json` (settings and a hash of the inputs, written first: a later export into OUT must match
+it), `shards/<split>-NNNNNN.tar` (EPISODES_PER_SHARD episodes each, in run order) and, last, `index.json` (shards,
+samples, episodes). A shard is written whole or not at all, so an export killed at any moment resumes at the
+first missing shard and ends with the same bytes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from sagebench import __version__
+from sagebench.config import AgentConfig
+from sagebench.episodes.splits import SPLITS
+from sagebench.errors import ConfigError
+from sagebench.fileio import dumps_json, remove_temporaries, write_text
+from sagebench.navsim.actions import Action, ActionConfig
+from sagebench.navsim.simulator import EnvConfig, Simulator
+from sagebench.render.backends import RendererChoice, choose_backend
+from sagebench.run_layout import COLLIDERS, COLLIDERS_INDEX, GAUSSIANS, MJCF, SHARDS, TOPDOWN, run_episodes_dir, run_scene_dir
+from sagebench.training.actions import path_actions
+from sagebench.training.shards import chunks, depth_png, open_shard, rgb_png, sample_json, sample_key, shard_samples
+
+SETTINGS_FILE = "export.json"
+INDEX_FILE = "index.json"
+SHARD_DIR = "shards"
+FORMAT = "sagebench-training-webdataset/1"
+NOT_IN_OUTPUTS = {"renderer", "batch", "workers"}  # recorded as the backend used, or not shaping the output at all
+
+
+class TrainingExportConfig(BaseModel):
+    """Settings of export-training (defaults here, nowhere else)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    split: str | None = Field(default=None, description="Only this split's episodes (default: every split).")
+    depth: bool = Field(default=False, description="Also write each view's expected depth.")
+    width: int = Field(default=224, ge=8, le=4096, description="View width, px.")
+    height: int = Field(default=224, ge=8, le=4096, description="View height, px.")
+    renderer: RendererChoice = Field(default="auto", description="Renderer: auto, cpu or gsplat.")
+    episodes_per_shard: int = Field(default=32, ge=1, description="Episodes per tar shard.")
+    batch: int = Field(default=8, ge=1, description="Episodes stepped (and rendered) together.")
+    workers: int = Field(default=2, ge=1, description="Threads stepping MuJoCo.")
+    agent: AgentConfig = AgentConfig()
+    actions: ActionConfig = ActionConfig()
+
+    @field_validator("split")
+    @classmethod
+    def _known_split(cls, value: str | None) -> str | None:
+        if value is not None and value not in SPLITS:
+            raise ValueError(f"{value!r} is not one of {', '.join(SPLITS)}")
+        return value
+
+    def env(self) -> EnvConfig:
+        return EnvConfig(width=self.width, height=self.height, agent=self.agent, actions=self.actions,
+                         observations=("rgb", "depth") if self.depth else ("rgb",), max_steps=1_000_000,
+                         renderer=self.renderer)
+
+
+@dataclass(frozen=True)
+class TrainingExport:
+    out: Path
+    episodes: int
+    samples: int
+    shards: int
+    written: int  # shards written by this call (the others were there from an earlier one)
+    seconds: float
+    renderer: str
+
+    def summary(self) -> str:
+        rate = self.samples / self.seconds if self.written and self.seconds > 0 else float("nan")
+        return (f"export-training: {self.episodes} episodes, {self.samples} frames in {self.shards} shards "
+                f"({self.written} written now, {rate:.1f} frames/s, renderer {self.renderer}) -> {self.out}")
+
+
+def export_training(run_dir: Path, out: Path, config: TrainingExportConfig = TrainingExportConfig(), *,
+                    on_progress: Callable[[int, int], None] | None = None) -> TrainingExport:
+    """Export every episode (or `config.split`'s) of the run into OUT (module docstring); `on_progress(episodes,
+    frames)` as episodes finish (those of shards already there count at once)."""
+    run_dir, out = Path(run_dir), Path(out)
+    start = time.perf_counter()
+    sim = Simulator(run_dir, config.env(), threads=config.workers)
+    ids = [e for e in sim.order if config.split is None or sim.episodes[e].split == config.split]
+    if not ids:
+        raise ConfigError(f"no episodes of split {config.split!r} in {run_dir}", field="--split")
+    backend = choose_backend(config.renderer, config.env().observations)
+    settings = {"format": FORMAT, "sagebench": __version__, "renderer": backend,
+                "config": config.model_dump(mode="json", exclude=NOT_IN_OUTPUTS),
+                "inputs": _input_hashes(run_dir, sorted({sim.episodes[e].scene_id for e in ids}))}
+    _claim(out, settings)
+    by_split: dict[str, list[str]] = {}
+    for e in ids:
+        by_split.setdefault(sim.episodes[e].split, []).append(e)
+    plan = [(f"{split}-{k:06d}.tar", part) for split, group in by_split.items()
+            for k, part in enumerate(chunks(group, config.episodes_per_shard))]
+    shards, done, samples, written = [], 0, 0, 0
+    report = on_progress or (lambda episodes, frames: None)
+    for name, part in plan:
+        path = out / SHARD_DIR / name
+        if path.is_file():
+            count = shard_samples(path)
+        else:
+            count = _write_shard(sim, part, path, config, lambda n, k: report(done + n, samples + k))
+            written += 1
+        shards.append({"file": f"{SHARD_DIR}/{name}", "episodes": len(part), "samples": count,
+                       "split": sim.episodes[part[0]].split})
+        done, samples = done + len(part), samples + count
+        report(done, samples)
+    write_text(out / INDEX_FILE, dumps_json({**settings, "episodes": len(ids), "samples": samples, "shards": shards}))
+    return TrainingExport(out=out, episodes=len(ids), samples=samples, shards=len(plan), written=written,
+                          seconds=time.perf_counter() - start, renderer=backend)
+
+
+def _claim(out: Path, settings: dict) -> None:
+    """Make OUT this export's: new, or holding an earlier call's export of the same settings and inputs (then its
+    half-written temporaries go and finished shards stay)."""
+    path = out / SETTINGS_FILE
+    if path.is_file():
+        if json.loads(path.read_text(encoding="utf-8")) != settings:
+            raise ConfigError(f"{out} holds an export of other settings or inputs; use a new --out or remove it",
+                              field="--out")
+        remove_temporaries([out / SHARD_DIR], entries_of=[out])
+    elif out.exists() and any(out.iterdir()):
+        raise ConfigError(f"{out} is not empty and holds no export-training output; use a new --out", field="--out")
+    write_text(path, dumps_json(settings))
+
+
+def _input_hashes(run_dir: Path, scene_ids: list[str]) -> dict[str, str]:
+    """sha256 of every run file the export reads (episode shards, Gaussians, map, MuJoCo model, collider index)."""
+    files = []
+    for sid in scene_ids:
+        files += sorted(run_episodes_dir(run_dir, sid).glob(SHARDS))
+        scene = run_scene_dir(run_dir, sid)
+        files += [scene / GAUSSIANS, scene / TOPDOWN, scene / MJCF, scene / COLLIDERS / COLLIDERS_INDEX]
+    out = {}
+    for f in files:
+        h = hashlib.sha256()
+        with open(f, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+        out[f.relative_to(run_dir).as_posix()] = h.hexdigest()
+    return out
+
+
+def _write_shard(sim: Simulator, episode_ids: list[str], path: Path, config: TrainingExportConfig,
+                 report: Callable[[int, int], None]) -> int:
+    """Run these episodes, `config.batch` at a time, and write their samples to the shard at `path`;
+    `report(episodes, samples)` of this shard after each batch."""
+    with open_shard(path) as shard:
+        for n, batch in enumerate(chunks(episode_ids, config.batch)):
+            plans = [path_actions(sim.episodes[e].reference_path, sim.episodes[e].start_yaw, config.actions)
+                     for e in batch]
+            results = sim.start(batch)
+            samples: list[list[dict[str, bytes]]] = [[] for _ in batch]  # written episode by episode
+            step = 0
+            while True:
+                live = [i for i in range(len(batch)) if not sim.slots[i].done and step < len(plans[i])]
+                if not live:
+                    break
+                for i in live:
+                    samples[i].append(_sample(results[i], plans[i][step], step, sim, batch[i], config.depth))
+                actions = [plans[i][step] if i in live else Action.STOP for i in range(len(batch))]
+                results = sim.step(actions)
+                step += 1
+            for eid, files in zip(batch, samples):
+                for k, sample in enumerate(files):
+                    shard.add(sample_key(eid, k), sample)
+            report(min((n + 1) * config.batch, len(episode_ids)), shard.samples)
+        return shard.samples
+
+
+def _sample(result, action: Action, step: int, sim: Simulator, episode_id: str, depth: bool) -> dict[str, bytes]:
+    obs, info = result.observation, result.info
+    e = sim.episodes[episode_id]
+    meta = {"episode_id": episode_id, "scene_id": e.scene_id, "split": e.split, "step": step,
+            "instruction": obs["instruction"], "action": int(action), "action_name": action.name,
+            "pose": [float(v) for v in obs["pose"]], "collided": bool(obs["collided"]),
+            "collision_intensity": float(info["collision_intensity"])}
+    files = {"rgb.png": rgb_png(obs["rgb"]), "json": sample_json(meta)}
+    if depth:
+        files["depth.png"] = depth_png(obs["depth"])
+    return files
