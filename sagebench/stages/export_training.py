@@ -12,6 +12,7 @@ from pathlib import Path
 
 from sagebench import ui
 from sagebench.config import from_options
+from sagebench.threads import share_cores
 from sagebench.training.export import TrainingExport, TrainingExportConfig, export_training
 
 # export-training's options and the TrainingExportConfig fields they set (defaults and error names come from there)
@@ -25,8 +26,10 @@ def make_config(**fields: object) -> TrainingExportConfig:
 
 
 def run_export_training(run_dir: Path, out: Path, config: TrainingExportConfig) -> TrainingExport:
-    """Export with a progress bar (episodes, frames/s)."""
+    """Export with a progress bar (episodes, frames/s), the renderer's threads on every core, waiting passively."""
     from sagebench.navsim.world import run_episodes
+
+    share_cores()
 
     total = len([e for e in run_episodes(run_dir)[0] if config.split is None or e.split == config.split])
     start = time.perf_counter()
