@@ -173,3 +173,14 @@ def test_an_out_dir_of_other_settings_or_content_is_refused(exported, run, tmp_p
     assert code == 2 and err.strip() == (f"error: --out: {tmp_path / 'x'} is not empty and holds no "
                                          "export-training output; use a new --out")
     assert sorted(p.name for p in (tmp_path / "x").iterdir()) == ["notes.txt"]
+
+
+def test_a_second_export_into_a_locked_out_dir_is_refused(exported, run, tmp_path, run_cli):
+    from sagebench.run_lock import run_lock
+
+    shutil.copytree(exported, tmp_path / "e")
+    before = {p: p.read_bytes() for p in (tmp_path / "e").rglob("*") if p.is_file() and p.name != ".sagebench.lock"}
+    with run_lock(tmp_path / "e"):
+        code, _, err = run_cli("export-training", run, "--out", tmp_path / "e", "--depth", "--renderer", "cpu", *SMALL)
+    assert code == 2 and "is writing this run directory" in err and len(err.strip().splitlines()) == 1
+    assert {p: p.read_bytes() for p in before} == before

@@ -32,7 +32,10 @@ from sagebench.fileio import dumps_json, remove_temporaries, write_text
 from sagebench.navsim.actions import Action, ActionConfig
 from sagebench.navsim.simulator import EnvConfig, Simulator
 from sagebench.render.backends import RendererChoice, choose_backend
-from sagebench.run_layout import COLLIDERS, COLLIDERS_INDEX, GAUSSIANS, MJCF, SHARDS, TOPDOWN, run_episodes_dir, run_scene_dir
+from sagebench.run_layout import (
+    COLLIDERS, COLLIDERS_INDEX, GAUSSIANS, LOCK, MJCF, SHARDS, TOPDOWN, run_episodes_dir, run_scene_dir,
+)
+from sagebench.run_lock import run_lock
 from sagebench.training.actions import path_actions
 from sagebench.training.shards import chunks, depth_png, open_shard, rgb_png, sample_json, sample_key, shard_samples
 
@@ -79,11 +82,12 @@ class TrainingExport:
     samples: int
     shards: int
     written: int  # shards written by this call (the others were there from an earlier one)
+    new_samples: int  # samples in the shards written by this call
     seconds: float
     renderer: str
 
     def summary(self) -> str:
-        rate = self.samples / self.seconds if self.written and self.seconds > 0 else float("nan")
+        rate = self.new_samples / self.seconds if self.written and self.seconds > 0 else float("nan")
         return (f"export-training: {self.episodes} episodes, {self.samples} frames in {self.shards} shards "
                 f"({self.written} written now, {rate:.1f} frames/s, renderer {self.renderer}) -> {self.out}")
 
@@ -102,13 +106,22 @@ def export_training(run_dir: Path, out: Path, config: TrainingExportConfig = Tra
     settings = {"format": FORMAT, "sagebench": __version__, "renderer": backend,
                 "config": config.model_dump(mode="json", exclude=NOT_IN_OUTPUTS),
                 "inputs": _input_hashes(run_dir, sorted({sim.episodes[e].scene_id for e in ids}))}
+    if out.is_dir() and not (out / SETTINGS_FILE).is_file() and any(p.name != LOCK for p in out.iterdir()):
+        raise ConfigError(f"{out} is not empty and holds no export-training output; use a new --out", field="--out")
+    out.mkdir(parents=True, exist_ok=True)
+    with run_lock(out):  # one export per OUT: a second would remove the first's shard in progress
+        return _export_locked(sim, ids, out, settings, config, on_progress, start, backend)
+
+
+def _export_locked(sim: Simulator, ids: list[str], out: Path, settings: dict, config: TrainingExportConfig,
+                   on_progress: Callable[[int, int], None] | None, start: float, backend: str) -> TrainingExport:
     _claim(out, settings)
     by_split: dict[str, list[str]] = {}
     for e in ids:
         by_split.setdefault(sim.episodes[e].split, []).append(e)
     plan = [(f"{split}-{k:06d}.tar", part) for split, group in by_split.items()
             for k, part in enumerate(chunks(group, config.episodes_per_shard))]
-    shards, done, samples, written = [], 0, 0, 0
+    shards, done, samples, written, new = [], 0, 0, 0, 0
     report = on_progress or (lambda episodes, frames: None)
     for name, part in plan:
         path = out / SHARD_DIR / name
@@ -116,27 +129,25 @@ def export_training(run_dir: Path, out: Path, config: TrainingExportConfig = Tra
             count = shard_samples(path)
         else:
             count = _write_shard(sim, part, path, config, lambda n, k: report(done + n, samples + k))
-            written += 1
+            written, new = written + 1, new + count
         shards.append({"file": f"{SHARD_DIR}/{name}", "episodes": len(part), "samples": count,
                        "split": sim.episodes[part[0]].split})
         done, samples = done + len(part), samples + count
         report(done, samples)
     write_text(out / INDEX_FILE, dumps_json({**settings, "episodes": len(ids), "samples": samples, "shards": shards}))
     return TrainingExport(out=out, episodes=len(ids), samples=samples, shards=len(plan), written=written,
-                          seconds=time.perf_counter() - start, renderer=backend)
+                          new_samples=new, seconds=time.perf_counter() - start, renderer=backend)
 
 
 def _claim(out: Path, settings: dict) -> None:
-    """Make OUT this export's: new, or holding an earlier call's export of the same settings and inputs (then its
-    half-written temporaries go and finished shards stay)."""
+    """Make OUT (locked, and new or holding an export) this export's; an earlier call's export must have the same
+    settings and inputs (then its half-written temporaries go and finished shards stay)."""
     path = out / SETTINGS_FILE
     if path.is_file():
         if json.loads(path.read_text(encoding="utf-8")) != settings:
             raise ConfigError(f"{out} holds an export of other settings or inputs; use a new --out or remove it",
                               field="--out")
         remove_temporaries([out / SHARD_DIR], entries_of=[out])
-    elif out.exists() and any(out.iterdir()):
-        raise ConfigError(f"{out} is not empty and holds no export-training output; use a new --out", field="--out")
     write_text(path, dumps_json(settings))
 
 
