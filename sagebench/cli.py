@@ -414,6 +414,7 @@ def export_training_cmd(
     episodes_per_shard: Annotated[int | None, typer.Option(help="Episodes per tar shard.")] = None,
     batch: Annotated[int | None, typer.Option(help="Episodes stepped and rendered together.")] = None,
     workers: Annotated[int | None, typer.Option(help="Threads stepping MuJoCo.")] = None,
+    navila: Annotated[bool | None, typer.Option("--navila", help="Also write NaVILA's layout (OUT/navila/).")] = None,
 ) -> None:
     """Export imitation-learning data: each episode's reference path as discrete actions (SAGE-3D's derivation:
     turn towards each segment, then MOVE_FORWARD 0.25 m steps; TURN 15 degrees; STOP), executed in the
@@ -424,13 +425,14 @@ def export_training_cmd(
     gaussians.ply, scene.xml, colliders/); never writes into RUN_DIR.
 
     Writes OUT/export.json (settings, input hashes), OUT/shards/<split>-NNNNNN.tar (WebDataset: per step
-    <key>.rgb.png, <key>.json and with --depth <key>.depth.png) and OUT/index.json. Deterministic; rerun the
-    same command after an interruption to resume at the first unfinished shard.
+    <key>.rgb.png, <key>.json and with --depth <key>.depth.png) and OUT/index.json; with --navila also
+    OUT/navila/ (frames as PNG files and annotations_part_NNN.json as SAGE-3D builds NaVILA's training set).
+    Deterministic; rerun the same command after an interruption to resume at the first unfinished shard.
     """
     from sagebench.stages.export_training import make_config, run_export_training
 
     config = make_config(split=split, depth=depth, width=width, height=height, renderer=renderer,
-                         episodes_per_shard=episodes_per_shard, batch=batch, workers=workers)
+                         episodes_per_shard=episodes_per_shard, batch=batch, workers=workers, navila=navila)
     typer.echo(run_export_training(run_dir, out, config).summary())
 
 

@@ -184,3 +184,25 @@ def test_a_second_export_into_a_locked_out_dir_is_refused(exported, run, tmp_pat
         code, _, err = run_cli("export-training", run, "--out", tmp_path / "e", "--depth", "--renderer", "cpu", *SMALL)
     assert code == 2 and "is writing this run directory" in err and len(err.strip().splitlines()) == 1
     assert {p: p.read_bytes() for p in before} == before
+
+
+def test_navila_layout_pairs_every_step_with_the_frames_so_far(exported, run, tmp_path, run_cli):
+    """--navila adds NaVILA's layout from the finished shards (so it also works on a finished export): one PNG per
+    view, and per step the frames from the start to that step with the next action in words."""
+    shutil.copytree(exported, tmp_path / "e")
+    code, _, err = run_cli("-q", "export-training", run, "--out", tmp_path / "e", "--depth", "--renderer", "cpu",
+                           "--navila", *SMALL)
+    assert code == 0, err
+    nav = tmp_path / "e" / "navila"
+    info = json.loads((nav / "dataset_info.json").read_text())
+    rows = json.loads((nav / "annotations_part_000.json").read_text())
+    samples = _samples(exported)
+    assert info["total_samples"] == len(rows) == len(samples) and info["part_files"] == ["annotations_part_000.json"]
+    words = {"STOP": "stop", "MOVE_FORWARD": "move forward 0.25 meter", "TURN_LEFT": "turn left 15 degree",
+             "TURN_RIGHT": "turn right 15 degree"}
+    by_video = {r["video_id"]: r for r in rows}
+    for s in samples:
+        row = by_video[f"{s['scene_id']}_{s['episode_id']}-{s['step']}"]
+        assert row["q"] == s["instruction"] and row["a"] == f"The next action is {words[s['action_name']]}."
+        assert len(row["frames"]) == s["step"] + 1
+        assert (nav / "images" / row["frames"][-1]).read_bytes() == s["rgb"]

@@ -17,7 +17,8 @@ from sagebench.training.export import TrainingExport, TrainingExportConfig, expo
 
 # export-training's options and the TrainingExportConfig fields they set (defaults and error names come from there)
 OPTIONS = {"--split": "split", "--depth": "depth", "--width": "width", "--height": "height", "--renderer": "renderer",
-           "--episodes-per-shard": "episodes_per_shard", "--batch": "batch", "--workers": "workers"}
+           "--episodes-per-shard": "episodes_per_shard", "--batch": "batch", "--workers": "workers",
+           "--navila": "navila"}
 
 
 def make_config(**fields: object) -> TrainingExportConfig:

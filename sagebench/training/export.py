@@ -7,8 +7,8 @@ view k (k > 0) what the simulator rendered after action k - 1, collisions includ
 STOP. An episode the simulator ends early (it left the map) keeps the samples up to there.
 
 Layout of OUT: `export.json` (settings and a hash of the inputs, written first: a later export into OUT must match
-it), `shards/<split>-NNNNNN.tar` (EPISODES_PER_SHARD episodes each, in run order) and, last, `index.json` (shards,
-samples, episodes). A shard is written whole or not at all, so an export killed at any moment resumes at the
+it), `shards/<split>-NNNNNN.tar` (EPISODES_PER_SHARD episodes each, in run order), then `index.json` (shards,
+samples, episodes) and, when asked, NaVILA's layout made from the shards (navila.py). A shard is written whole or not at all, so an export killed at any moment resumes at the
 first missing shard and ends with the same bytes.
 """
 
@@ -37,13 +37,14 @@ from sagebench.run_layout import (
 )
 from sagebench.run_lock import run_lock
 from sagebench.training.actions import path_actions
+from sagebench.training.navila import write_navila
 from sagebench.training.shards import chunks, depth_png, open_shard, rgb_png, sample_json, sample_key, shard_samples
 
 SETTINGS_FILE = "export.json"
 INDEX_FILE = "index.json"
 SHARD_DIR = "shards"
 FORMAT = "sagebench-training-webdataset/1"
-NOT_IN_OUTPUTS = {"renderer", "batch", "workers"}  # recorded as the backend used, or not shaping the output at all
+NOT_IN_SHARDS = {"renderer", "batch", "workers", "navila"}  # recorded as the backend used, or not shaping the shards
 
 
 class TrainingExportConfig(BaseModel):
@@ -59,6 +60,7 @@ class TrainingExportConfig(BaseModel):
     episodes_per_shard: int = Field(default=32, ge=1, description="Episodes per tar shard.")
     batch: int = Field(default=8, ge=1, description="Episodes stepped (and rendered) together.")
     workers: int = Field(default=2, ge=1, description="Threads stepping MuJoCo.")
+    navila: bool = Field(default=False, description="Also write NaVILA's layout (navila/) from the shards.")
     agent: AgentConfig = AgentConfig()
     actions: ActionConfig = ActionConfig()
 
@@ -104,7 +106,7 @@ def export_training(run_dir: Path, out: Path, config: TrainingExportConfig = Tra
         raise ConfigError(f"no episodes of split {config.split!r} in {run_dir}", field="--split")
     backend = choose_backend(config.renderer, config.env().observations)
     settings = {"format": FORMAT, "sagebench": __version__, "renderer": backend,
-                "config": config.model_dump(mode="json", exclude=NOT_IN_OUTPUTS),
+                "config": config.model_dump(mode="json", exclude=NOT_IN_SHARDS),
                 "inputs": _input_hashes(run_dir, sorted({sim.episodes[e].scene_id for e in ids}))}
     if out.is_dir() and not (out / SETTINGS_FILE).is_file() and any(p.name != LOCK for p in out.iterdir()):
         raise ConfigError(f"{out} is not empty and holds no export-training output; use a new --out", field="--out")
@@ -135,6 +137,8 @@ def _export_locked(sim: Simulator, ids: list[str], out: Path, settings: dict, co
         done, samples = done + len(part), samples + count
         report(done, samples)
     write_text(out / INDEX_FILE, dumps_json({**settings, "episodes": len(ids), "samples": samples, "shards": shards}))
+    if config.navila:
+        write_navila(out, [out / s["file"] for s in shards], config.actions)
     return TrainingExport(out=out, episodes=len(ids), samples=samples, shards=len(plan), written=written,
                           new_samples=new, seconds=time.perf_counter() - start, renderer=backend)
 
