@@ -73,10 +73,17 @@ class GsplatRenderer:
         self._background = self._torch.tensor(background, dtype=self._torch.float32, device=device)
 
     def render(self, cams: Sequence[Camera]) -> list[Frame]:
-        from sagebench.render.gsplat_convention import camera_arrays, frames_from_gsplat, raster_settings
+        from sagebench.render.gsplat_convention import frames_from_gsplat
 
         if not cams:
             return []
+        colors, alphas = self.rasterize(cams)
+        return frames_from_gsplat(colors.cpu().numpy(), alphas.cpu().numpy())
+
+    def rasterize(self, cams: Sequence[Camera]):
+        """gsplat's output on the device: colors [C, H, W, 4] (RGB + expected depth) and alphas [C, H, W, 1]."""
+        from sagebench.render.gsplat_convention import camera_arrays, raster_settings
+
         c = camera_arrays(cams)
         torch = self._torch
         with torch.no_grad():
@@ -85,7 +92,7 @@ class GsplatRenderer:
                 Ks=torch.from_numpy(c.Ks).to(self._device), width=c.width, height=c.height,
                 sh_degree=self._sh_degree, backgrounds=self._background.expand(len(cams), 3), packed=False,
                 **raster_settings())
-        return frames_from_gsplat(colors.cpu().numpy(), alphas.cpu().numpy())
+        return colors, alphas
 
 
 def gsplat_missing() -> str | None:
