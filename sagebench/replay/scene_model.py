@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 
 import mujoco
@@ -13,13 +14,14 @@ from sagebench.run_layout import MJCF, REPLAY_MODEL, SCENE_FILE, require, run_sc
 from sagebench.scene.loader import parse_spec
 
 
-def floor_body_names(scene_dir: Path) -> list[str]:
-    """MJCF bodies of the scene's floor objects (export-usd names bodies `<category>_<instance_id>`)."""
-    from pxr import Tf
-
+def floor_body_names(scene_dir: Path, bodies: Iterable[str]) -> list[str]:
+    """Those of the MJCF `bodies` that are the scene's floor objects. export-usd names an object's body
+    `<category>_<instance_id>` (as its USD prim, the category made a valid identifier), so a floor's body is the one
+    whose name ends in `_<instance_id>`: found without usd-core, which a replay needs nowhere else."""
     spec_path = scene_dir / SCENE_FILE
     spec = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)
-    return [Tf.MakeValidIdentifier(f"{o.category}_{o.instance_id}") for o in spec.objects if o.kind == "floor"]
+    floors = {str(o.instance_id) for o in spec.objects if o.kind == "floor"}
+    return [b for b in bodies if "_" in b and b.rpartition("_")[2] in floors]
 
 
 def open_replay_model(run_dir: Path, scene_id: str, *, agent: AgentConfig, replay: ReplayConfig) -> ReplayModel:
@@ -32,9 +34,8 @@ def open_replay_model(run_dir: Path, scene_id: str, *, agent: AgentConfig, repla
         mjspec = mujoco.MjSpec.from_file(str(scene_dir / MJCF))
     except ValueError as err:
         raise DataError(f"cannot load: {err}", path=scene_dir / MJCF) from None
-    present = {b.name for b in mjspec.bodies}
     try:  # compiling reads the collider STLs: a deleted or corrupted one fails here
         return build_replay_model(mjspec, agent=agent, floor_z=floor_z, config=replay,
-                                  floor_bodies=[n for n in floor_body_names(scene_dir) if n in present])
+                                  floor_bodies=floor_body_names(scene_dir, [b.name for b in mjspec.bodies]))
     except ValueError as err:
         raise DataError(f"cannot compile: {err}", path=scene_dir / MJCF) from None
