@@ -54,12 +54,13 @@ class Check:
         self.backend = "cpu" if dry else "gsplat"
 
     def scene(self):
-        from sagebench.episodes.load import scene_ids
+        """(scene id, packed Gaussians) of the first episode's scene."""
+        from sagebench.navsim.world import run_episodes
         from sagebench.render.chunks import pack
         from sagebench.run_layout import GAUSSIANS, run_scene_dir
         from sagebench.splats.ply import read_ply
 
-        sid = scene_ids(self.run_dir, None)[0]
+        sid = run_episodes(self.run_dir)[0][0].scene_id
         return sid, pack(read_ply(run_scene_dir(self.run_dir, sid) / GAUSSIANS))
 
     def cameras(self, n: int):
