@@ -73,8 +73,8 @@ class TrainingExportConfig(BaseModel):
 
     def env(self) -> EnvConfig:
         return EnvConfig(width=self.width, height=self.height, agent=self.agent, actions=self.actions,
-                         observations=("rgb", "depth") if self.depth else ("rgb",), max_steps=1_000_000,
-                         renderer=self.renderer)
+                         observations=("rgb", "depth") if self.depth else ("rgb",), privileged=("pose",),
+                         max_steps=1_000_000, renderer=self.renderer)
 
 
 @dataclass(frozen=True)
