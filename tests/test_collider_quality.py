@@ -53,6 +53,17 @@ def test_a_missing_leg_is_under_coverage():
     assert 45.0 <= q.to_source_max_cm <= 50.0 + 1e-9 and q.outside_volume_l == 0.0
 
 
+def test_overlapping_parts_count_their_shared_volume_once():
+    hull = hull_part(L_SHAPE.vertices)
+    alone = measure(L_SHAPE.vertices, L_SHAPE.faces, [hull]).outside_volume_l
+    assert measure(L_SHAPE.vertices, L_SHAPE.faces, [hull, hull]).outside_volume_l == alone
+    # the hull's 500 l over the notch lies inside a box filling the notch: outside the L is that box's 1000 l, less
+    # the voxels the L's two faces on the notch (2 m^2, one 2 cm voxel thick) claim
+    notch = hull_part(trimesh.creation.box(bounds=[[1, 1, 0], [2, 2, 1]]).vertices)
+    both = measure(L_SHAPE.vertices, L_SHAPE.faces, [hull, notch]).outside_volume_l
+    assert 1000.0 - 2.0 * 0.02 * 1000 <= both <= 1000.0
+
+
 def test_only_the_agent_band_counts_for_navigation():
     lamp = L_SHAPE.copy().apply_translation((0, 0, 1.3))  # hangs above 1.2 m: its bad hull blocks nobody
     q = measure(lamp.vertices, lamp.faces, [hull_part(lamp.vertices)])

@@ -62,6 +62,18 @@ def test_sliding_along_a_wall_costs_the_blocked_share(room):
     assert motion.pose[0, 1] > -2.0  # it slid along the wall
 
 
+def test_a_corner_brushed_mid_step_costs_c_above_0_though_the_end_pose_is_clear(room):
+    """Heading 5 degrees right of +x from (0.75, 0), the agent's edge clips the table's corner (1.1, 0.1) on the
+    way and is pushed past it: the end pose touches nothing, yet contact slowed the step (measured c = 0.043)."""
+    agents = Agents(room, np.array([[0.75, 0.0, math.radians(-5)]]))
+    motion = agents.move(np.array([0]), np.array([0.8]), np.array([0.0]), 1.0)
+    d = mujoco.MjData(room.model)
+    mujoco.mj_setState(room.model, d, agents.state[0], mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    mujoco.mj_forward(room.model, d)
+    assert d.sensordata[room.sensor] == 0 and motion.pose[0, 0] > 1.1 + 0.2  # clear, and past the corner
+    assert motion.collided[0] and motion.intensity[0] > 0.02
+
+
 def test_an_end_pose_deeper_than_the_recovery_depth_is_undone(room):
     cfg = MotionConfig(recovery_depth=0.0)  # any penetration counts
     agents = Agents(room, np.array([[2.2, -2.0, 0.0]]))

@@ -292,6 +292,55 @@ def test_a_second_run_on_a_locked_directory_is_refused(workspace, run_cli):
         assert path == run / ".sagebench.lock" and path.read_text() == f"{os.getpid()}\n"
 
 
+def _files(root: Path) -> dict[str, bytes]:
+    return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_a_refused_run_leaves_the_live_runs_files_alone(workspace, run_cli):
+    """The live run's half-written files (temporaries by name) are its own while it holds the lock: a second
+    run that is refused must not clean them up, nor touch anything else."""
+    run = workspace / "live"
+    (run / "scenes" / "demo_apartment_0").mkdir(parents=True)
+    (run / "manifest.json").write_text("{}\n")  # a previous run's
+    (run / ".stamps" / "demo_apartment_0").mkdir(parents=True)
+    (run / ".stamps" / "demo_apartment_0" / "build_scene.json").write_text("{}\n")
+    live = [run / "scenes" / "demo_apartment_0" / ".topdown.npz.sagebench-abcd1234.tmp",
+            run / ".manifest.json.sagebench-0000aaaa.tmp",
+            run / ".stamps" / "demo_apartment_0" / ".build_scene.json.sagebench-0000bbbb.tmp"]
+    for p in live:
+        p.write_bytes(b"being written")
+    assert all(is_temporary(p.name) for p in live)
+    holder = _hold_lock(run)
+    try:
+        before = _files(run)
+        code, out, err = run_cli("-q", "run", _config(workspace, "live"))
+        assert code == 2 and out == "" and f"(pid {holder.pid})" in err
+        assert _files(run) == before
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_the_refusal_names_the_holders_pid_over_a_longer_stale_one(workspace):
+    """The lock file keeps the last holder's pid; a new holder with a shorter pid must not leave its tail."""
+    from sagebench.run_lock import RunLockedError, run_lock
+
+    run = workspace / "stale_pid"
+    run.mkdir()
+    (run / ".sagebench.lock").write_text("4194304999999\n")  # longer than any pid
+    holder = _hold_lock(run)
+    try:
+        with pytest.raises(RunLockedError) as err:
+            with run_lock(run):
+                pass
+        assert str(err.value) == (f"{run}: another `sagebench run` (pid {holder.pid}) is writing this run directory; "
+                                  "wait for it to end or set another `out`")
+        assert (run / ".sagebench.lock").read_text() == f"{holder.pid}\n"
+    finally:
+        holder.kill()
+        holder.wait()
+
+
 def test_two_real_runs_on_one_directory(workspace):
     config = _config(workspace, "raced")
     first = subprocess.Popen([sys.executable, "-m", "sagebench", "-q", "run", str(config)], cwd=workspace,

@@ -82,6 +82,29 @@ def test_table_corner_pushes_the_agent_aside(room):
     assert rec.intensity.max() > 0.3
 
 
+def _boxes_mjcf(floor_z: float, boxes: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]]) -> str:
+    """A ground plane at floor_z and one body per box (lo, hi corners, z above the floor)."""
+    assets, bodies = [], []
+    for name, (lo, hi) in boxes.items():
+        v = [(x, y, floor_z + z) for z in (lo[2], hi[2]) for y in (lo[1], hi[1]) for x in (lo[0], hi[0])]
+        assets.append(f"<mesh name='{name}' vertex='{' '.join(f'{a} {b} {c}' for a, b, c in v)}'/>")
+        bodies.append(f"<body name='{name}_1'><geom type='mesh' mesh='{name}'/></body>")
+    return (f"<mujoco><asset>{''.join(assets)}</asset><worldbody><geom type='plane' size='0 0 1' pos='0 0 {floor_z}'/>"
+            f"{''.join(bodies)}</worldbody></mujoco>")
+
+
+@pytest.mark.parametrize("floor_z", [0.0, 3.0])
+def test_a_30_cm_stool_stops_the_agent_and_a_3_cm_threshold_does_not(floor_z):
+    """The agent's body spans the map's blocking band, 0.05..1.2 m above the floor: what the map blocks stops
+    it, what lies under the band (a threshold strip) it drives over."""
+    scene = _boxes_mjcf(floor_z, {"threshold": ((0.5, -1, 0), (0.6, 1, 0.03)), "stool": ((1.0, -0.2, 0), (1.4, 0.2, 0.3))})
+    rm = build_replay_model(mujoco.MjSpec.from_string(scene), floor_z=floor_z)
+    rec = replay_one(rm, _path((0, 0), (2.5, 0)))
+    assert rec.outcome != "reached"
+    assert rec.poses[-1, 0] == pytest.approx(1.0 - 0.2, abs=0.02)  # against the stool's face, past the threshold
+    assert not rec.contact[rec.poses[:, 0] < 0.75].any()
+
+
 def test_floor_slab_and_ground_never_touch(room):
     rec = replay_one(room, _path((-2, -2), (-2, 2)))
     assert not rec.contact.any()

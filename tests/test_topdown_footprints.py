@@ -72,6 +72,15 @@ def test_samples_are_uniform_by_area_and_seeded():
         _fp(assets.plant(0.5, 0.5, 1.1, (0, 0, 0)), seed=3), 0.0)
 
 
+def test_a_vertical_panel_along_y_keeps_its_area_and_length():
+    """Its samples all share one x: the chord must still run along y (keyed on x alone it shrank to a 5 cm square)."""
+    panel = trimesh.Trimesh([[0, 0, 0], [0, 1, 0], [0, 1, 1], [0, 0, 1]], [[0, 1, 2], [0, 2, 3]], process=False)
+    fp = _fp(panel)
+    assert fp.area == pytest.approx(1.0 * 0.05, rel=0.05)
+    x0, y0, x1, y1 = fp.bounds
+    assert x1 - x0 == pytest.approx(0.05) and y1 - y0 == pytest.approx(1.0, abs=0.05)
+
+
 def test_a_turned_vertical_panel_is_widened_too():
     panel = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]], [[0, 1, 2], [0, 2, 3]], process=False)
     panel.apply_transform(trimesh.transformations.rotation_matrix(0.7, [0, 0, 1]))

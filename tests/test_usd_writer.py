@@ -81,6 +81,17 @@ def test_stage_metadata_and_physics_scene(stage):
     assert stage.GetPrimAtPath("/World/PhysicsScene").IsA(UsdPhysics.Scene)
 
 
+def test_gravity_is_9_81_m_s2_down_the_stage_up_axis(stage):
+    """As a USD physics engine reads it: direction (0, 0, 0) means minus the up axis, magnitude is in stage units."""
+    scene = UsdPhysics.Scene(stage.GetPrimAtPath("/World/PhysicsScene"))
+    up = {UsdGeom.Tokens.y: (0.0, 1.0, 0.0), UsdGeom.Tokens.z: (0.0, 0.0, 1.0)}[UsdGeom.GetStageUpAxis(stage)]
+    direction = np.array(scene.GetGravityDirectionAttr().Get(), dtype=np.float64)
+    direction = -np.array(up) if not direction.any() else direction / np.linalg.norm(direction)
+    np.testing.assert_allclose(direction, -np.array(up), atol=1e-7)
+    magnitude = scene.GetGravityMagnitudeAttr().Get() * UsdGeom.GetStageMetersPerUnit(stage)
+    assert magnitude == pytest.approx(9.81, rel=1e-6)
+
+
 def test_every_object_has_its_semantics(stage):
     for obj in OBJECTS:
         prim = stage.GetPrimAtPath(f"/World/Objects/{obj.category}_{obj.instance_id}")
