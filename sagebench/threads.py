@@ -108,7 +108,9 @@ def thread_env(threads: int) -> dict[str, str]:
 
 def worker_init(threads: int) -> None:
     """A worker sharing the machine (a run's pool process, a Ray task): `share_cores(threads)`, and the BLAS pools
-    numpy may already have started lowered to `threads` too (they read their variables only when they load)."""
+    numpy may already have started lowered to `threads` too (they read their variables only when they load). The
+    variables are set outright: values inherited from the parent (its own share_cores) are the parent's share."""
+    os.environ.update(thread_env(threads))
     share_cores(threads)
     if "numpy" in sys.modules:
         from threadpoolctl import threadpool_limits
