@@ -20,7 +20,7 @@ from pathlib import Path
 
 SYSTEM_CATALOGUE = Path("/usr/share/sweethome3d/furniture/BlendSwap-CC-0.sh3f")
 FIXTURE_CATALOGUE = Path(__file__).resolve().parent.parent / "tests" / "fixtures" / "sh3d_cc0"
-MODES = {"fast": None, "balanced": None, "quality": None}  # mode -> piece budget (s; None = the default)
+MODES = ("fast", "balanced", "quality")
 WORKERS = 2
 
 
@@ -39,13 +39,13 @@ def _cpu_seconds() -> float:
     return own + sum(int(x) for x in fields[11:15]) / os.sysconf("SC_CLK_TCK")  # utime stime cutime cstime
 
 
-def _export(run_dir: Path, cache: Path, mode: str, budget: float | None) -> tuple[float, float, object, str]:
+def _export(run_dir: Path, cache: Path, mode: str) -> tuple[float, float, object, str]:
     """(seconds, CPU seconds, ExportResult, stderr text) of one export-usd."""
     from sagebench.stages.export_usd import export_usd, make_config
 
     err = io.StringIO()
     start, cpu = time.perf_counter(), _cpu_seconds()
-    config = make_config(colliders=mode, piece_budget=budget, workers=WORKERS)
+    config = make_config(colliders=mode, workers=WORKERS)
     with contextlib.redirect_stderr(err):
         (result,) = export_usd(run_dir, config=config, cache_dir=cache)
     return time.perf_counter() - start, _cpu_seconds() - cpu, result, err.getvalue()
@@ -84,20 +84,20 @@ def run() -> list[dict]:
         build_scene(tmp / "scene", tmp / "run")
         scene_dir = tmp / "run" / "scenes" / spec.scene_id
         max_parts = ExportConfig().colliders.max_parts
-        for mode, budget in MODES.items():
+        for mode in MODES:
             cache = tmp / f"cache-{mode}"
             load = os.getloadavg()[0]
-            cold, cold_cpu, res, err = _export(tmp / "run", cache, mode, budget)
-            warm, warm_cpu, _, _ = _export(tmp / "run", cache, mode, budget)
+            cold, cold_cpu, res, err = _export(tmp / "run", cache, mode)
+            warm, warm_cpu, _, _ = _export(tmp / "run", cache, mode)
             q = _quality(scene_dir, max_parts)
             rows.append({
                 "name": f"--colliders {mode}", "reference": "balanced", "cold s": cold, "cold CPU s": cold_cpu,
                 "warm s": warm, "warm CPU s": warm_cpu, **{k: v for k, v in q.items() if k != "worst object"},
                 "notes": f"{catalogue.name}: {len(models)} real models ({len(set(models))} different); pieces "
                 f"{', '.join(f'{m} {n}' for m, n in sorted(res.methods.items()))}; worst {q['worst object']}; "
-                f"{err.count('budget; using')} stopped at the {budget or ExportConfig().colliders.piece_budget_s:g} s "
-                f"budget; {WORKERS} workers; load average {load:.1f} before, {os.getloadavg()[0]:.1f} after"})
-        _export(tmp / "run", tmp / "cache-balanced", "balanced", None)
+                f"{err.count('warning:')} warnings; {WORKERS} workers; load average {load:.1f} before, "
+                f"{os.getloadavg()[0]:.1f} after"})
+        _export(tmp / "run", tmp / "cache-balanced", "balanced")
         gen_trajectories(tmp / "run", GenTrajectoriesConfig(per_scene=200))
         start = time.perf_counter()
         (report,) = validate_run(tmp / "run")

@@ -304,8 +304,9 @@ def export_usd_cmd(
                                       "agent band) or fast (hull or voxel).")
     ] = None,
     max_parts: Annotated[int | None, typer.Option(help="Part budget per object; parts are merged to stay within it.")] = None,
-    piece_budget: Annotated[
-        float | None, typer.Option(help="Seconds one method may spend on one piece before the next is used.")
+    piece_limit: Annotated[
+        float | None, typer.Option(help="Safety stop, s: the export fails, naming the piece, when one method runs "
+                                        "longer on it (it never picks a method).")
     ] = None,
     band_tolerance: Annotated[
         float | None, typer.Option(help="A method is good enough within this many cm of the piece's band footprint.")
@@ -315,6 +316,9 @@ def export_usd_cmd(
     ] = None,
     coacd_max_hulls: Annotated[
         int | None, typer.Option(help="Most CoACD parts per concave piece, -1 for the part budget.")
+    ] = None,
+    coacd_max_faces: Annotated[
+        int | None, typer.Option(help="CoACD is tried only on pieces of at most this many faces.")
     ] = None,
     coacd_preprocess: Annotated[
         str | None, typer.Option(help="CoACD manifold preprocessing: auto, on or off.")
@@ -334,10 +338,10 @@ def export_usd_cmd(
     """
     from sagebench.stages.export_usd import export_usd, make_config
 
-    config = make_config(colliders=colliders, max_parts=max_parts, piece_budget=piece_budget,
+    config = make_config(colliders=colliders, max_parts=max_parts, piece_limit=piece_limit,
                          band_tolerance=band_tolerance, coacd_threshold=coacd_threshold,
-                         coacd_max_hulls=coacd_max_hulls, coacd_preprocess=coacd_preprocess, workers=workers,
-                         usdz=usdz)
+                         coacd_max_hulls=coacd_max_hulls, coacd_max_faces=coacd_max_faces,
+                         coacd_preprocess=coacd_preprocess, workers=workers, usdz=usdz)
     for result in export_usd(run_dir, scene_id=scene, config=config, cache_dir=cache_dir):
         typer.echo(result.line())
 

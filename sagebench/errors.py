@@ -44,6 +44,11 @@ class DataError(SagebenchError):
     """A file sagebench wrote earlier (map, shard, PLY) is missing or malformed."""
 
 
+class ColliderError(SagebenchError):
+    """Colliders could not be made as asked: a method past its safety limit, or a collider that would cover free
+    floor (a doorway) that its object leaves open."""
+
+
 class ServiceError(SagebenchError):
     """A service the command relies on (the LLM server) did not deliver; exit status 1, nothing written."""
 

@@ -82,7 +82,7 @@ CONTRACT: dict[str, StageFiles] = {
         reads=(Place("scene", SCENE_FILE), Place("scene", TOPDOWN), Place("scene", SEMANTIC_MAP)),
         writes=(Place("episodes"),)),
     "export_usd": StageFiles(
-        reads=(*NORMALISED_SCENE, Place("scene", GAUSSIANS)),
+        reads=(*NORMALISED_SCENE, Place("scene", GAUSSIANS), Place("scene", TOPDOWN)),  # the map: free_floor
         writes=(Place("scene", COLLIDERS), Place("scene", USD_GEOMETRY), Place("scene", USD), Place("scene", USDZ),
                 Place("scene", MJCF))),
     "validate": StageFiles(

@@ -1,4 +1,4 @@
-"""Pieces in killable workers: the methods each mode tries, the time budget, de-duplication, the cache."""
+"""Pieces in killable workers: the methods each mode tries, the safety limit, de-duplication, the cache."""
 
 from __future__ import annotations
 
@@ -12,8 +12,9 @@ from shapely.geometry import Polygon
 from sagebench.collider_export import pieces as pieces_mod
 from sagebench.collider_export.coacd_cache import CoacdParams, PartCache
 from sagebench.collider_export.convex import ConvexPart
-from sagebench.collider_export.methods import LADDERS, ColliderSettings
-from sagebench.collider_export.pieces import Piece, decompose_pieces
+from sagebench.collider_export.methods import LADDERS, ColliderSettings, ladder
+from sagebench.collider_export.pieces import Piece, decompose_pieces, piece_key
+from sagebench.errors import ColliderError
 from tests.test_collider_convex import u_prism
 
 FAST_COACD = CoacdParams(preprocess_mode="off", max_convex_hull=8)  # the U prism is clean and watertight
@@ -78,12 +79,26 @@ def test_balanced_keeps_the_hull_of_a_box_and_voxels_the_u(tmp_path):
     assert results[1].method == "voxel" and results[1].band_error_cm <= BALANCED.band_tolerance_cm
 
 
-def test_a_method_over_its_budget_is_killed_and_the_next_one_used(tmp_path, capsys):
-    slow = ColliderSettings(mode="quality", piece_budget_s=1.0,
+def test_a_method_past_the_safety_limit_fails_the_batch_naming_the_piece_and_caches_nothing(tmp_path):
+    """The clock never picks a method: CoACD still running at the limit is an error, not a fall back to voxels."""
+    slow = ColliderSettings(mode="quality", piece_limit_s=1.0,
                             coacd=CoacdParams(preprocess_mode="on", preprocess_resolution=200, resolution=20000))
-    (result,) = decompose_pieces([_u(LADDERS["quality"])], slow, cache=PartCache(tmp_path))
-    assert result.method == "voxel"
-    assert "warning: u: coacd ran over its 1 s budget; using voxel instead" in capsys.readouterr().err
+    with pytest.raises(ColliderError) as err:
+        decompose_pieces([_u(LADDERS["quality"])], slow, cache=PartCache(tmp_path))
+    assert str(err.value) == ("u: coacd still running after 1 s, the safety limit (--piece-limit); nothing was "
+                              "written: raise the limit, or choose a --colliders mode without this method")
+    assert not list(tmp_path.rglob("*.npz"))
+
+
+def test_the_safety_limit_is_not_part_of_the_cache_key_and_coacd_is_left_out_of_big_pieces():
+    m = u_prism()
+    piece = Piece("u", m.vertices, m.faces, LADDERS["quality"])
+    assert piece_key(piece, QUALITY, 0.0) == piece_key(piece, QUALITY.model_copy(update={"piece_limit_s": 5.0}), 0.0)
+    assert piece_key(piece, QUALITY, 0.0) != piece_key(piece, QUALITY.model_copy(update={"coacd_max_faces": 5}), 0.0)
+    few = QUALITY.model_copy(update={"coacd_max_faces": len(m.faces)})
+    assert ladder(few, len(m.faces)) == ("coacd", "voxel", "hull")
+    assert ladder(few, len(m.faces) + 1) == ("voxel", "hull")
+    assert ladder(BALANCED.model_copy(update={"coacd_max_faces": 0}), 1) == ("hull", "voxel")
 
 
 def test_equal_pieces_run_once_and_workers_do_not_change_results(tmp_path):

@@ -7,7 +7,10 @@ import pytest
 import trimesh
 
 from sagebench.collider_export.quality import measure
-from sagebench.collider_export.voxel import _max_table, _rect_max, greedy_boxes, merge_boxes, voxel_parts
+from sagebench.collider_export.convex import hull_part
+from sagebench.collider_export.quality import lattice_points, lattice_rows
+from sagebench.collider_export.voxel import (_max_table, _rect_max, column_corners, greedy_boxes, greedy_boxes_reference,
+                                            merge_boxes, run_ends, voxel_parts)
 from tests.test_collider_pieces import inside_parts
 from tests.test_collider_quality import L_SHAPE
 
@@ -24,6 +27,38 @@ def test_greedy_boxes_cover_every_solid_cell_once(seed):
     solid = np.random.default_rng(seed).random((7, 6, 5)) < 0.6
     count = _paint(greedy_boxes(solid), solid.shape)
     assert np.array_equal(count, solid.astype(int))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_compiled_greedy_boxes_equal_the_plain_ones(seed):
+    solid = np.random.default_rng(seed).random((9, 7, 6)) < 0.7
+    assert greedy_boxes(solid) == greedy_boxes_reference(solid)
+
+
+def _same_hull(a: np.ndarray, b: np.ndarray) -> bool:
+    pa, pb = hull_part(a), hull_part(b)
+    return (np.array_equal(np.unique(pa.vertices.round(12), axis=0), np.unique(pb.vertices.round(12), axis=0)))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_points_kept_for_each_owner_span_the_same_hull_as_all_of_them(seed):
+    """run_ends and column_corners drop only points between kept ones: each owner's hull is unchanged."""
+    rng = np.random.default_rng(seed)
+    tri = rng.random((6, 3, 3))
+    points, rows = lattice_rows(tri, 0.05)
+    assert np.array_equal(points, lattice_points(tri, 0.05))
+    owner = (points[:, 0] > 0.5).astype(np.int64) + 2 * (points[:, 2] > 0.4)
+    keep = run_ends(rows, owner)
+    assert keep.sum() < len(points) / 2
+    cells = np.argwhere(rng.random((5, 4, 6)) < 0.6)
+    cell_owner = (cells[:, 2] > 2).astype(np.int64)
+    corners, corner_owner = column_corners(cells, cell_owner)
+    every = (cells[:, None, :] + np.argwhere(np.ones((2, 2, 2), dtype=bool))[None]).reshape(-1, 3).astype(float)
+    every_owner = np.repeat(cell_owner, 8)
+    for k in np.unique(owner):
+        assert _same_hull(points[keep & (owner == k)], points[owner == k])
+    for k in (0, 1):
+        assert _same_hull(corners[corner_owner == k], every[every_owner == k])
 
 
 def test_merged_boxes_still_cover_the_solid_within_budget():

@@ -9,6 +9,7 @@ export splits them again (4 CPU-s of the bench scene's 463 k faces each time).
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import io
 import json
@@ -25,7 +26,7 @@ from sagebench import ui
 from sagebench.collider_export.convex import ConvexPart, ConvexSplit
 from sagebench.fileio import write_bytes
 
-CACHE_SUBDIR = "colliders-v3"  # bumped whenever a method's parts change for the same settings (v3: voxel hulls)
+CACHE_SUBDIR = "colliders-v4"  # bumped whenever a method's parts change for the same settings (v4: one-thread CoACD)
 SPLIT_VERSION = 2  # bumped whenever convex.split_convex splits the same mesh differently
 
 
@@ -69,24 +70,31 @@ def coacd_version() -> str:
     return version("coacd")
 
 
-def cache_key(vertices: np.ndarray, faces: np.ndarray, settings: BaseModel, **extra: object) -> str:
-    """sha256 hex of the piece's float64 vertices [V, 3], int64 faces [F, 3], coacd version, settings and extras."""
+def cache_key(vertices: np.ndarray, faces: np.ndarray, settings: BaseModel, *, exclude: frozenset[str] = frozenset(),
+              **extra: object) -> str:
+    """sha256 hex of the piece's float64 vertices [V, 3], int64 faces [F, 3], coacd version, settings (less the
+    fields in `exclude`) and extras."""
     h = hashlib.sha256()
     v = np.ascontiguousarray(vertices, dtype="<f8")
     f = np.ascontiguousarray(faces, dtype="<i8")
     h.update(f"{v.shape}{f.shape}".encode())
     h.update(v.tobytes())
     h.update(f.tobytes())
-    h.update(json.dumps({"coacd": coacd_version(), **settings.model_dump(mode="json"), **extra}, sort_keys=True,
-                        default=str).encode())
+    fields = settings.model_dump(mode="json", exclude=set(exclude))
+    h.update(json.dumps({"coacd": coacd_version(), **fields, **extra}, sort_keys=True, default=str).encode())
     return h.hexdigest()
 
 
-def run_coacd(vertices: np.ndarray, faces: np.ndarray, params: CoacdParams) -> list[tuple[np.ndarray, np.ndarray]]:
-    """CoACD on one piece: a list of (vertices [V, 3] float64, faces [F, 3] int64) hulls; raises on failure."""
+def run_coacd(vertices: np.ndarray, faces: np.ndarray, params: CoacdParams,
+              threads: int | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """CoACD on one piece: a list of (vertices [V, 3] float64, faces [F, 3] int64) hulls; raises on failure.
+    `threads`: OpenMP threads of its parallel loop (None: OpenMP's default); 1 gives the same parts whatever
+    the machine's load, since the loop collects parts in the order its threads finish them."""
     import coacd
 
     coacd.set_log_level("error")
+    if threads is not None:
+        _openmp(coacd).omp_set_num_threads(threads)
     out = coacd.run_coacd(
         coacd.Mesh(np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int32)),
         threshold=params.threshold,
@@ -103,6 +111,14 @@ def run_coacd(vertices: np.ndarray, faces: np.ndarray, params: CoacdParams) -> l
     if not parts:
         raise RuntimeError("CoACD returned no parts")
     return parts
+
+
+def _openmp(coacd_module) -> ctypes.CDLL:
+    """The OpenMP runtime CoACD's wheel ships beside it (coacd.libs/libgomp-*.so), the one its library loaded."""
+    libs = sorted((Path(coacd_module.__file__).parent.parent / "coacd.libs").glob("libgomp*.so*"))
+    if not libs:
+        raise RuntimeError("CoACD's OpenMP runtime (coacd.libs/libgomp*.so) was not found")
+    return ctypes.CDLL(str(libs[0]))
 
 
 def _encode(result: PieceResult) -> bytes:
@@ -159,7 +175,7 @@ def _decode_split(data: bytes) -> ConvexSplit:
 
 
 class PartCache:
-    """Piece results on disk: CACHE_DIR/colliders-v3/<key[:2]>/<key>.npz, each written atomically when its
+    """Piece results on disk: CACHE_DIR/colliders-v4/<key[:2]>/<key>.npz, each written atomically when its
     piece is done (so an interrupted run keeps what it finished); mesh splits in CACHE_DIR/splits/."""
 
     def __init__(self, root: Path | None):

@@ -11,7 +11,7 @@ import numpy as np
 from sagebench.collider_export.coacd_cache import PartCache, PieceResult, split_key
 from sagebench.collider_export.convex import ConvexPart, ConvexSplit, merge_parts, split_convex, weld
 from sagebench.collider_export.fanout import map_processes
-from sagebench.collider_export.methods import LADDERS, ColliderSettings, agent_band, band_error_cm
+from sagebench.collider_export.methods import ColliderSettings, agent_band, band_error_cm, ladder
 from sagebench.collider_export.pieces import Piece, decompose_pieces
 from sagebench.collider_export.quality import BandReach
 from sagebench.collider_export.vertex_limit import within_vertex_limit
@@ -107,7 +107,7 @@ def plan_pieces(meshes: Mapping[str, tuple[np.ndarray, np.ndarray]], settings: C
             jobs.append(Piece(f"{name} (whole mesh: {len(split.parts) + len(split.concave)} pieces)",
                               *weld(*meshes[name]), ("voxel",)))
         else:
-            jobs += [Piece(f"{name} (concave piece {k})", pv, pf, LADDERS[settings.mode])
+            jobs += [Piece(f"{name} (concave piece {k})", pv, pf, ladder(settings, len(pf)))
                      for k, (pv, pf) in enumerate(split.concave)]
     return PiecePlan(splits, frozenset(over), jobs)
 
@@ -137,3 +137,21 @@ def merge_to_budget(parts: list[ConvexPart], mesh: tuple[np.ndarray, np.ndarray]
     source = trimesh.Trimesh(*mesh, process=False)
     reach = BandReach(source, np.concatenate([p.vertices for p in parts]), band)
     return merge_parts(parts, settings.max_parts, band, reach=reach, tolerance=settings.band_tolerance_cm / 100)
+
+
+def tolerance_cause(mc: MeshColliders, settings: ColliderSettings) -> str:
+    """Why a mesh's colliders may miss its agent-band footprint by more than the tolerance, for the messages:
+    the part budget (a whole-mesh voxel collider, a piece whose best method used every part it may, parts merged)
+    or its methods (none came closer on some piece within fewer parts)."""
+    budget = f"at the {settings.max_parts}-part budget (--max-parts)"
+    worst = max(mc.pieces, key=lambda p: p.band_error_cm, default=None)
+    if mc.whole:
+        return f"voxelised whole {budget}: more than {WHOLE_MESH_FACTOR} times that many pieces"
+    if worst is not None and worst.band_error_cm > settings.band_tolerance_cm:
+        if len(worst.parts) >= settings.max_parts:
+            return f"{worst.method} parts of one of its pieces {budget}"
+        return (f"no method of --colliders {settings.mode} came closer on one of its pieces (best: {worst.method}, "
+                f"{worst.band_error_cm:.1f} cm in {len(worst.parts)} parts)")
+    if mc.merged:
+        return f"{mc.merged} parts merged {budget}"
+    return "each of its pieces is within it on its own; the parts together are not"

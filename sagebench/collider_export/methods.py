@@ -4,15 +4,17 @@
   cannot reach);
 - `voxel`: boxes covering a voxelisation (collider_export/voxel.py; any mesh, about a second);
 - `coacd`: CoACD on the piece with its holes closed first (repair.py), so its remeshing preprocess is
-  skipped, capped at the part budget.
+  skipped, capped at the part budget, on one thread (its parallel loop collects parts in the order its threads
+  finish them, so two threads gave other parts when the machine was busy).
 
 Every mode keeps the first of its methods whose agent-band footprint is within the tolerance of the
 piece's (quality.band_errors), else the best of them. `fast` and `balanced` try the cheapest first;
 `quality` tries CoACD first (fewer parts that follow the surface), then the voxel parts: on the bench scene
 CoACD after hole closing was once 84 cm off in the band (pymeshfix dropped half a cushion), which the
-measure catches. V-HACD (the vhacdx package) was measured and left out: on the 19 bench pieces whose hull
-misses the band it always used its 32 hulls, 11 of them within 2 cm (voxel 17, CoACD 16) in 3x the voxel
-time.
+measure catches. Which methods a piece gets depends on the piece alone, never on the clock: CoACD, whose
+work grows with the faces it cuts, is left out for pieces of more than `coacd_max_faces` faces (`ladder`).
+V-HACD (the vhacdx package) was measured and left out: on the 19 bench pieces whose hull misses the band it
+always used its 32 hulls, 11 of them within 2 cm (voxel 17, CoACD 16) in 3x the voxel time.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from sagebench.collider_export.voxel import voxel_parts
 
 Mode = Literal["quality", "balanced", "fast"]
 Method = Literal["hull", "voxel", "coacd"]
+UNSHAPING = frozenset({"piece_limit_s"})  # ColliderSettings fields that never change the parts
 
 LADDERS: dict[str, tuple[Method, ...]] = {
     "fast": ("hull", "voxel"),
@@ -39,7 +42,7 @@ LADDERS: dict[str, tuple[Method, ...]] = {
 
 
 class ColliderSettings(BaseModel):
-    """How concave pieces become colliders; every field but the time budget shapes the parts (cache key)."""
+    """How concave pieces become colliders; every field but the safety limit shapes the parts (cache key)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -47,11 +50,18 @@ class ColliderSettings(BaseModel):
                                                         "voxel or CoACD; fast: hull or voxel; each by measured quality.")
     coacd: CoacdParams = CoacdParams()
     max_parts: int = Field(default=32, ge=1, description="Part budget per object; parts are merged to stay within it.")
-    piece_budget_s: float = Field(default=10.0, gt=0, description="Seconds one method may spend on one piece "
-                                                                  "before the next method is used.")
+    coacd_max_faces: int = Field(default=4000, ge=0,
+                                 description="CoACD is tried only on pieces of at most this many faces.")
+    piece_limit_s: float = Field(default=600.0, gt=0, description="Safety stop, s: an export whose method runs "
+                                                                   "longer on one piece fails, naming the piece.")
     band_tolerance_cm: float = Field(default=2.0, gt=0, description="A method is good enough when its agent-band "
                                                                     "footprint is within this of the piece's, cm.")
     voxel_pitch: float = Field(default=0.02, ge=0.01, le=0.1, description="Voxel size of the voxel method, m.")
+
+
+def ladder(settings: ColliderSettings, faces: int) -> tuple[Method, ...]:
+    """The methods a piece of `faces` faces tries, in order: its mode's, CoACD left out above coacd_max_faces."""
+    return tuple(m for m in LADDERS[settings.mode] if m != "coacd" or faces <= settings.coacd_max_faces)
 
 
 def run_method(method: Method, vertices: np.ndarray, faces: np.ndarray, settings: ColliderSettings,
@@ -70,7 +80,7 @@ def run_method(method: Method, vertices: np.ndarray, faces: np.ndarray, settings
     cap = settings.max_parts if settings.coacd.max_convex_hull < 0 else min(settings.coacd.max_convex_hull,
                                                                             settings.max_parts)
     params = settings.coacd.model_copy(update={"max_convex_hull": cap})
-    return [hull_part(v) for v, _ in run_coacd(*closed, params)]
+    return [hull_part(v) for v, _ in run_coacd(*closed, params, threads=1)]
 
 
 def agent_band(floor_height: float) -> tuple[float, float]:

@@ -1,8 +1,10 @@
 """Colliders for many concave pieces: each in a worker process that can be killed, biggest first, cached as done.
 
-A piece runs its mode's methods (methods.LADDERS) in one process that reports each result as it has it.
-A method that runs past the time budget is killed: a warning names the piece and the method, and the piece
-goes on with the next method in a fresh process (keeping what it already had). Ctrl-C kills the workers at
+A piece runs its methods (methods.ladder) in one process that reports each result as it has it; which
+result it keeps depends on the results alone, so the parts are the same however busy the machine is. A method
+still running after the safety limit (`piece_limit_s`) stops the whole batch with a ColliderError naming the
+piece, the method and the limit: the clock never picks a method. A method that fails or crashes hands over to
+the next one in a fresh process (keeping what it already had). Ctrl-C and the limit kill the workers at
 once; every finished piece is already in the cache, so a rerun starts where this one stopped. Progress
 (pieces done / total, the slowest piece, time left) goes to stderr every few seconds, terminal or not.
 """
@@ -22,7 +24,8 @@ from sagebench import ui
 from sagebench.collider_export.coacd_cache import PartCache, PieceResult, cache_key
 from sagebench.collider_export.convex import ConvexPart, hull_part
 from sagebench.collider_export.fanout import worker_context
-from sagebench.collider_export.methods import LADDERS, ColliderSettings, Method, band_error_cm, good_enough, run_method
+from sagebench.collider_export.methods import UNSHAPING, ColliderSettings, Method, band_error_cm, good_enough, run_method
+from sagebench.errors import ColliderError
 
 PROGRESS_EVERY_S = 5.0
 
@@ -52,7 +55,9 @@ class _Run:
 
 
 def piece_key(piece: Piece, settings: ColliderSettings, floor_height: float) -> str:
-    return cache_key(piece.vertices, piece.faces, settings, methods=list(piece.methods), floor_height=floor_height)
+    """The piece's cache key: its mesh, methods, floor height and the settings that shape parts."""
+    return cache_key(piece.vertices, piece.faces, settings, exclude=UNSHAPING, methods=list(piece.methods),
+                     floor_height=floor_height)
 
 
 def decompose_pieces(
@@ -104,9 +109,9 @@ class _Scheduler:
                 ready = wait(list(self.running), timeout=self._next_deadline())
                 for conn in ready:
                     self._receive(conn, done)
-                for conn, run in list(self.running.items()):
-                    if run.methods and time.monotonic() - run.started > self.settings.piece_budget_s:
-                        self._over_budget(conn, run, done)
+                for run in self.running.values():
+                    if time.monotonic() - run.started > self.settings.piece_limit_s:
+                        self._over_limit(run)
                 self.progress.tick(self._elapsed())
         except BaseException:
             for conn, run in self.running.items():
@@ -130,7 +135,7 @@ class _Scheduler:
 
     def _next_deadline(self) -> float:
         now = time.monotonic()
-        left = [self.settings.piece_budget_s - (now - r.started) for r in self.running.values()]
+        left = [self.settings.piece_limit_s - (now - r.started) for r in self.running.values()]
         return float(np.clip(min(left, default=1.0), 0.05, 1.0))
 
     def _elapsed(self) -> dict[str, float]:
@@ -165,15 +170,11 @@ class _Scheduler:
                 self._finish(run, done)
                 return
 
-    def _over_budget(self, conn: Connection, run: _Run, done: dict[str, PieceResult]) -> None:
-        method = run.methods[0]
-        self._retire(conn)
-        nxt = run.methods[1] if len(run.methods) > 1 else None
-        best = min(run.results, key=lambda r: (r[2], len(r[1])), default=None)
-        instead = nxt or (best[0] if best else "hull")
-        ui.warn(f"{self.pieces[run.index].name}: {method} ran over its {self.settings.piece_budget_s:g} s budget; "
-                f"using {instead} instead")
-        self._continue(run, done, skip=1)
+    def _over_limit(self, run: _Run) -> None:
+        method = run.methods[0] if run.methods else "its band measure"
+        raise ColliderError(f"{self.pieces[run.index].name}: {method} still running after "
+                            f"{self.settings.piece_limit_s:g} s, the safety limit (--piece-limit); nothing was "
+                            "written: raise the limit, or choose a --colliders mode without this method")
 
     def _retire(self, conn: Connection) -> None:
         run = self.running.pop(conn)

@@ -212,18 +212,27 @@ def outside_volume(source: trimesh.Trimesh, parts: Sequence[ConvexPart], planes:
 def lattice_points(triangles: np.ndarray, spacing: float) -> np.ndarray:
     """Points [N, 3] on a barycentric lattice over each triangle [T, 3, 3], no two neighbours farther apart than
     `spacing`: every cell of a grid of pitch 2 * spacing that a triangle crosses gets one of its points."""
+    return lattice_rows(triangles, spacing)[0]
+
+
+def lattice_rows(triangles: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """lattice_points, and the row [N] each point lies on: the points of one row are collinear and consecutive,
+    in order along it (a triangle's corners are rows of one point each)."""
     tri = np.asarray(triangles, dtype=np.float64)
     edge = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
     steps = np.maximum(np.ceil(edge / spacing).astype(int), 1)
     out = [tri.reshape(-1, 3)]
+    rows = [np.arange(3 * len(tri))]
     for n in np.unique(steps):
         t = tri[steps == n]
         i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
         keep = i + j <= n
-        u, w = i[keep] / n, j[keep] / n  # [K] barycentric weights of vertices 1 and 2
+        u, w = i[keep] / n, j[keep] / n  # [K] barycentric weights of vertices 1 and 2, i-major
         pts = t[:, None, 0] + u[None, :, None] * (t[:, None, 1] - t[:, None, 0]) + w[None, :, None] * (t[:, None, 2] - t[:, None, 0])
         out.append(pts.reshape(-1, 3))
-    return np.concatenate(out)
+        first = rows[-1][-1] + 1 if len(rows[-1]) else 0
+        rows.append(first + (np.arange(len(t))[:, None] * (n + 1) + i[keep][None, :]).ravel())
+    return np.concatenate(out), np.concatenate(rows)
 
 
 def band_errors(source: trimesh.Trimesh, parts: Sequence[ConvexPart], band: tuple[float, float],

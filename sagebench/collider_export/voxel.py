@@ -13,11 +13,12 @@ second where CoACD can take minutes.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from scipy import ndimage
 
 from sagebench.collider_export.convex import ConvexPart, hull_part
-from sagebench.collider_export.quality import lattice_points
+from sagebench.collider_export.quality import lattice_rows
 
 OFF_BAND = 0.02  # weight of empty space above or below the agent band when boxes are merged
 
@@ -29,7 +30,7 @@ def voxel_parts(vertices: np.ndarray, faces: np.ndarray, *, pitch: float, max_pa
     agent `band`'s footprint, and among them the ones adding the least empty space, which outside the band
     (z range) costs little)."""
     tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces, dtype=np.int64)]
-    points = lattice_points(tri, pitch / 2)
+    points, rows = lattice_rows(tri, pitch / 2)
     lo = points.min(axis=0) - pitch / 2
     cell = np.floor((points - lo) / pitch).astype(np.int64)
     shape = cell.max(axis=0) + 1
@@ -43,19 +44,86 @@ def voxel_parts(vertices: np.ndarray, faces: np.ndarray, *, pitch: float, max_pa
     for b, (i0, j0, k0, i1, j1, k1) in enumerate(boxes):
         label[i0:i1, j0:j1, k0:k1] = b
     enclosed = np.argwhere(solid & ~surface)  # [E, 3] cells inside a closed surface that no surface point is in
-    corners = lo + (enclosed[:, None, :] + np.argwhere(np.ones((2, 2, 2), dtype=bool))[None]) * pitch  # [E, 8, 3]
-    pts = np.concatenate([points, corners.reshape(-1, 3)])
-    owner = np.concatenate([label[cell[:, 0], cell[:, 1], cell[:, 2]],
-                            np.repeat(label[enclosed[:, 0], enclosed[:, 1], enclosed[:, 2]], 8)])
+    corners, corner_owner = column_corners(enclosed, label[enclosed[:, 0], enclosed[:, 1], enclosed[:, 2]])
+    point_owner = label[cell[:, 0], cell[:, 1], cell[:, 2]]
+    ends = run_ends(rows, point_owner)
+    pts = np.concatenate([points[ends], lo + corners * pitch])
+    owner = np.concatenate([point_owner[ends], corner_owner])
     order = np.argsort(owner, kind="stable")
     groups = np.split(pts[order], np.cumsum(np.bincount(owner, minlength=len(boxes)))[:-1])
     parts = [hull_part(g) for g in groups if len(g)]  # a box wholly inside later ones has no points left
     return parts
 
 
+def run_ends(rows: np.ndarray, owner: np.ndarray) -> np.ndarray:
+    """[N] bool: the first and last point of each run of one owner along one lattice row (rows [N], owner [N]):
+    the points between lie on the segment joining them, so the owner's hull needs only these."""
+    change = (rows[1:] != rows[:-1]) | (owner[1:] != owner[:-1])
+    first = np.concatenate([[True], change])
+    last = np.concatenate([change, [True]])
+    return first | last
+
+
+def column_corners(cells: np.ndarray, owner: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The cell corners [K, 3] (in cells) whose hull, per owner, is the hull of every corner of `cells` [E, 3]
+    (owner [E]), and their owners [K]: per owner and (x, y) column the bottom corners of the lowest cell and the
+    top corners of the highest, since every corner between them lies on the vertical segments joining those.
+    (Eight corners of each of a wall's 900 k enclosed cells made its hulls take 17 s.)"""
+    if not len(cells):
+        return np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
+    span = cells.max(axis=0) + 1
+    key = (owner * span[0] + cells[:, 0]) * span[1] + cells[:, 1]  # one integer per (owner, x, y) column
+    uniq, inverse = np.unique(key, return_inverse=True)
+    columns = np.column_stack([uniq // (span[0] * span[1]), uniq // span[1] % span[0], uniq % span[1]])
+    bottom = np.full(len(columns), np.iinfo(np.int64).max)
+    top = np.full(len(columns), np.iinfo(np.int64).min)
+    np.minimum.at(bottom, inverse, cells[:, 2])
+    np.maximum.at(top, inverse, cells[:, 2] + 1)
+    square = np.array([[0, 0], [0, 1], [1, 0], [1, 1]])
+    xy = (columns[:, None, 1:] + square[None]).reshape(-1, 2)  # [C * 4, 2]
+    z = np.concatenate([np.repeat(bottom, 4), np.repeat(top, 4)])
+    corners = np.column_stack([np.concatenate([xy, xy]), z]).astype(np.float64)
+    return corners, np.tile(np.repeat(columns[:, 0], 4), 2)
+
+
 def greedy_boxes(solid: np.ndarray) -> list[tuple[int, int, int, int, int, int]]:
     """Disjoint boxes (i0, j0, k0, i1, j1, k1), half-open cell ranges, that exactly cover the True cells of
     `solid` [X, Y, Z]: from the first free cell grow along z, then y, then x while the slab stays solid."""
+    return [tuple(int(x) for x in row) for row in _greedy_boxes(np.ascontiguousarray(solid, dtype=np.bool_))]
+
+
+@numba.njit(cache=True)
+def _greedy_boxes(solid: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled; greedy_boxes_reference checks it
+    free = solid.copy()
+    nx, ny, nz = solid.shape
+    out = np.empty((64, 6), dtype=np.int64)
+    n = 0
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if not free[i, j, k]:
+                    continue
+                k1 = k + 1
+                while k1 < nz and free[i, j, k1]:
+                    k1 += 1
+                j1 = j + 1
+                while j1 < ny and free[i, j1, k:k1].all():
+                    j1 += 1
+                i1 = i + 1
+                while i1 < nx and free[i1, j:j1, k:k1].all():
+                    i1 += 1
+                free[i:i1, j:j1, k:k1] = False
+                if n == len(out):
+                    grown = np.empty((2 * n, 6), dtype=np.int64)
+                    grown[:n] = out
+                    out = grown
+                out[n, 0], out[n, 1], out[n, 2], out[n, 3], out[n, 4], out[n, 5] = i, j, k, i1, j1, k1
+                n += 1
+    return out[:n]
+
+
+def greedy_boxes_reference(solid: np.ndarray) -> list[tuple[int, int, int, int, int, int]]:
+    """greedy_boxes in plain Python."""
     free = solid.copy()
     boxes = []
     for i, j, k in np.argwhere(solid):

@@ -20,9 +20,11 @@ from pydantic import BaseModel, ConfigDict, Field
 from sagebench import ui
 from sagebench.collider_export.coacd_cache import PartCache, PieceResult, coacd_version
 from sagebench.collider_export.convex import hull_part
-from sagebench.collider_export.decompose import MeshColliders, decompose_meshes, mode_passes, plan_pieces
+from sagebench.collider_export.decompose import (MeshColliders, decompose_meshes, mode_passes, plan_pieces,
+                                                 tolerance_cause)
 from sagebench.collider_export.pieces import Piece, decompose_pieces
-from sagebench.collider_export.methods import ColliderSettings
+from sagebench.collider_export.free_floor import FloorMap, check_free_floor
+from sagebench.collider_export.methods import UNSHAPING, ColliderSettings, agent_band
 from sagebench.collider_export.mjcf_writer import MjcfBody, mjcf_text, scene_body
 from sagebench.collider_export.quality import ColliderQuality, measure_objects
 from sagebench.collider_export.usd_writer import StageObject, prim_name, stage_files, usdz_package
@@ -30,8 +32,10 @@ from sagebench.config import from_options
 from sagebench.errors import DataError
 from sagebench.fileio import dumps_json, staged_dir, write_bytes, write_text
 from sagebench.render.gaussians import Gaussians
-from sagebench.run_layout import COLLIDERS, COLLIDERS_INDEX, GAUSSIANS, MJCF, SCENES, USD, USD_GEOMETRY, USDZ
+from sagebench.run_layout import (COLLIDERS, COLLIDERS_INDEX, GAUSSIANS, MJCF, SCENES, TOPDOWN, USD, USD_GEOMETRY,
+                                  USDZ)
 from sagebench.scene.loader import SCENE_FILE, LoadedScene, door_pose, load_scene, read_mesh, resolve_mesh_path
+from sagebench.topdown.grid_file import read_topdown_grids
 
 
 
@@ -51,20 +55,22 @@ class ExportConfig(BaseModel):
 
 # export-usd's options and the ExportConfig fields they set (their defaults and error names come from here)
 OPTIONS = {"--colliders": "colliders.mode", "--max-parts": "colliders.max_parts",
-           "--piece-budget": "colliders.piece_budget_s", "--band-tolerance": "colliders.band_tolerance_cm",
-           "--coacd-threshold": "colliders.coacd.threshold", "--coacd-max-hulls": "colliders.coacd.max_convex_hull",
+           "--piece-limit": "colliders.piece_limit_s", "--band-tolerance": "colliders.band_tolerance_cm",
+           "--coacd-threshold": "colliders.coacd.threshold",
+           "--coacd-max-faces": "colliders.coacd_max_faces", "--coacd-max-hulls": "colliders.coacd.max_convex_hull",
            "--coacd-preprocess": "colliders.coacd.preprocess_mode", "--workers": "workers", "--usdz": "usdz"}
 
 
 def make_config(
-    *, colliders: str | None = None, max_parts: int | None = None, piece_budget: float | None = None,
-    band_tolerance: float | None = None, coacd_threshold: float | None = None, coacd_max_hulls: int | None = None,
-    coacd_preprocess: str | None = None, workers: int | None = None, usdz: bool | None = None,
+    *, colliders: str | None = None, max_parts: int | None = None, piece_limit: float | None = None,
+    band_tolerance: float | None = None, coacd_threshold: float | None = None, coacd_max_faces: int | None = None,
+    coacd_max_hulls: int | None = None, coacd_preprocess: str | None = None, workers: int | None = None,
+    usdz: bool | None = None,
 ) -> ExportConfig:
     """An ExportConfig from the options given (None = keep the default); a bad value is a ConfigError."""
     coacd = {"threshold": coacd_threshold, "max_convex_hull": coacd_max_hulls, "preprocess_mode": coacd_preprocess}
-    given = {"mode": colliders, "max_parts": max_parts, "piece_budget_s": piece_budget,
-             "band_tolerance_cm": band_tolerance, "coacd": coacd}
+    given = {"mode": colliders, "max_parts": max_parts, "piece_limit_s": piece_limit,
+             "band_tolerance_cm": band_tolerance, "coacd_max_faces": coacd_max_faces, "coacd": coacd}
     return from_options(ExportConfig, {"colliders": given, "workers": workers, "usdz": usdz}, OPTIONS)
 
 
@@ -143,7 +149,7 @@ def scene_pieces(run_dir: Path, scene_id: str, config: ExportConfig,
 
 def decompose_piece(piece: Piece, colliders: ColliderSettings, floor_height: float,
                     cache_dir: Path | None) -> PieceResult:
-    """One piece as export_scene's pass with `colliders` makes it (methods, time budget, cache), without
+    """One piece as export_scene's pass with `colliders` makes it (methods, safety limit, cache), without
     progress lines."""
     (result,) = decompose_pieces([piece], colliders, cache=part_cache(cache_dir), floor_height=floor_height,
                                  progress=False)
@@ -163,10 +169,12 @@ def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> 
     files: dict[str, bytes] = {}
     bodies: list[MjcfBody] = []
     index = []
+    matrices: dict[int, np.ndarray] = {}
     for obj in spec.objects:
         matrix = obj.transform.as_matrix()
         if obj.door is not None:
             matrix = door_pose(obj.door) @ matrix
+        matrices[obj.instance_id] = matrix
         mc = colliders[obj.mesh]
         so = StageObject(
             instance_id=obj.instance_id, category=obj.category, kind=obj.kind, matrix=matrix, parts=mc.parts,
@@ -183,11 +191,17 @@ def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> 
             part_files.append(rel)
         bodies.append(scene_body(so, part_files))
         index.append(_index_entry(obj.instance_id, name, obj.mesh, part_files, mc, quality.get(obj.instance_id)))
+    names = {o.instance_id: prim_name(o) for o in objects}
+    causes = {o.instance_id: tolerance_cause(colliders[o.mesh], config.colliders) for o in spec.objects}
+    _check_free_floor(scene_dir, spec.floor_height, [
+        (names[o.instance_id], matrices[o.instance_id], colliders[o.mesh].parts, quality[o.instance_id].band_error_cm,
+         causes[o.instance_id]) for o in spec.objects if o.instance_id in quality], config.colliders)
     usd = stage_files(spec.scene_id, objects, None if per_object is None else per_object.get(0))
     usdz = usdz_package(usd) if config.usdz else None
     mjcf = mjcf_text(spec.scene_id, bodies, meshes=files, meshdir=COLLIDERS, floor_height=spec.floor_height)
+    shaping = config.model_dump(exclude={"workers": True, "colliders": set(UNSHAPING)})  # what the files depend on
     files[COLLIDERS_INDEX] = dumps_json({
-        "scene_id": spec.scene_id, "coacd_version": coacd_version(), "config": config.model_dump(exclude={"workers"}),
+        "scene_id": spec.scene_id, "coacd_version": coacd_version(), "config": shaping,
         "frame": "world", "objects": index,
     }).encode()
     with staged_dir(scene_dir / COLLIDERS) as tmp:
@@ -201,8 +215,7 @@ def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> 
         (scene_dir / USDZ).unlink(missing_ok=True)  # a previous export's, which this stage no longer matches
     write_text(scene_dir / MJCF, mjcf)
     pieces = [p for mc in colliders.values() for p in mc.pieces]
-    names = {o.instance_id: prim_name(o) for o in objects}
-    _warn_over_tolerance(names, quality, config.colliders)
+    _warn_over_tolerance(names, causes, quality, config.colliders)
     worst = max(((names[i], q) for i, q in quality.items()), key=lambda nq: nq[1].band_error_cm, default=None)
     return ExportResult(
         scene_id=spec.scene_id, out_dir=scene_dir, objects=len(objects),
@@ -224,14 +237,24 @@ def _measure_objects(scene: LoadedScene, local: dict[str, tuple[np.ndarray, np.n
                            workers=workers)
 
 
-def _warn_over_tolerance(names: dict[int, str], quality: dict[int, ColliderQuality], settings: ColliderSettings) -> None:
-    """One warning per object whose colliders miss its agent-band footprint by more than the tolerance: the part
-    budget did not allow closer (every method and merge keeps within it where it can)."""
+def _warn_over_tolerance(names: dict[int, str], causes: dict[int, str], quality: dict[int, ColliderQuality],
+                         settings: ColliderSettings) -> None:
+    """One warning per object whose colliders miss its agent-band footprint by more than the tolerance, with
+    why (decompose.tolerance_cause: its methods, or the part budget)."""
     for instance_id, q in sorted(quality.items()):
         if q.band_error_cm > settings.band_tolerance_cm:
             ui.warn(f"{names[instance_id]}: colliders {q.band_error_cm:.1f} cm off in the agent band, over the "
-                    f"{settings.band_tolerance_cm:g} cm tolerance at the {settings.max_parts}-part budget "
-                    f"(--max-parts)")
+                    f"{settings.band_tolerance_cm:g} cm tolerance: {causes[instance_id]}")
+
+
+def _check_free_floor(scene_dir: Path, floor_height: float, placed: list, settings: ColliderSettings) -> None:
+    """free_floor.check_free_floor against the scene's topdown.npz (build-scene's); without one (a scene
+    written by other means) the band warnings are all there is."""
+    if not (scene_dir / TOPDOWN).is_file():
+        return
+    grids = read_topdown_grids(scene_dir / TOPDOWN)
+    check_free_floor(placed, agent_band(floor_height), FloorMap(grids.occupancy, grids.resolution, grids.origin),
+                     settings.band_tolerance_cm)
 
 
 def _local_meshes(scene: LoadedScene) -> dict[str, tuple[np.ndarray, np.ndarray]]:
