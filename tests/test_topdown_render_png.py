@@ -8,7 +8,7 @@ import pytest
 
 from sagebench.scene.loader import load_scene
 from sagebench.topdown.builder import TopdownConfig, compute_topdown
-from sagebench.topdown.render_png import DOOR, NAVIGABLE, WALL, render_topdown
+from sagebench.topdown.render_png import DOOR, NAVIGABLE, UNREACHABLE, WALL, render_topdown
 
 
 @pytest.fixture(scope="module")
@@ -43,3 +43,24 @@ def test_walls_doors_by_state_and_legend_swatches_are_drawn(picture):
 def test_same_maps_give_the_same_bytes(picture, demo_scene_dir):
     _, data, _ = picture
     assert render_topdown(compute_topdown(load_scene(demo_scene_dir), TopdownConfig())) == data
+
+
+def test_floor_outside_the_main_region_has_its_own_colour_and_legend_entry():
+    """The concave house's office, behind an ajar door too narrow for a 0.25 m agent (its own region): every one
+    of its navigable cells is drawn in the unreachable tint, the main region's in the navigable one."""
+    from pathlib import Path
+
+    from sagebench.config import AgentConfig
+
+    house = Path(__file__).parent / "fixtures" / "concave_house"
+    td = compute_topdown(load_scene(house), TopdownConfig(agent=AgentConfig(radius=0.25)))
+    img = cv2.cvtColor(cv2.imdecode(np.frombuffer(render_topdown(td), np.uint8), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+    h, w = td.grid.shape
+    scale = int(np.clip(round(1000 / max(h, w)), 2, 8))
+    cells = img[30:30 + h * scale:scale, :w * scale:scale][::-1].astype(int)  # one pixel per cell, row 0 = lowest y
+    away = td.navigable.astype(bool) & (td.region != td.semantic.main_region)
+    main = td.navigable.astype(bool) & (td.region == td.semantic.main_region)
+    assert away.sum() > 100 and main.sum() > 1000
+    # blended over the background: more red than green off the main region, the reverse on it
+    assert (cells[away][:, 0] > cells[away][:, 1]).all() and (cells[main][:, 1] > cells[main][:, 0]).all()
+    assert _has(img, UNREACHABLE) >= 12 * 12  # the legend swatch

@@ -1,5 +1,6 @@
 """topdown.png for people: categories coloured with a legend, outlines, dark walls, doors by state,
-the navigable floor tinted, and a scale bar. North (+y) is up; objects that do not block are faded."""
+the navigable floor tinted (in its own colour where it lies outside the main region: floor an agent starting in
+the main region cannot reach), and a scale bar. North (+y) is up; objects that do not block are faded."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ FLOOR: RGB = (222, 222, 218)
 WALL: RGB = (45, 45, 50)
 WINDOW: RGB = (150, 190, 215)
 NAVIGABLE: RGB = (120, 200, 150)
+UNREACHABLE: RGB = (200, 90, 190)  # navigable, but outside the main region
 OUTLINE: RGB = (70, 70, 70)
 DOOR: dict[str, RGB] = {"open": (40, 160, 60), "ajar": (235, 150, 30), "closed": (200, 40, 40)}
 TINT = 0.45  # weight of the navigable colour over the floor
@@ -63,8 +65,8 @@ def render_topdown(td: Topdown) -> bytes:
     img = lut[td.instance].astype(np.float32)
     floor_ids = np.array([i.instance_id for i in sem.instances if i.kind == "floor"], dtype=np.int64)
     on_floor = (td.instance == 0) | np.isin(td.instance, floor_ids)
-    tint = (td.navigable > 0)[..., None]
-    img = np.where(tint, (1 - TINT) * img + TINT * np.array(NAVIGABLE, np.float32), img).astype(np.uint8)
+    tint = np.where((td.region == sem.main_region)[..., None], np.float32(NAVIGABLE), np.float32(UNREACHABLE))
+    img = np.where((td.navigable > 0)[..., None], (1 - TINT) * img + TINT * tint, img).astype(np.uint8)
 
     big = np.repeat(np.repeat(img, scale, axis=0), scale, axis=1)
     ids = np.repeat(np.repeat(np.where(on_floor, 0, td.instance), scale, axis=0), scale, axis=1)
@@ -75,7 +77,7 @@ def render_topdown(td: Topdown) -> bytes:
     big = np.ascontiguousarray(big[::-1])  # row 0 is the lowest y: put it at the bottom
 
     _scale_bar(big, td.grid.resolution / scale)
-    items = [("navigable", NAVIGABLE), ("wall", WALL), ("window", WINDOW)]
+    items = [("navigable", NAVIGABLE), ("navigable, unreachable", UNREACHABLE), ("wall", WALL), ("window", WINDOW)]
     items += [(f"door ({s})", c) for s, c in DOOR.items()]
     items += sorted(legend.items())
     panel_h = max(big.shape[0], 40 + 20 * len(items))
