@@ -456,8 +456,13 @@ def run_cmd(
     from sagebench.pipeline.config import load_run_config
     from sagebench.pipeline.run import run_pipeline
 
+    from sagebench.errors import Interrupted
+
     cfg = load_run_config(config, workers=workers, executor=executor, ray_address=ray_address)
-    summary = run_pipeline(cfg, config)
+    try:
+        summary = run_pipeline(cfg, config)
+    except KeyboardInterrupt:  # click would print "Aborted!"; the workers end quietly (pipeline/executors.py)
+        raise Interrupted("interrupted: finished stages are kept; run again to go on from them") from None
     for line in summary.lines():
         typer.echo(line)
     if not summary.ok:

@@ -19,6 +19,7 @@ from sagebench.fileio import is_temporary
 from sagebench.pipeline.manifest import hash_run
 from sagebench.scene.synth import write_synth_scene
 from sagebench.versions import output_versions
+from signals import as_from_a_terminal
 from tests.test_collider_convex import u_prism
 
 CONFIG = """scenes = ["scenes/*"]
@@ -457,3 +458,25 @@ def test_bad_config_is_one_line(workspace, run_cli):
     code, _, err = run_cli("run", bad)
     assert code == 2 and "malformed TOML" in err
     assert not (workspace / "x").exists()
+
+
+def test_ctrl_c_on_a_two_worker_run_is_one_line_and_exit_130(workspace):
+    """Ctrl-C reaches every process of the terminal's group: the workers (and the fork servers they start for
+    collider pieces) end without tracebacks of their own, and the run says once that it was interrupted."""
+    config = _config(workspace, "ctrl_c")
+    proc = subprocess.Popen([sys.executable, "-m", "sagebench", "run", str(config), "--workers", "2"], cwd=workspace,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True,
+                            preexec_fn=as_from_a_terminal)
+    stamps = workspace / "ctrl_c" / ".stamps"
+    try:
+        deadline = time.monotonic() + 180
+        while time.monotonic() < deadline and proc.poll() is None and len(list(stamps.rglob("*.json"))) < 3:
+            time.sleep(0.05)
+        assert proc.poll() is None, "the run ended before it could be interrupted"
+        os.killpg(proc.pid, signal.SIGINT)  # as a terminal sends Ctrl-C: to the whole foreground group
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    text = err.decode()
+    assert proc.returncode == 130 and "Traceback" not in text, text
+    assert text.strip().splitlines()[-1] == "error: interrupted: finished stages are kept; run again to go on from them"

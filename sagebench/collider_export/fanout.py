@@ -10,6 +10,7 @@ methods.py). Splitting a scene's meshes and measuring its colliders are independ
 from __future__ import annotations
 
 import multiprocessing
+import signal
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, TypeVar
@@ -20,9 +21,22 @@ WORKER_PRELOAD = ("sagebench.collider_export.pieces", "cv2", "coacd", "pymeshfix
 
 
 def worker_context() -> multiprocessing.context.BaseContext:
-    """The fork-server context of collider workers (the server starts once per process, preloaded)."""
+    """The fork-server context of collider workers (the server starts once per process, preloaded).
+
+    The server starts with SIGINT ignored: Ctrl-C reaches every process of the terminal's group, and one arriving
+    while it imports its preload printed a KeyboardInterrupt traceback of its own. Its children inherit that; a
+    piece worker takes SIGINT's default back (pieces._work), so Ctrl-C ends it silently."""
+    import threading
+    from multiprocessing import forkserver
+
     ctx = multiprocessing.get_context("forkserver")
     ctx.set_forkserver_preload(list(WORKER_PRELOAD))
+    if threading.current_thread() is threading.main_thread():  # signal handlers can be set there only
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            forkserver.ensure_running()
+        finally:
+            signal.signal(signal.SIGINT, previous)
     return ctx
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -211,6 +212,7 @@ def _work(conn: Connection, vertices: np.ndarray, faces: np.ndarray, methods: tu
     """Worker body: run the methods in order, report each (start, result), stop at the first good enough.
     Native libraries' own prints (pymeshfix's "could not fix everything") are silenced: results and failures
     reach the parent through `conn`."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)  # the fork server ignores it (fanout.worker_context)
     devnull = os.open(os.devnull, os.O_WRONLY)
     os.dup2(devnull, 1)
     os.dup2(devnull, 2)

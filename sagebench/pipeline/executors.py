@@ -57,7 +57,7 @@ class PoolExecutor:
         # spawn: forking a process that has started numba or MuJoCo threads is not safe
         self.threads = share(workers)
         self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                         initializer=worker_init, initargs=(self.threads,))
+                                         initializer=_pool_worker_init, initargs=(self.threads,))
         self.capacity = workers
 
     def submit(self, fn: Callable[[Any], T], arg: Any, *, cpus: int = 1) -> Future:
@@ -69,6 +69,17 @@ class PoolExecutor:
 
     def close(self) -> None:
         self._pool.shutdown(cancel_futures=True)
+
+
+def _pool_worker_init(threads: int) -> None:
+    """A pool worker: threads.worker_init, and Ctrl-C ends it at once and without a traceback of its own (it
+    reaches every process of the terminal's group, and the run reports it once: cli's Interrupted). What it was
+    writing is a temporary that the next run removes."""
+    import os
+    import signal
+
+    worker_init(threads)
+    signal.signal(signal.SIGINT, lambda *_: os._exit(130))
 
 
 class RayExecutor:
