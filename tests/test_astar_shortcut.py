@@ -78,3 +78,15 @@ def test_waypoints_are_cell_centres_with_next_segment_heading():
     np.testing.assert_allclose(wps[:, :3], [[2.05, -0.95, 0.3], [3.05, -0.95, 0.3], [3.05, 0.05, 0.3]])
     np.testing.assert_allclose(wps[:, 3], [0.0, math.pi / 2, math.pi / 2])
     assert polyline_length(wps) == pytest.approx(2.0)
+
+
+def test_a_passage_cell_stays_a_waypoint_at_its_anchor():
+    """No shortcut crosses or starts at a passage cell (2): the path keeps it, joined by single steps, at its anchor."""
+    nav = np.ones((3, 9), dtype=np.uint8)
+    nav[0, :] = nav[2, :] = 0
+    nav[1, 4] = 2
+    cells = np.array([[1, c] for c in range(9)])
+    keep = shortcut_indices(nav, cells)
+    assert cells[keep].tolist() == [[1, 0], [1, 3], [1, 4], [1, 5], [1, 8]]
+    wps = waypoints(cells[keep], 0.05, (0.0, 0.0), 0.0, {(1, 4): (0.231, 0.062)})
+    assert wps[2, :2].tolist() == [0.231, 0.062] and np.allclose(wps[1, :2], [0.175, 0.075])

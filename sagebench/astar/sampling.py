@@ -18,7 +18,7 @@ import json
 import zlib
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 import cv2
@@ -62,10 +62,11 @@ class SamplingConfig(BaseModel):
 class GridMap:
     """The navigable raster of one scene. Index [row, col] = [y, x]; origin = world (x, y) of cell (0, 0)'s lower-left corner."""
 
-    navigable: np.ndarray  # [H, W] uint8, 1 = the agent's centre may stand here
+    navigable: np.ndarray  # [H, W] uint8, 1 = the agent's centre may stand here, 2 = a passage cell, at its anchor
     resolution: float  # metres per cell
     origin: tuple[float, float]  # world metres
     floor_z: float  # metres
+    anchors: dict[tuple[int, int], tuple[float, float]] = field(default_factory=dict)  # passage cell -> world xy
 
 
 @dataclass(frozen=True)
@@ -192,7 +193,7 @@ def _try_pair(nav, grid: GridMap, s: _Stand, g: _Stand, start: TargetSpec, goal:
     if path is None:
         return None, "goal not reachable from start"
     keep = shortcut_indices(nav, path.cells)
-    wps = waypoints(path.cells[keep], grid.resolution, grid.origin, grid.floor_z)
+    wps = waypoints(path.cells[keep], grid.resolution, grid.origin, grid.floor_z, grid.anchors)
     length = polyline_length(wps)
     if length < config.min_geodesic_m:
         return None, "shorter than min_geodesic_m"
@@ -239,7 +240,7 @@ def _stand_cells(nav: np.ndarray, labels: np.ndarray, grid: GridMap, target: Tar
     if r0 >= r1 or c0 >= c1:
         return None
     inside = _rasterise([r - [c0, r0] for r in rings], (r1 - r0, c1 - c0))
-    window = nav[r0:r1, c0:c1] != 0
+    window = nav[r0:r1, c0:c1] == 1  # never in a passage (its anchor is no place to start or stop)
     if target.kind == "room":
         free = window & inside
         d = np.hypot(*(np.indices(free.shape) - (anchor - [r0, c0])[:, None, None])) * res

@@ -1,12 +1,15 @@
 """Grid path to waypoints: line-of-sight shortcutting on `navigable`, world coordinates and a yaw per waypoint.
 
 A shortcut segment joins two cell centres. It is kept only if every cell its supercover touches is
-navigable, where the supercover is every cell whose closed square the segment meets, both side
+navigable at its centre (1), where the supercover is every cell whose closed square the segment meets, both side
 cells included when it passes exactly through a grid corner. So a waypoint path never crosses, nor
-grazes the corner of, a non-navigable cell.
+grazes the corner of, a non-navigable cell. A narrow passage's cells (topdown/passages.py: 2) stay waypoints,
+each at its anchor, joined to the path by single grid steps.
 """
 
 from __future__ import annotations
+
+from collections.abc import Mapping
 
 import numba
 import numpy as np
@@ -47,10 +50,11 @@ def supercover(r0: int, c0: int, r1: int, c1: int) -> np.ndarray:
 
 @numba.njit(cache=True)
 def segment_clear(nav: np.ndarray, r0: int, c0: int, r1: int, c1: int) -> bool:
-    """True when every cell of the segment's supercover is navigable (nav: [H, W] uint8)."""
+    """True when every cell of the segment's supercover is navigable at its centre (nav: [H, W] uint8, 1; a
+    passage cell, 2, is stood in at its anchor only, so no shortcut crosses or starts at one)."""
     cells = supercover(r0, c0, r1, c1)
     for i in range(cells.shape[0]):
-        if nav[cells[i, 0], cells[i, 1]] == 0:
+        if nav[cells[i, 0], cells[i, 1]] != 1:
             return False
     return True
 
@@ -99,15 +103,17 @@ def waypoints(
     resolution: float,  # metres per cell
     origin: tuple[float, float],  # world (x, y) of the lower-left corner of cell (0, 0)
     z: float,  # floor height, m
+    anchors: Mapping[tuple[int, int], tuple[float, float]] | None = None,  # passage cell -> world (x, y)
 ) -> np.ndarray:
-    """[K, 4] float64 waypoints (x, y, z, yaw): cell centres in world metres, yaw = heading of the next segment.
+    """[K, 4] float64 waypoints (x, y, z, yaw): cell centres in world metres (a passage cell's anchor instead),
+    yaw = heading of the next segment.
 
     The last waypoint keeps the heading of the segment that reaches it (0 for a single-cell path).
     """
-    cells = np.asarray(cells, dtype=np.float64)
     out = np.empty((len(cells), 4), dtype=np.float64)
-    out[:, 0] = origin[0] + (cells[:, 1] + 0.5) * resolution
-    out[:, 1] = origin[1] + (cells[:, 0] + 0.5) * resolution
+    for k, (r, c) in enumerate(np.asarray(cells, dtype=np.int64)):
+        out[k, :2] = (anchors or {}).get((int(r), int(c)), (origin[0] + (c + 0.5) * resolution,
+                                                              origin[1] + (r + 0.5) * resolution))
     out[:, 2] = z
     if len(cells) == 1:
         out[0, 3] = 0.0

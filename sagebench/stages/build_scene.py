@@ -122,6 +122,8 @@ def _build(checked: CheckedScene, run_dir: Path, config: TopdownConfig) -> Build
             "category": td.category,
             "occupancy": td.occupancy,
             "navigable": td.navigable,
+            "passage_cells": td.passages.cells,
+            "passage_xy": td.passages.anchors,
             "region": td.region,
             "resolution": np.float64(td.grid.resolution),
             "origin": np.asarray(td.grid.origin, dtype=np.float64),

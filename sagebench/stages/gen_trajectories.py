@@ -198,7 +198,7 @@ def read_scene_inputs(scene_dir: Path) -> tuple[SceneSpec, SemanticMap, GridMap,
         loc, msg, _ = first_error(err)
         raise DataError(msg, path=smap_path, field=loc) from None
     grids = read_topdown_grids(npz_path)
-    grid = GridMap(grids.navigable, grids.resolution, grids.origin, float(spec.floor_height))
+    grid = GridMap(grids.navigable, grids.resolution, grids.origin, float(spec.floor_height), grids.anchors)
     return spec, smap, grid, grids.occupancy
 
 

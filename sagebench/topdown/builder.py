@@ -16,6 +16,7 @@ from sagebench.scene.loader import SCENE_FILE, LoadedScene
 from sagebench.topdown.config import TopdownConfig
 from sagebench.topdown.footprints import band_section, footprint, mesh_parts
 from sagebench.topdown.occupancy import band_occupancy, clip_to_band, inflate
+from sagebench.topdown.passages import Passages, open_passages
 from sagebench.topdown.raster import Grid, polygon_mask
 from sagebench.topdown.regions import reachability
 from sagebench.topdown.semantic_map import MapInstance, MultiPolygon, Region, RoomReach, SemanticMap
@@ -34,11 +35,12 @@ class Topdown:
     instance: np.ndarray  # [H, W] int32, instance id per cell, 0 background
     category: np.ndarray  # [H, W] int16, category id per cell (index into categories), 0 background
     occupancy: np.ndarray  # [H, W] uint8, 1 blocked, 0 free
-    navigable: np.ndarray  # [H, W] uint8, 1 where the agent's centre may stand
+    navigable: np.ndarray  # [H, W] uint8, 1 where the agent's centre may stand, PASSAGE: at the cell's anchor
     region: np.ndarray  # [H, W] int32, connected navigable region id, 0 elsewhere
     categories: list[str]
     semantic: SemanticMap
     footprints: dict[int, BaseGeometry]  # instance id -> footprint, world m
+    passages: Passages  # the cells of narrow passages opened on the exact geometry, and their anchors
 
 
 def compute_topdown(scene: LoadedScene, config: TopdownConfig) -> Topdown:
@@ -67,8 +69,9 @@ def compute_topdown(scene: LoadedScene, config: TopdownConfig) -> Topdown:
 
     tris, part, owner = _stack([parts[o.instance_id] for o in blockers])
     occupied = band_occupancy(tris, part, grid, z_lo, z_hi) | ~polygon_mask(plan, grid)
-    navigable = inflate(occupied, config.agent.radius, res)
-    _, src = clip_to_band(tris, z_lo, z_hi)
+    polys, src = clip_to_band(tris, z_lo, z_hi)
+    navigable, passages = open_passages(inflate(occupied, config.agent.radius, res), occupied, polys, plan, grid,
+                                        config.agent.radius)
     blocking_ids = {blockers[i].instance_id for i in np.unique(owner[src])}
 
     categories = ["background", *sorted({o.category for o in objects})]
@@ -111,7 +114,7 @@ def compute_topdown(scene: LoadedScene, config: TopdownConfig) -> Topdown:
             )
             for o in objects
         ],
-        navigable_area_m2=_r(float(navigable.sum()) * cell),
+        navigable_area_m2=_r(float(np.count_nonzero(navigable)) * cell),
         regions=[Region(region_id=k, area_m2=_r(n * cell), rooms=region_rooms[k])
                  for k, n in enumerate(reach.region_cells, start=1)],
         main_region=reach.main_region,
@@ -139,6 +142,7 @@ def compute_topdown(scene: LoadedScene, config: TopdownConfig) -> Topdown:
         categories=categories,
         semantic=semantic,
         footprints=footprints,
+        passages=passages,
     )
 
 

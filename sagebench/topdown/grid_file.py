@@ -3,20 +3,22 @@
 from __future__ import annotations
 
 import zipfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from sagebench.errors import DataError
+from sagebench.topdown.passages import PASSAGE
 
 
 @dataclass(frozen=True)
 class TopdownGrids:
-    navigable: np.ndarray  # [H, W] uint8, 1 = the agent's centre may stand here
+    navigable: np.ndarray  # [H, W] uint8, 1 = the agent's centre may stand here, PASSAGE = at its anchor
     occupancy: np.ndarray  # [H, W] uint8, 1 = blocked in the agent's height band
     resolution: float  # metres per cell
     origin: tuple[float, float]  # world (x, y) of cell (0, 0)'s lower-left corner
+    anchors: dict[tuple[int, int], tuple[float, float]] = field(default_factory=dict)  # PASSAGE cell -> world (x, y)
 
 
 def read_topdown_grids(npz_path: Path) -> TopdownGrids:
@@ -25,7 +27,8 @@ def read_topdown_grids(npz_path: Path) -> TopdownGrids:
         raise DataError("missing: run build-scene first", path=npz_path)
     try:
         with np.load(npz_path) as npz:
-            arrays = {k: npz[k] for k in ("navigable", "occupancy", "resolution", "origin") if k in npz.files}
+            arrays = {k: npz[k] for k in ("navigable", "occupancy", "resolution", "origin", "passage_cells",
+                                          "passage_xy") if k in npz.files}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as err:
         raise DataError(f"cannot read: {err}", path=npz_path) from None
     for key in ("navigable", "occupancy", "resolution", "origin"):
@@ -40,5 +43,11 @@ def read_topdown_grids(npz_path: Path) -> TopdownGrids:
     if origin.shape != (2,) or not np.isfinite(origin).all() or not 0 < resolution < np.inf:
         raise DataError(f"origin must be finite [x, y] and resolution > 0 (got {origin.tolist()}, {resolution})",
                         path=npz_path, field="origin")
-    return TopdownGrids(np.ascontiguousarray(nav != 0, dtype=np.uint8), np.asarray(occ, dtype=np.uint8), resolution,
-                        (float(origin[0]), float(origin[1])))
+    cells, xy = arrays.get("passage_cells", np.zeros((0, 2))), arrays.get("passage_xy", np.zeros((0, 2)))
+    if cells.shape != xy.shape or (len(cells) and not np.all(nav[tuple(cells.astype(np.int64).T)] == PASSAGE)):
+        raise DataError("passage_cells must be PASSAGE cells of navigable, one passage_xy each", path=npz_path,
+                        field="passage_cells")
+    nav = np.where(nav == PASSAGE, PASSAGE, nav != 0).astype(np.uint8)
+    anchors = {(int(r), int(c)): (float(x), float(y)) for (r, c), (x, y) in zip(cells, xy)}
+    return TopdownGrids(np.ascontiguousarray(nav), np.asarray(occ, dtype=np.uint8), resolution,
+                        (float(origin[0]), float(origin[1])), anchors)
