@@ -17,7 +17,7 @@ from sagebench.fileio import dumps_json, write_bytes
 from sagebench.scene.loader import load_scene
 from sagebench.scene.synth import write_synth_scene
 from sagebench.stages.build_scene import build_scene
-from sagebench.topdown.builder import TopdownConfig, compute_topdown
+from sagebench.topdown.builder import BuildSceneConfig, compute_topdown
 from sagebench.topdown.footprints import mesh_parts
 from sagebench.topdown.occupancy import clip_to_band
 from sagebench.topdown.raster import Grid, touched_cells, touched_cells_reference
@@ -70,7 +70,7 @@ def run() -> list[dict]:
         demo = tmp / "demo_apartment_0"
         write_synth_scene(demo, seed=0)
         big = write_tiled_scene(tmp / "tiled", [demo] * 4)
-        config = TopdownConfig()
+        config = BuildSceneConfig()
         scenes = {"demo": demo, "4x demo (2x2 tiles)": big}
         loaded = {name: load_scene(d) for name, d in scenes.items()}
         stage, topdown = {}, {}

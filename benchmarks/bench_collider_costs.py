@@ -64,7 +64,8 @@ def run() -> list[dict]:
     from sagebench.scene.loader import load_scene
     from sagebench.scene.synth import write_synth_scene
     from sagebench.stages.build_scene import build_scene
-    from sagebench.stages.export_usd import _local_meshes, make_config, part_cache
+    from sagebench.collider_export.scene_export import local_meshes
+    from sagebench.stages.export_usd import make_config, part_cache
     from sagebench.collider_export.decompose import decompose_meshes
     from sagebench.scene.loader import door_pose
     from sagebench.ui import SETTINGS
@@ -88,7 +89,7 @@ def run() -> list[dict]:
                                   f"{m['load']:.1f} on {os.cpu_count()} cores"})
 
         scene = load_scene(tmp / "run" / "scenes" / load_scene(tmp / "scene").spec.scene_id)
-        local = _local_meshes(scene)
+        local = local_meshes(scene)
         colliders = decompose_meshes(local, make_config().colliders, cache=part_cache(tmp / "cache"), workers=WORKERS,
                                      floor_height=scene.spec.floor_height)
         measured = {n: mc.parts for n, mc in colliders.items() if mc.pieces}

@@ -18,8 +18,8 @@ def run() -> list[dict]:
     from sagebench.astar.sampling import sample_trajectories
     from sagebench.scene.synth import write_synth_scene
     from sagebench.stages.build_scene import build_scene
-    from sagebench.stages.gen_trajectories import (GenTrajectoriesConfig, generate_scene, read_scene_inputs,
-                                                   scene_targets)
+    from sagebench.episodes.targets import scene_targets
+    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, generate_scene, read_scene_inputs
 
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -8,13 +8,13 @@ from pathlib import Path
 def built_demo_run(root: Path) -> Path:
     """Write the demo scene (seed 0) and run build-scene, gen-trajectories and export-usd into `root`."""
     from sagebench.scene.synth import write_synth_scene
-    from sagebench.stages.build_scene import TopdownConfig, build_scene
+    from sagebench.stages.build_scene import BuildSceneConfig, build_scene
     from sagebench.stages.export_usd import export_usd
     from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, gen_trajectories
 
     scene = root / "input" / "demo_apartment_0"
     write_synth_scene(scene, seed=0)
-    build_scene(scene, root, TopdownConfig(seed=0))
+    build_scene(scene, root, BuildSceneConfig(seed=0))
     gen_trajectories(root, GenTrajectoriesConfig(seed=0))
     export_usd(root, cache_dir=root / "cache")
     return root

@@ -158,7 +158,7 @@ def demo(
         raise typer.Exit(1)
 
 
-@app.command("build-scene", cls=_defaults_from("sagebench.stages.build_scene:TopdownConfig"))
+@app.command("build-scene", cls=_defaults_from("sagebench.stages.build_scene:BuildSceneConfig"))
 def build_scene_cmd(
     scene_dir: Annotated[Path, typer.Argument(help="Artist scene directory (scene.json + meshes).")],
     out: Annotated[Path, typer.Option("--out", help="Run directory; writes OUT/scenes/<scene_id>/.")],

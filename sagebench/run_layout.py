@@ -98,6 +98,27 @@ CONTRACT: dict[str, StageFiles] = {
 OUTPUT_ROOTS = tuple(sorted({_RUN_ROOTS[p.root] for s in CONTRACT.values() for p in s.writes}))
 
 
+# what makes a scene one of the run's, for `run_scenes`: (directory under RUN, the file inside it, the stage writing it)
+_FOUND_BY = {"scene": (SCENES, SCENE_FILE, "build-scene"), "episodes": (EPISODES, SHARDS, "gen-trajectories")}
+
+
+def run_scenes(run_dir: Path, scene_id: str | None = None, *,
+               having: Literal["scene", "episodes"] = "scene") -> list[str]:
+    """The scene ids a command works on: `scene_id`, or every scene of the run (sorted), where a scene counts when
+    it has its built scene (scenes/<id>/scene.json) or, with having="episodes", its episode shards
+    (episodes/<id>/part-*.parquet). Otherwise a DataError naming what was looked for, the scenes found and the
+    command that makes it. Every command finds its scenes here."""
+    folder, pattern, stage = _FOUND_BY[having]
+    root = Path(run_dir) / folder
+    found = sorted(p.name for p in root.glob("*") if p.is_dir() and not p.name.startswith(".") and any(p.glob(pattern)))
+    if scene_id is None and found:
+        return found
+    if scene_id is not None and scene_id in found:
+        return [scene_id]
+    raise DataError(f"no {folder}/{scene_id or '<scene_id>'}/{pattern} (scenes found: {', '.join(found) or 'none'}); "
+                    f"run `sagebench {stage}` on this run first", path=run_dir)
+
+
 def run_scene_dir(run_dir: Path, scene_id: str) -> Path:
     return Path(run_dir) / SCENES / scene_id
 

@@ -99,7 +99,8 @@ def test_target_without_a_nearby_navigable_cell_is_reported_and_skipped():
 
 
 def test_demo_scene_gives_the_default_200_trajectories_on_navigable_cells(demo_built_run):
-    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, read_scene_inputs, scene_targets
+    from sagebench.episodes.targets import scene_targets
+    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, read_scene_inputs
 
     spec, smap, grid, _ = read_scene_inputs(demo_built_run / "scenes" / "demo_apartment_0")
     targets, names = scene_targets(spec, smap)

@@ -148,7 +148,8 @@ def test_intensity_replay_needs_scene_xml_but_given_intensities_do_not(demo_eval
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--scene", "nope"], "no episodes for scene 'nope' (run gen-trajectories first)"),
+    (["--scene", "nope"], "no episodes/nope/part-*.parquet (scenes found: demo_apartment_0); "
+                          "run `sagebench gen-trajectories` on this run first"),
     (["--workers", "0"], "error: --workers: Input should be greater than or equal to 1"),
     (["--start-tolerance", "0"], "error: --start-tolerance: Input should be greater than 0"),
 ])

@@ -250,7 +250,8 @@ def test_without_gaussians_the_stage_still_gets_colliders(tmp_path, run_cli):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--scene", "nope"], "no scene 'nope' in this run (run build-scene first)"),
+        (["--scene", "nope"], "run: no scenes/nope/scene.json (scenes found: tiny); "
+                              "run `sagebench build-scene` on this run first"),
         (["--coacd-threshold", "0"], "error: --coacd-threshold: Input should be greater than 0"),
         (["--coacd-preprocess", "maybe"], "error: --coacd-preprocess: Input should be 'auto', 'on' or 'off'"),
         (["--workers", "0"], "error: --workers: Input should be greater than or equal to 1"),
@@ -267,7 +268,8 @@ def test_bad_options_exit_2_and_write_nothing(tmp_path, run_cli, args, message):
 def test_run_without_scenes_is_an_error(tmp_path, run_cli):
     code, _, err = run_cli("export-usd", tmp_path, "--cache-dir", tmp_path / "cache")
     assert code == 2
-    assert err == f"error: {tmp_path}: no scenes/<id>/scene.json in this run directory (run build-scene first)\n"
+    assert err == (f"error: {tmp_path}: no scenes/<scene_id>/scene.json (scenes found: none); "
+                   f"run `sagebench build-scene` on this run first\n")
 
 
 def test_gaussians_of_an_unknown_object_are_an_error(tmp_path, run_cli):

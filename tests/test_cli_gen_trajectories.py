@@ -114,7 +114,8 @@ def test_asking_for_more_than_the_scene_allows_warns_with_the_reason(run_cli, de
     (["--per-scene", "0"], "error: --per-scene: Input should be greater than or equal to 1"),
     (["--instructions", "gpt"], "error: --instructions: Input should be 'template', 'llm' or 'none'"),
     (["--instructions", "llm"], "error: --instructions llm needs --llm-base-url and --llm-model"),
-    (["--scene", "nope"], "error: --scene: no scene 'nope' in"),
+    (["--scene", "nope"], "no scenes/nope/scene.json (scenes found: demo_apartment_0); "
+                          "run `sagebench build-scene` on this run first"),
     (["--goal-radius", "0"], "error: --goal-radius: Input should be greater than 0"),
     (["--min-geodesic", "25"], "error: min_geodesic_m (25.0) must be below max_geodesic_m (20.0)"),
 ])
@@ -127,7 +128,8 @@ def test_bad_options_exit_2_and_write_nothing(run_cli, demo_built_run, tmp_path,
 
 def test_missing_build_scene_output_exits_2(run_cli, tmp_path):
     code, _, err = run_cli("gen-trajectories", tmp_path)
-    assert code == 2 and f"error: {tmp_path}: no scenes/ directory: run build-scene on this run directory first" in err
+    assert code == 2 and err == (f"error: {tmp_path}: no scenes/<scene_id>/scene.json (scenes found: none); "
+                                 f"run `sagebench build-scene` on this run first\n")
 
 
 def test_corrupt_topdown_map_exits_2_and_keeps_earlier_episodes(run_cli, demo_built_run, tmp_path):

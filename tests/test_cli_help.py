@@ -15,7 +15,7 @@ from sagebench.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parent.parent
 COMMANDS = {  # command -> (stage module, settings model[, its options table when not OPTIONS])
-    "build-scene": ("sagebench.stages.build_scene", "TopdownConfig"),
+    "build-scene": ("sagebench.stages.build_scene", "BuildSceneConfig"),
     "gen-trajectories": ("sagebench.stages.gen_trajectories", "GenTrajectoriesConfig"),
     "render": ("sagebench.stages.render", "RenderConfig"),
     "export-usd": ("sagebench.stages.export_usd", "ExportConfig"),

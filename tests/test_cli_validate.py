@@ -149,7 +149,8 @@ def test_missing_mjcf_is_exit_2_and_writes_nothing(validated_run, tmp_path, run_
 @pytest.mark.parametrize("args, message", [
     (["--frames-per-scene", "-1"], "error: --frames-per-scene: Input should be greater than or equal to 0"),
     (["--depth-tolerance", "0"], "error: --depth-tolerance: Input should be greater than 0"),
-    (["--scene", "nope"], "no episodes for scene 'nope' (run gen-trajectories first)"),
+    (["--scene", "nope"], "no episodes/nope/part-*.parquet (scenes found: demo_apartment_0); "
+                          "run `sagebench gen-trajectories` on this run first"),
 ])
 def test_bad_options_are_exit_2(validated_run, tmp_path, run_cli, args, message):
     run = _copy(validated_run, tmp_path)

@@ -5,10 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sagebench.episodes.episode import Episode
 from sagebench.evaluation.predictions import Prediction
 from sagebench.metrics import EpisodeMetrics
 from sagebench.evaluation.scoring import (
-    Episode, EpisodeScore, score_prediction, summarise_scores,
+    EpisodeScore, score_prediction, summarise_scores,
 )
 
 

@@ -148,3 +148,36 @@ def test_relative_lazy_and_type_checking_imports_are_read():
     assert imports("sagebench.render.x", source, modules) == {
         "sagebench.render.sh", "sagebench.render.camera", "sagebench.fileio", "sagebench",
         "sagebench.stages.validate", "sagebench.pipeline.run"}
+
+
+MAX_STAGE_FUNCTION_LINES = 40  # a stage reads its inputs, calls the library, writes its outputs
+
+
+def long_functions(source: str, limit: int) -> list[tuple[str, int]]:
+    """(name, lines) of each function or method in `source` longer than `limit` lines, from its first decorator
+    to its last line, docstring included."""
+    out = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            first = min([node.lineno, *(d.lineno for d in node.decorator_list)])
+            if node.end_lineno - first + 1 > limit:
+                out.append((node.name, node.end_lineno - first + 1))
+    return out
+
+
+def test_stages_are_thin_no_stage_function_is_longer_than_40_lines():
+    found = [f"sagebench/stages/{p.name}: {name} is {n} lines" for p in sorted((ROOT / "stages").glob("*.py"))
+             for name, n in long_functions(p.read_text(encoding="utf-8"), MAX_STAGE_FUNCTION_LINES)]
+    assert len(list((ROOT / "stages").glob("*.py"))) >= 9  # the stage modules are really read
+    assert not found, "\n".join(found)
+
+
+def test_a_long_function_or_method_is_reported_with_its_length():
+    def indented(lines: int, depth: int) -> str:
+        return "".join(" " * depth + "x = 1\n" for _ in range(lines))
+
+    source = (f'def fits():\n    """Forty lines with its def and docstring."""\n{indented(38, 4)}'
+              f"\n\nclass A:\n    @staticmethod\n    def too_long():\n{indented(39, 8)}"
+              f"\n    async def also():\n{indented(80, 8)}")
+    assert long_functions(source, 40) == [("too_long", 41), ("also", 81)]  # the decorator counts
+    assert long_functions(source, 39) == [("fits", 40), ("too_long", 41), ("also", 81)]

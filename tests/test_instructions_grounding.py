@@ -87,7 +87,8 @@ def test_mentions_prefer_the_longest_phrase_and_read_adjectives(grounder):
 
 @pytest.fixture(scope="module")
 def demo(demo_built_run):
-    from sagebench.stages.gen_trajectories import read_scene_inputs, scene_context
+    from sagebench.episodes.targets import scene_context
+    from sagebench.stages.gen_trajectories import read_scene_inputs
 
     spec, smap, grid, occupancy = read_scene_inputs(demo_built_run / "scenes" / "demo_apartment_0")
     ctx = scene_context(spec, smap)
@@ -159,7 +160,8 @@ def test_every_unique_name_resolves_to_its_own_thing(demo):
 
 def test_every_template_passes_with_its_goal_and_fails_with_another(demo):
     from sagebench.astar.sampling import sample_trajectories
-    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, scene_targets
+    from sagebench.episodes.targets import scene_targets
+    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig
 
     ctx, g, ids, rooms, (spec, smap, grid) = demo
     targets, names = scene_targets(spec, smap, ctx)

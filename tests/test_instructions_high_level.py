@@ -130,8 +130,9 @@ def test_zero_weight_types_never_appear_and_wording_is_deterministic_per_seed():
 def demo(demo_built_run):
     """(context, semantic map, rows) of the default template run on the demo scene, without writing shards."""
     from sagebench.astar.sampling import sample_trajectories
-    from sagebench.stages.gen_trajectories import (GenTrajectoriesConfig, episode_rows, read_scene_inputs,
-                                                   scene_context, scene_targets)
+    from sagebench.episodes.rows import episode_rows
+    from sagebench.episodes.targets import scene_context, scene_targets
+    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, read_scene_inputs
 
     spec, smap, grid, _ = read_scene_inputs(demo_built_run / "scenes" / "demo_apartment_0")
     config = GenTrajectoriesConfig()
@@ -210,7 +211,8 @@ def test_demo_next_to_relations_hold_in_the_semantic_map(demo):
 
 
 def test_demo_same_seed_same_text_other_seed_other_wording(demo):
-    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, episode_rows
+    from sagebench.episodes.rows import episode_rows
+    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig
 
     ctx, _, rows, (spec, _, _, trajs, names, _) = demo
     again = episode_rows(spec.scene_id, trajs, names, GenTrajectoriesConfig(), ctx).rows

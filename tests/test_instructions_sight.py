@@ -51,13 +51,8 @@ def test_the_doorway_is_what_lets_the_view_through(two_rooms):
 def test_a_kitchen_path_of_the_demo_lists_no_study_object(demo_built_run):
     """The issue's example: a path inside the kitchen listed the study's floor lamp behind the wall."""
     from sagebench.astar.sampling import sample_trajectories
-    from sagebench.stages.gen_trajectories import (
-        GenTrajectoriesConfig,
-        read_scene_inputs,
-        scene_context,
-        scene_sight,
-        scene_targets,
-    )
+    from sagebench.episodes.targets import scene_context, scene_sight, scene_targets
+    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, read_scene_inputs
 
     spec, smap, grid, occupancy = read_scene_inputs(demo_built_run / "scenes" / "demo_apartment_0")
     ctx = scene_context(spec, smap)

@@ -11,9 +11,10 @@ from hypothesis import strategies as st
 
 from profiles import examples
 
+from sagebench.episodes.episode import Episode
 from sagebench.evaluation.predictions import Prediction
 from sagebench.evaluation.scoring import (
-    METRIC_NAMES, Episode, EpisodeScore, missing_metrics, score_prediction, summarise_scores,
+    METRIC_NAMES, EpisodeScore, missing_metrics, score_prediction, summarise_scores,
 )
 from sagebench.metrics import NavigableMap, distance_on_foot
 

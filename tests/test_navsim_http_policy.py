@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from fake_policy import FakePolicy
-from sagebench.evaluation.scoring import Episode
+from sagebench.episodes.episode import Episode
 from sagebench.navsim.actions import Action
 from sagebench.navsim.http_policy import HttpPolicy, RequestFailed, post
 from sagebench.navsim.policies import PolicyFailure

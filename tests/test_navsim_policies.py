@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from profiles import examples
 
-from sagebench.evaluation.scoring import Episode
+from sagebench.episodes.episode import Episode
 from sagebench.navsim.actions import Action, ActionConfig
 from sagebench.navsim.policies import PolicyConfig, built_in, oracle_targets
 

@@ -10,7 +10,7 @@ import numpy as np
 from sagebench.collider_export.pieces import Piece
 from sagebench.pipeline.pieces import PieceOutcome, PieceTask
 from sagebench.pipeline.schedule import RunScheduler
-from sagebench.pipeline.stages import STAGES, Outcome
+from sagebench.pipeline.tasks import STAGES, Outcome
 
 
 def _piece(sid: str, key: str, faces: int) -> PieceTask:

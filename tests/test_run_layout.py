@@ -14,8 +14,11 @@ from pathlib import Path
 import pytest
 
 from sagebench.pipeline.manifest import hash_run, sha256_file
-from sagebench.pipeline.stages import STAGES, Task, run_task, stage_key, stamp_path, up_to_date
-from sagebench.run_layout import CONTRACT, MANIFEST, OUTPUT_ROOTS, STAMPS, after, files, producer, stage_files
+from sagebench.pipeline.tasks import STAGES, Task, run_task, stage_key, stamp_path, up_to_date
+from sagebench.errors import DataError
+from sagebench.run_layout import (
+    CONTRACT, MANIFEST, OUTPUT_ROOTS, STAMPS, after, files, producer, run_scenes, stage_files,
+)
 
 SCENE = "demo_apartment_0"
 
@@ -24,9 +27,9 @@ def _settings() -> dict[str, dict]:
     from sagebench.stages.export_usd import ExportConfig
     from sagebench.stages.gen_trajectories import GenTrajectoriesConfig
     from sagebench.stages.validate import ValidateConfig
-    from sagebench.topdown.builder import TopdownConfig
+    from sagebench.topdown.builder import BuildSceneConfig
 
-    return {"build_scene": TopdownConfig().model_dump(mode="json"),
+    return {"build_scene": BuildSceneConfig().model_dump(mode="json"),
             "gen_trajectories": GenTrajectoriesConfig(per_scene=6).model_dump(mode="json"),
             "export_usd": ExportConfig().model_dump(mode="json"),
             "validate": ValidateConfig(frames_per_scene=1).model_dump(mode="json")}
@@ -180,3 +183,30 @@ def test_mesh_names_stay_inside_the_scene_directory(tmp_path):
     assert mesh_names(spec) == ["meshes/a.glb"]
     spec.write_text("[1]")
     assert mesh_names(spec) == [] and mesh_names(tmp_path / "absent.json") == []
+
+
+def test_one_function_finds_a_runs_scenes_and_says_what_is_missing(tmp_path):
+    """Built scenes have scenes/<id>/scene.json, scenes with episodes a shard; hidden, empty and half-made
+    folders are no scenes. Every command asks run_scenes, so they all refuse a missing scene with this line."""
+    for sid in ("b", "a", ".tmp-c"):
+        (tmp_path / "scenes" / sid).mkdir(parents=True)
+        (tmp_path / "scenes" / sid / "scene.json").write_text("{}")
+    (tmp_path / "scenes" / "no_spec").mkdir()
+    (tmp_path / "episodes" / "b").mkdir(parents=True)
+    (tmp_path / "episodes" / "b" / "part-train-00000.parquet").write_bytes(b"")
+    (tmp_path / "episodes" / "a" / "_preview").mkdir(parents=True)  # a preview but no shard
+    assert run_scenes(tmp_path) == ["a", "b"]
+    assert run_scenes(tmp_path, "b") == ["b"]
+    assert run_scenes(tmp_path, having="episodes") == ["b"]
+    with pytest.raises(DataError) as err:
+        run_scenes(tmp_path, "no_spec")
+    assert str(err.value) == (f"{tmp_path}: no scenes/no_spec/scene.json (scenes found: a, b); "
+                              "run `sagebench build-scene` on this run first")
+    with pytest.raises(DataError) as err:
+        run_scenes(tmp_path, "a", having="episodes")
+    assert str(err.value) == (f"{tmp_path}: no episodes/a/part-*.parquet (scenes found: b); "
+                              "run `sagebench gen-trajectories` on this run first")
+    with pytest.raises(DataError) as err:
+        run_scenes(tmp_path / "empty", having="episodes")
+    assert str(err.value) == (f"{tmp_path / 'empty'}: no episodes/<scene_id>/part-*.parquet (scenes found: none); "
+                              "run `sagebench gen-trajectories` on this run first")

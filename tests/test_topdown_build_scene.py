@@ -16,7 +16,7 @@ from meshes import wall_with_openings
 from sagebench.errors import ConfigError, SceneError
 from sagebench.scene import assets
 from sagebench.scene.loader import load_scene
-from sagebench.stages.build_scene import TopdownConfig, build_scene, make_config
+from sagebench.stages.build_scene import BuildSceneConfig, build_scene, make_config
 from sagebench.topdown.semantic_map import SemanticMap
 
 RES = 0.05
@@ -283,7 +283,7 @@ def test_config_errors_name_the_option():
         make_config(band_min=0.5, band_max=0.4)
     with pytest.raises(ConfigError, match="^--agent-radius: "):
         make_config(agent_radius=-1.0)
-    assert make_config() == TopdownConfig()
+    assert make_config() == BuildSceneConfig()
     assert make_config(agent_radius=0.3).agent.radius == 0.3
 
 

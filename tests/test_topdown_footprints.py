@@ -10,10 +10,10 @@ import trimesh
 from meshes import prism, wall_with_openings
 
 from sagebench.scene import assets
-from sagebench.topdown.config import TopdownConfig
+from sagebench.topdown.config import BuildSceneConfig
 from sagebench.topdown.footprints import band_section, footprint, footprint_reference, mesh_parts, sample_surface
 
-DENSITY = TopdownConfig().sample_density
+DENSITY = BuildSceneConfig().sample_density
 
 
 def _fp(mesh: trimesh.Trimesh, seed: int = 0):

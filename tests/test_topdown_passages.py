@@ -10,12 +10,12 @@ import pytest
 import shapely
 
 from sagebench.scene.loader import load_scene
-from sagebench.topdown.builder import TopdownConfig, compute_topdown
+from sagebench.topdown.builder import BuildSceneConfig, compute_topdown
 from sagebench.topdown.passages import MARGIN, PASSAGE, open_passages
 from sagebench.topdown.raster import Grid
 
 HOUSE = Path(__file__).parent / "fixtures" / "concave_house"
-RADIUS = TopdownConfig().agent.radius
+RADIUS = BuildSceneConfig().agent.radius
 
 
 def _sections(scene) -> shapely.Geometry:
@@ -33,7 +33,7 @@ def _sections(scene) -> shapely.Geometry:
 @pytest.mark.parametrize("resolution", [0.04, 0.05, 0.06])
 def test_the_office_is_reachable_whatever_the_grid_and_each_anchor_clears_the_geometry(resolution):
     scene = load_scene(HOUSE)
-    td = compute_topdown(scene, TopdownConfig(resolution=resolution))
+    td = compute_topdown(scene, BuildSceneConfig(resolution=resolution))
     assert all(r.reachable for r in td.semantic.rooms), [r.room_id for r in td.semantic.rooms if not r.reachable]
     cells, anchors = td.passages.cells, td.passages.anchors
     assert len(cells) >= 2 and (td.navigable[cells[:, 0], cells[:, 1]] == PASSAGE).all()

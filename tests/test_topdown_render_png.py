@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 from sagebench.scene.loader import load_scene
-from sagebench.topdown.builder import TopdownConfig, compute_topdown
+from sagebench.topdown.builder import BuildSceneConfig, compute_topdown
 from sagebench.topdown.render_png import DOOR, NAVIGABLE, UNREACHABLE, WALL, render_topdown
 
 
 @pytest.fixture(scope="module")
 def picture(demo_scene_dir):
-    td = compute_topdown(load_scene(demo_scene_dir), TopdownConfig())
+    td = compute_topdown(load_scene(demo_scene_dir), BuildSceneConfig())
     data = render_topdown(td)
     img = cv2.cvtColor(cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
     return td, data, img
@@ -42,7 +42,7 @@ def test_walls_doors_by_state_and_legend_swatches_are_drawn(picture):
 
 def test_same_maps_give_the_same_bytes(picture, demo_scene_dir):
     _, data, _ = picture
-    assert render_topdown(compute_topdown(load_scene(demo_scene_dir), TopdownConfig())) == data
+    assert render_topdown(compute_topdown(load_scene(demo_scene_dir), BuildSceneConfig())) == data
 
 
 def test_floor_outside_the_main_region_has_its_own_colour_and_legend_entry():
@@ -53,7 +53,7 @@ def test_floor_outside_the_main_region_has_its_own_colour_and_legend_entry():
     from sagebench.config import AgentConfig
 
     house = Path(__file__).parent / "fixtures" / "concave_house"
-    td = compute_topdown(load_scene(house), TopdownConfig(agent=AgentConfig(radius=0.25)))
+    td = compute_topdown(load_scene(house), BuildSceneConfig(agent=AgentConfig(radius=0.25)))
     img = cv2.cvtColor(cv2.imdecode(np.frombuffer(render_topdown(td), np.uint8), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
     h, w = td.grid.shape
     scale = int(np.clip(round(1000 / max(h, w)), 2, 8))

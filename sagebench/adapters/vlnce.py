@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from sagebench.config import AgentConfig
-from sagebench.evaluation.scoring import Episode
+from sagebench.episodes.episode import Episode
 from sagebench.navsim.actions import Action
 from sagebench.navsim.protocol import decode_request
 from sagebench.navsim.simulator import EnvConfig

@@ -1,1 +1,2 @@
-"""Episode rows: the Parquet schema of DESIGN.md, the shard writer and the paths preview."""
+"""Episodes: what gen-trajectories samples and writes (targets, rows, settings), the Parquet schema, shards,
+splits, reading a run's episodes back, and the paths preview."""

@@ -1,4 +1,4 @@
-"""Reading a run's episodes: which scenes have them, the rows for scoring, the trajectories for replay."""
+"""Reading a run's episodes: the rows for scoring, the trajectories for replay."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import numpy as np
 import pyarrow as pa
 
 from sagebench.errors import DataError
-from sagebench.evaluation.scoring import NO_LEVEL, Episode
-from sagebench.run_layout import EPISODES, SHARDS, run_episodes_dir
+from sagebench.episodes.episode import NO_LEVEL, Episode
+from sagebench.run_layout import run_episodes_dir, run_scenes
 
 
 @dataclass(frozen=True)
@@ -24,20 +24,6 @@ class Trajectory:
     goal_radius: float
     geodesic_distance: float
     base_action: tuple[str, ...] = ()  # the trajectory's Base_Action sentences
-
-
-def scene_ids(run_dir: Path, scene_id: str | None) -> list[str]:
-    """The scenes to validate: `scene_id`, or every scene with episodes (sorted)."""
-    episodes = Path(run_dir) / EPISODES
-    if scene_id is not None:
-        if not (episodes / scene_id).is_dir():
-            raise DataError(f"no episodes for scene {scene_id!r} (run gen-trajectories first)", path=episodes)
-        return [scene_id]
-    found = sorted(p.name for p in episodes.glob("*") if p.is_dir() and any(p.glob(SHARDS)))
-    if not found:
-        raise DataError("no episodes/<scene_id>/part-*.parquet in this run directory (run gen-trajectories first)",
-                        path=run_dir)
-    return found
 
 
 def read_trajectories(episodes_dir: Path) -> list[Trajectory]:
@@ -71,7 +57,7 @@ def load_episodes(run_dir: Path, scene_id: str | None = None) -> list[Episode]:
     from sagebench.episodes.shards import read_episodes
 
     out = []
-    for sid in scene_ids(Path(run_dir), scene_id):
+    for sid in run_scenes(run_dir, scene_id, having="episodes"):
         episodes_dir = run_episodes_dir(run_dir, sid)
         try:
             table = read_episodes(episodes_dir)

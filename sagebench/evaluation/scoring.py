@@ -7,13 +7,14 @@ any navigable cell (NE_STRAIGHT the largest straight distance to one), so a miss
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from sagebench.episodes.episode import Episode
 from sagebench.evaluation.predictions import Prediction
-from sagebench.metrics import EpisodeMetrics, MetricConfig, score_episode
+from sagebench.metrics import EpisodeMetrics, MetricConfig, NavigableMap, score_episode
 from sagebench.metrics.on_foot import GoalField
 
 METRIC_NAMES = ("sr", "osr", "spl", "ne", "ne_straight", "ndtw", "sdtw", "csr", "icp", "ps", "path_length")
@@ -22,24 +23,6 @@ DISTANCE_USED = {"sr": "on_foot", "osr": "on_foot", "spl": "on_foot (success)", 
                  "ne_straight": "straight", "sdtw": "on_foot (success)"}
 # who measured an episode's c(t): sagebench rollout's simulator, the agent itself, or evaluate's replay of the poses
 ICP_SOURCES = ("measured", "self-reported", "derived")
-NO_LEVEL = "none"  # group of rows without instruction_level/type (gen-trajectories --instructions none)
-
-
-@dataclass(frozen=True)
-class Episode:
-    """What scoring needs of one episode row (metres, radians)."""
-
-    episode_id: str
-    scene_id: str
-    level: str  # instruction_level, or NO_LEVEL
-    type: str  # instruction_type, or NO_LEVEL
-    start: np.ndarray  # [3]
-    start_yaw: float
-    goal: np.ndarray  # [3]
-    goal_radius: float
-    geodesic_distance: float
-    reference_path: np.ndarray  # [M, 4] x, y, z, yaw
-    split: str = NO_LEVEL  # train / val_seen / val_unseen / test; NO_LEVEL for runs made before splits
 
 
 @dataclass(frozen=True)
@@ -61,6 +44,24 @@ def score_prediction(episode: Episode, prediction: Prediction, intensity: np.nda
     return score_episode(np.asarray(prediction.poses, dtype=np.float64), episode.reference_path, episode.goal,
                          on_foot=on_foot, goal_radius=episode.goal_radius, geodesic_distance=episode.geodesic_distance,
                          stopped=prediction.stopped, collision_intensity=intensity, config=config)
+
+
+def score_episodes(episodes: Sequence[Episode], matched: Mapping[str, Prediction], derived: Mapping[str, np.ndarray],
+                   maps: Mapping[str, NavigableMap], config: MetricConfig = MetricConfig()) -> list[EpisodeScore]:
+    """Every episode's score, distances on foot on its scene's map: without a prediction a failure, else with c(t)
+    as the prediction's icp_source says (`derived`: evaluate's replay, by episode id)."""
+    scores = []
+    for e in episodes:
+        p = matched.get(e.episode_id)
+        if p is None:
+            scores.append(EpisodeScore(e, missing_metrics(maps[e.scene_id].field(e.goal)), missing=True,
+                                       icp_source="missing"))
+            continue
+        source = icp_source(p)
+        c = derived[e.episode_id] if source == "derived" else np.asarray(p.collision_intensity, dtype=np.float64)
+        scores.append(EpisodeScore(e, score_prediction(e, p, c, config, on_foot=maps[e.scene_id].field(e.goal)),
+                                   missing=False, icp_source=source))
+    return scores
 
 
 def icp_source(prediction: Prediction) -> str:

@@ -29,7 +29,7 @@ import urllib.parse
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 
-from sagebench.evaluation.scoring import Episode
+from sagebench.episodes.episode import Episode
 from sagebench.navsim.policies import PolicyFailure
 from sagebench.navsim.protocol import Encoding, encode_request, parse_action, request_fields
 

@@ -24,7 +24,7 @@ from typing import Protocol
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from sagebench.evaluation.scoring import Episode
+from sagebench.episodes.episode import Episode
 from sagebench.navsim.actions import Action, ActionConfig
 
 BUILT_IN = ("oracle", "straight", "random")

@@ -18,7 +18,7 @@ import numpy as np
 from sagebench.episodes.splits import SPLITS
 from sagebench.errors import ConfigError
 from sagebench.evaluation.predictions import Prediction
-from sagebench.evaluation.scoring import Episode
+from sagebench.episodes.episode import Episode
 from sagebench.navsim.policies import Policy, PolicyFailure
 from sagebench.navsim.simulator import Simulator
 

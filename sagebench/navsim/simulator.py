@@ -24,7 +24,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from sagebench.config import AgentConfig
 from sagebench.evaluation.predictions import Prediction
-from sagebench.evaluation.scoring import Episode
+from sagebench.episodes.episode import Episode
 from sagebench.navsim.actions import ActionConfig, continuous_commands, discrete_commands
 from sagebench.navsim.motion import Agents, MotionConfig, wrap
 from sagebench.navsim.observe import observe

@@ -10,15 +10,15 @@ from pathlib import Path
 import numpy as np
 
 from sagebench.config import AgentConfig
-from sagebench.episodes.load import load_episodes, scene_ids
+from sagebench.episodes.load import load_episodes
 from sagebench.episodes.shards import read_episodes
-from sagebench.evaluation.scoring import Episode
+from sagebench.episodes.episode import Episode
 from sagebench.metrics.on_foot import NavigableMap
 from sagebench.render.backends import Renderer, open_renderer
 from sagebench.render.chunks import PackedGaussians, pack
 from sagebench.replay.physics import ReplayConfig, ReplayModel
 from sagebench.replay.scene_model import open_replay_model
-from sagebench.run_layout import GAUSSIANS, TOPDOWN, run_episodes_dir, run_scene_dir
+from sagebench.run_layout import GAUSSIANS, TOPDOWN, run_episodes_dir, run_scene_dir, run_scenes
 from sagebench.topdown.grid_file import read_topdown_grids
 from sagebench.vlnce.vocab import Vocabulary
 
@@ -61,7 +61,7 @@ def run_vocabulary(run_dir: Path) -> Vocabulary:
     """The vocabulary of every instruction of the run, every scene's: the one export-vlnce writes, so tokens
     in the closed loop are the word ids of the exported dataset."""
     texts = []
-    for sid in scene_ids(run_dir, None):
+    for sid in run_scenes(run_dir, having="episodes"):
         table = read_episodes(run_episodes_dir(run_dir, sid)).select(["instruction_text"])
         texts += [t for t in table.column("instruction_text").to_pylist() if t is not None]
     return Vocabulary.from_texts(texts)

@@ -9,11 +9,11 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from sagebench.collider_export.config import ExportConfig
+from sagebench.episodes.config import GenTrajectoriesConfig
 from sagebench.errors import ConfigError, first_error
-from sagebench.stages.build_scene import TopdownConfig
-from sagebench.stages.export_usd import ExportConfig
-from sagebench.stages.gen_trajectories import GenTrajectoriesConfig
-from sagebench.stages.validate import ValidateConfig
+from sagebench.topdown.config import BuildSceneConfig
+from sagebench.validation.config import ValidateConfig
 
 # Settings that change how fast a run goes but never what it writes; they stay out of the manifest.
 EXECUTION_KEYS = frozenset({"out", "workers", "executor", "ray_address", "cache_dir"})
@@ -31,7 +31,7 @@ class RunConfig(BaseModel):
     executor: Literal["local", "ray"] = "local"
     ray_address: str | None = Field(default=None, description="Ray cluster address; none starts a local Ray.")
     cache_dir: Path | None = Field(default=None, description="CoACD cache (default: the user cache directory).")
-    build_scene: TopdownConfig = TopdownConfig()
+    build_scene: BuildSceneConfig = BuildSceneConfig()
     gen_trajectories: GenTrajectoriesConfig = GenTrajectoriesConfig()
     export_usd: ExportConfig = ExportConfig()
     validate_: ValidateConfig = Field(default=ValidateConfig(), alias="validate")

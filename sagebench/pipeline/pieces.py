@@ -15,7 +15,7 @@ from typing import Any
 
 from sagebench import ui
 from sagebench.collider_export.pieces import Piece, piece_key
-from sagebench.pipeline.stages import STAGES, Task, stage_key, up_to_date
+from sagebench.pipeline.tasks import STAGES, Task, stage_key, up_to_date
 
 EXPORT = "export_usd"
 

@@ -19,7 +19,7 @@ from sagebench.pipeline.pieces import PieceOutcome
 from sagebench.pipeline.schedule import RunScheduler
 from sagebench.pipeline.manifest import sha256_file, write_manifest
 from sagebench.fileio import remove_temporaries, write_text
-from sagebench.pipeline.stages import STAGES, Outcome
+from sagebench.pipeline.tasks import STAGES, Outcome
 from sagebench.run_layout import BASELINES, DATASET_CARD, OUTPUT_ROOTS, SCENE_FILE, SHARDS, STAMPS, run_episodes_dir, stage_files
 from sagebench.run_lock import run_lock
 from sagebench.scene.loader import parse_spec

@@ -18,7 +18,7 @@ from sagebench import ui
 from sagebench.collider_export.pieces import PieceProgress
 from sagebench.pipeline.executors import Executor
 from sagebench.pipeline.pieces import EXPORT, PieceOutcome, PieceTask, plan_export, run_piece
-from sagebench.pipeline.stages import STAGES, Outcome, Task, run_task
+from sagebench.pipeline.tasks import STAGES, Outcome, Task, run_task
 
 
 class RunScheduler:

@@ -6,8 +6,6 @@ topdown.png and gaussians.ply (3DGS with instance ids), all at once (a staged di
 
 from __future__ import annotations
 
-import io
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -19,7 +17,7 @@ from sagebench.fileio import dumps_json, staged_dir, write_bytes
 from sagebench.run_layout import GAUSSIANS, SEMANTIC_MAP, TOPDOWN, TOPDOWN_PNG, run_scene_dir
 from sagebench.scene.checks import check_floor_known
 from sagebench.scene.loader import SCENE_FILE, LoadedScene, load_scene, write_normalised_scene
-from sagebench.topdown.config import TopdownConfig
+from sagebench.topdown.config import BuildSceneConfig
 
 if TYPE_CHECKING:
     from sagebench.render.gaussians import Gaussians
@@ -27,7 +25,7 @@ if TYPE_CHECKING:
     from sagebench.topdown.raster import Grid
     from sagebench.topdown.semantic_map import RoomReach
 
-# build-scene's options and the TopdownConfig fields they set (their defaults and error names come from here)
+# build-scene's options and the BuildSceneConfig fields they set (their defaults and error names come from here)
 OPTIONS = {"--resolution": "resolution", "--band-min": "band_min", "--band-max": "band_max",
            "--sample-density": "sample_density", "--wall-gap": "wall_gap", "--agent-radius": "agent.radius",
            "--seed": "seed", "--object-density": "splats.object_density",
@@ -36,11 +34,11 @@ OPTIONS = {"--resolution": "resolution", "--band-min": "band_min", "--band-max":
 
 def make_config(*, agent_radius: float | None = None, prune: float | None = None,
                 object_density: float | None = None, structure_density: float | None = None,
-                **fields: object) -> TopdownConfig:
-    """A TopdownConfig from the options given (None = keep the default); a bad value is a ConfigError."""
+                **fields: object) -> BuildSceneConfig:
+    """A BuildSceneConfig from the options given (None = keep the default); a bad value is a ConfigError."""
     given = {**fields, "agent": {"radius": agent_radius},
              "splats": {"prune": prune, "object_density": object_density, "structure_density": structure_density}}
-    return from_options(TopdownConfig, given, OPTIONS)
+    return from_options(BuildSceneConfig, given, OPTIONS)
 
 
 @dataclass(frozen=True)
@@ -85,7 +83,7 @@ class CheckedScene:
     grid: Grid  # covering every mesh and room at the configured resolution
 
 
-def check_scene(scene_dir: Path, config: TopdownConfig | None = None) -> CheckedScene:
+def check_scene(scene_dir: Path, config: BuildSceneConfig | None = None) -> CheckedScene:
     """Everything build-scene refuses, without building: `check-scene` and `build-scene` both call this."""
     scene = load_scene(scene_dir)  # a bad scene.json is refused before the map and splat code is even imported
     check_floor_known(scene.spec, [np.asarray(scene.meshes[o.instance_id].triangles) for o in scene.spec.objects
@@ -93,20 +91,21 @@ def check_scene(scene_dir: Path, config: TopdownConfig | None = None) -> Checked
     from sagebench.splats.scene import trained_gaussians
     from sagebench.topdown.builder import scene_grid
 
-    grid = scene_grid(scene, (config or TopdownConfig()).resolution)
+    grid = scene_grid(scene, (config or BuildSceneConfig()).resolution)
     return CheckedScene(scene=scene, trained=trained_gaussians(scene), grid=grid)
 
 
-def build_scene(scene_dir: Path, run_dir: Path, config: TopdownConfig | None = None) -> BuildSceneResult:
+def build_scene(scene_dir: Path, run_dir: Path, config: BuildSceneConfig | None = None) -> BuildSceneResult:
     """Check `scene_dir`, compute its top-down maps and Gaussians and write RUN/scenes/<scene_id>/ atomically."""
-    config = config or TopdownConfig()
+    config = config or BuildSceneConfig()
     return _build(check_scene(scene_dir, config), run_dir, config)
 
 
-def _build(checked: CheckedScene, run_dir: Path, config: TopdownConfig) -> BuildSceneResult:
+def _build(checked: CheckedScene, run_dir: Path, config: BuildSceneConfig) -> BuildSceneResult:
     from sagebench.splats.ply import write_ply
     from sagebench.splats.scene import scene_gaussians
     from sagebench.topdown.builder import compute_topdown
+    from sagebench.topdown.grid_file import topdown_bytes
     from sagebench.topdown.render_png import render_topdown
 
     scene = checked.scene
@@ -117,18 +116,7 @@ def _build(checked: CheckedScene, run_dir: Path, config: TopdownConfig) -> Build
     out = run_scene_dir(run_dir, scene.spec.scene_id)
     with staged_dir(out) as tmp:
         write_normalised_scene(scene, tmp)
-        write_bytes(tmp / TOPDOWN, _npz_bytes({
-            "instance": td.instance,
-            "category": td.category,
-            "occupancy": td.occupancy,
-            "navigable": td.navigable,
-            "passage_cells": td.passages.cells,
-            "passage_xy": td.passages.anchors,
-            "region": td.region,
-            "resolution": np.float64(td.grid.resolution),
-            "origin": np.asarray(td.grid.origin, dtype=np.float64),
-            "category_names": np.asarray(td.categories, dtype=np.str_),
-        }))
+        write_bytes(tmp / TOPDOWN, topdown_bytes(td))
         write_bytes(tmp / SEMANTIC_MAP, dumps_json(td.semantic.model_dump(mode="json")).encode())
         write_bytes(tmp / TOPDOWN_PNG, png)
         write_ply(tmp / GAUSSIANS, gaussians)
@@ -144,16 +132,3 @@ def _build(checked: CheckedScene, run_dir: Path, config: TopdownConfig) -> Build
         gaussians=gaussians.count,
         pruned=pruned,
     )
-
-
-def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
-    """An .npz (np.load reads it) with fixed zip timestamps, so equal arrays give equal bytes."""
-    buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
-        for name, arr in arrays.items():
-            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-            info.compress_type = zipfile.ZIP_DEFLATED
-            data = io.BytesIO()
-            np.lib.format.write_array(data, np.asarray(arr), allow_pickle=False)
-            zf.writestr(info, data.getvalue())
-    return buf.getvalue()

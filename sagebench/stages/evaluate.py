@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench import ui
 from sagebench.config import AgentConfig, from_options
+from sagebench.episodes.episode import Episode
 from sagebench.episodes.load import load_episodes
 from sagebench.episodes.splits import SPLITS
 from sagebench.errors import ConfigError, DataError
@@ -24,12 +25,11 @@ from sagebench.evaluation.intensity import ICP_NOTE, STEP_REPLAY, derive_intensi
 from sagebench.evaluation.predictions import Prediction, match_episodes, read_predictions
 from sagebench.evaluation.record import RolloutRecord, read_record, record_path
 from sagebench.evaluation.scoring import (
-    DISTANCE_USED, ICP_SOURCES, METRIC_NAMES, Episode, EpisodeScore, Summary, icp_source, missing_metrics,
-    score_prediction, summarise_scores,
+    DISTANCE_USED, ICP_SOURCES, METRIC_NAMES, EpisodeScore, Summary, score_episodes, summarise_scores,
 )
 from sagebench.fileio import write_json
 from sagebench.metrics import MetricConfig, NavigableMap
-from sagebench.replay.physics import ReplayConfig
+from sagebench.replay.physics import ReplayConfig, ReplayModel
 from sagebench.replay.scene_model import open_replay_model
 from sagebench.run_layout import TOPDOWN, run_scene_dir
 from sagebench.topdown.grid_file import read_topdown_grids
@@ -72,6 +72,18 @@ def _check_start(episodes: dict[str, Episode], rows: list[tuple[int, Prediction]
         if off > tolerance:
             raise DataError(f"the first pose is {off:.3f} m from the episode's start_position (more than "
                             f"{tolerance} m)", path=f"{path}:{n}", field="poses[0]")
+
+
+def _in_split(split: str, episodes: list[Episode], rows: list[tuple[int, Prediction]],
+              run_dir: Path) -> tuple[list[Episode], list[tuple[int, Prediction]]]:
+    """The episodes of `split`, and the predictions less those of the run's other episodes."""
+    if split not in SPLITS:
+        raise ConfigError(f"{split!r} is not a split (one of {', '.join(SPLITS)})", field="--split")
+    others = {e.episode_id for e in episodes if e.split != split}
+    episodes = [e for e in episodes if e.split == split]
+    if not episodes:
+        raise DataError(f"no episodes in split {split!r}", path=run_dir)
+    return episodes, [(n, p) for n, p in rows if p.episode_id not in others]
 
 
 # ---------------------------------------------------------------- evaluation
@@ -170,6 +182,18 @@ def _r(x: float) -> float | None:
     return round(float(x), 6) if np.isfinite(x) else None
 
 
+def _derived(models: dict[str, ReplayModel], episodes: list[Episode], matched: dict[str, Prediction],
+             workers: int) -> dict[str, np.ndarray]:
+    """Evaluate's c(t) [T] by episode id for the predictions without one, replayed in their scene's model."""
+    derived: dict[str, np.ndarray] = {}
+    for sid in ui.track(list(models), "replaying poses"):
+        ids = [e.episode_id for e in episodes if e.scene_id == sid and e.episode_id in matched
+               and matched[e.episode_id].collision_intensity is None]
+        derived.update(zip(ids, derive_intensity(models[sid], [np.asarray(matched[i].poses) for i in ids],
+                                                 threads=workers)))
+    return derived
+
+
 def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = EvaluateConfig(), *,
              scene_id: str | None = None, split: str | None = None, out: Path | None = None) -> Evaluation:
     """Score `predictions` against the run's episodes (or `scene_id`'s, or `split`'s: predictions of the run's
@@ -194,37 +218,14 @@ def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = Evaluate
     elif not rows:
         raise DataError("no predictions (the file is empty)", path=predictions)
     if split is not None:
-        if split not in SPLITS:
-            raise ConfigError(f"{split!r} is not a split (one of {', '.join(SPLITS)})", field="--split")
-        others = {e.episode_id for e in episodes if e.split != split}
-        episodes = [e for e in episodes if e.split == split]
-        if not episodes:
-            raise DataError(f"no episodes in split {split!r}", path=run_dir)
-        rows = [(n, p) for n, p in rows if p.episode_id not in others]
+        episodes, rows = _in_split(split, episodes, rows, run_dir)
     by_id = {e.episode_id: e for e in episodes}
     matched, missing = match_episodes(rows, by_id, predictions, allow_missing=config.allow_missing or asked_only)
     _check_start(by_id, rows, predictions, config.start_tolerance)
     need_replay = sorted({by_id[p.episode_id].scene_id for p in matched.values() if p.collision_intensity is None})
     maps = {sid: read_navigable_map(run_dir, sid, config.agent.radius) for sid in sorted({e.scene_id for e in episodes})}
     models = {sid: open_replay_model(run_dir, sid, agent=config.agent, replay=config.replay) for sid in need_replay}
-
-    intensity: dict[str, np.ndarray] = {}
-    for sid in ui.track(need_replay, "replaying poses"):
-        ids = [e.episode_id for e in episodes if e.scene_id == sid and e.episode_id in matched
-               and matched[e.episode_id].collision_intensity is None]
-        poses = [np.asarray(matched[i].poses) for i in ids]
-        intensity.update(zip(ids, derive_intensity(models[sid], poses, threads=config.workers)))
-    scores = []
-    for e in episodes:
-        p = matched.get(e.episode_id)
-        if p is None:
-            scores.append(EpisodeScore(e, missing_metrics(maps[e.scene_id].field(e.goal)), missing=True,
-                                       icp_source="missing"))
-            continue
-        source = icp_source(p)
-        c = intensity[e.episode_id] if source == "derived" else np.asarray(p.collision_intensity, dtype=np.float64)
-        scores.append(EpisodeScore(e, score_prediction(e, p, c, config.metrics, on_foot=maps[e.scene_id].field(e.goal)),
-                                   missing=False, icp_source=source))
+    scores = score_episodes(episodes, matched, _derived(models, episodes, matched, config.workers), maps, config.metrics)
     result = Evaluation(scores=scores, summary=summarise_scores(scores), missing=missing, predictions=predictions,
                         predictions_sha256=hashlib.sha256(predictions.read_bytes()).hexdigest(), config=config,
                         split=split, record=record, asked_only=asked_only)

@@ -13,12 +13,11 @@ from pathlib import Path
 
 import pyarrow as pa
 
-from sagebench.episodes.load import scene_ids
 from sagebench.episodes.shards import read_episodes
 from sagebench.episodes.splits import SPLITS
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import write_bytes, write_text
-from sagebench.run_layout import CONTRACT, require, run_episodes_dir, run_scene_dir
+from sagebench.run_layout import CONTRACT, require, run_episodes_dir, run_scene_dir, run_scenes
 from sagebench.scene.loader import load_scene
 from sagebench.vlnce.episodes import dataset_bytes, scene_glb_path
 from sagebench.vlnce.glb import scene_glb
@@ -55,7 +54,7 @@ def export_vlnce(run_dir: Path, out_dir: Path, *, split: str | None = None) -> V
     if split is not None and split not in SPLITS:
         raise ConfigError(f"{split!r} is not a split (one of {', '.join(SPLITS)})", field="--split")
     rows, skipped = [], 0
-    for sid in scene_ids(Path(run_dir), None):
+    for sid in run_scenes(run_dir, having="episodes"):
         require(CONTRACT["export_vlnce"].reads, run_dir, sid)
         try:
             table = read_episodes(run_episodes_dir(run_dir, sid))

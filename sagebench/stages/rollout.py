@@ -106,12 +106,7 @@ def make_config(*, width: int | None = None, height: int | None = None, max_step
              "--privileged": privileged, "--action-space": action_space,
              **{opt: fields.get(path) for opt, path in OPTIONS.items() if "." not in path}}
     if resume:
-        clash = [opt for opt in DECISIVE_OPTIONS if given.get(opt) not in (None, ())]
-        if clash:
-            raise ConfigError("not with --resume: a resumed rollout keeps the settings it was started with",
-                              field=clash[0])
-        if fields.get("policy") in BUILT_IN:
-            raise ConfigError("with --resume, only a policy server's new URL", field="--policy")
+        _refuse_on_resume(given, fields.get("policy"))
     env = {"profile": profile, "width": width, "height": height, "max_steps": max_steps, "action_space": action_space,
            "renderer": renderer,
            "observations": parse_names(obs, ("rgb", "depth"), "--obs") if obs is not None else None,
@@ -140,6 +135,16 @@ def make_config(*, width: int | None = None, height: int | None = None, max_step
         env_fields = {**merged, "privileged": (*config.env.privileged, "pose")}
         config = from_options(RolloutConfig, {**fields, "env": env_fields}, OPTIONS)
     return config
+
+
+def _refuse_on_resume(given: dict[str, object], policy: object) -> None:
+    """A ConfigError for an option that decides the predictions, or a built-in policy, given with --resume."""
+    clash = [opt for opt in DECISIVE_OPTIONS if given.get(opt) not in (None, ())]
+    if clash:
+        raise ConfigError("not with --resume: a resumed rollout keeps the settings it was started with",
+                          field=clash[0])
+    if policy in BUILT_IN:
+        raise ConfigError("with --resume, only a policy server's new URL", field="--policy")
 
 
 @dataclass(frozen=True)
@@ -182,6 +187,12 @@ def sheet_path(out: Path) -> Path:
     return Path(out).with_name(Path(out).stem + "_contact_sheet.png")
 
 
+def _write_sheet(path: Path, views: list, wanted: int) -> None:
+    """The contact sheet, when this process rendered the views of all `wanted` episodes it shows."""
+    if views and len(views) == wanted:
+        write_bytes(path, cv2.imencode(".png", contact_sheet(views)[:, :, ::-1])[1].tobytes())
+
+
 def run_rollout(run_dir: Path, out: Path, config: RolloutConfig = RolloutConfig(), *,
                 scene_id: str | None = None, resume: bool = False) -> RolloutSummary:
     """Roll the policy out over the episodes asked for into `out` (sagebench.navsim.resumable) and write the
@@ -216,8 +227,7 @@ def run_rollout(run_dir: Path, out: Path, config: RolloutConfig = RolloutConfig(
         if isinstance(policy, HttpPolicy):
             policy.close()
     result = written.result
-    if result.views and len(result.views) == min(config.sheet_episodes, len(asked)):
-        write_bytes(sheet, cv2.imencode(".png", contact_sheet(result.views)[:, :, ::-1])[1].tobytes())
+    _write_sheet(sheet, result.views, min(config.sheet_episodes, len(asked)))
     return RolloutSummary(policy=config.policy, out=out, sheet=sheet if sheet.exists() else None, asked=len(asked),
                           episodes=len(written.predictions), stopped=sum(p.stopped for p in written.predictions),
                           steps=result.steps, seconds=time.perf_counter() - start, failed=result.failed,

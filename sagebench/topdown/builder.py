@@ -13,7 +13,7 @@ from shapely.geometry.base import BaseGeometry
 from sagebench.errors import ConfigError, SceneError
 from sagebench.scene.checks import NO_FLOOR
 from sagebench.scene.loader import SCENE_FILE, LoadedScene
-from sagebench.topdown.config import TopdownConfig
+from sagebench.topdown.config import BuildSceneConfig
 from sagebench.topdown.footprints import band_section, footprint, mesh_parts
 from sagebench.topdown.occupancy import band_occupancy, clip_to_band, inflate
 from sagebench.topdown.passages import Passages, open_passages
@@ -43,7 +43,7 @@ class Topdown:
     passages: Passages  # the cells of narrow passages opened on the exact geometry, and their anchors
 
 
-def compute_topdown(scene: LoadedScene, config: TopdownConfig) -> Topdown:
+def compute_topdown(scene: LoadedScene, config: BuildSceneConfig) -> Topdown:
     """The maps and the semantic report of a loaded scene (no I/O)."""
     scene_grid(scene, config.resolution)  # refuses a map over the cell budget before any work
     spec = scene.spec

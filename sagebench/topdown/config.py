@@ -1,4 +1,5 @@
-"""The settings of build-scene's map builder, apart from the builder (so a command line parses them cheaply)."""
+"""build-scene's settings (map grid and band, agent, Gaussians), apart from the builder (so a command line parses
+them cheaply)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from sagebench.config import AgentConfig
 from sagebench.splats.config import SplatConfig
 
 
-class TopdownConfig(BaseModel):
+class BuildSceneConfig(BaseModel):
     """Settings of build-scene; the CLI maps its options onto these fields."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -25,7 +26,7 @@ class TopdownConfig(BaseModel):
     splats: SplatConfig = SplatConfig()
 
     @model_validator(mode="after")
-    def _band_order(self) -> TopdownConfig:
+    def _band_order(self) -> BuildSceneConfig:
         if self.band_max <= self.band_min:
             raise ValueError(f"band_max ({self.band_max}) must be above band_min ({self.band_min})")
         return self

@@ -1,15 +1,21 @@
-"""Reading the grids of topdown.npz back: one place that checks the arrays every consumer needs."""
+"""topdown.npz, written and read back in one place: what it holds, and the checks of the arrays every consumer
+needs."""
 
 from __future__ import annotations
 
+import io
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from sagebench.errors import DataError
 from sagebench.topdown.passages import PASSAGE
+
+if TYPE_CHECKING:
+    from sagebench.topdown.builder import Topdown
 
 
 @dataclass(frozen=True)
@@ -51,3 +57,33 @@ def read_topdown_grids(npz_path: Path) -> TopdownGrids:
     anchors = {(int(r), int(c)): (float(x), float(y)) for (r, c), (x, y) in zip(cells, xy)}
     return TopdownGrids(np.ascontiguousarray(nav), np.asarray(occ, dtype=np.uint8), resolution,
                         (float(origin[0]), float(origin[1])), anchors)
+
+
+def topdown_bytes(td: Topdown) -> bytes:
+    """build-scene's topdown.npz: the maps, the passages judged on exact geometry, the grid and the category
+    names, with fixed zip timestamps, so equal maps give equal bytes."""
+    return _npz_bytes({
+        "instance": td.instance,
+        "category": td.category,
+        "occupancy": td.occupancy,
+        "navigable": td.navigable,
+        "passage_cells": td.passages.cells,
+        "passage_xy": td.passages.anchors,
+        "region": td.region,
+        "resolution": np.float64(td.grid.resolution),
+        "origin": np.asarray(td.grid.origin, dtype=np.float64),
+        "category_names": np.asarray(td.categories, dtype=np.str_),
+    })
+
+
+def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
+    """An .npz (np.load reads it) with fixed zip timestamps, so equal arrays give equal bytes."""
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        for name, arr in arrays.items():
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            data = io.BytesIO()
+            np.lib.format.write_array(data, np.asarray(arr), allow_pickle=False)
+            zf.writestr(info, data.getvalue())
+    return buf.getvalue()

@@ -1,1 +1,2 @@
-"""Validation of a run's trajectories: verdicts from MuJoCo replays, and appearance/physics spot checks."""
+"""Validation of a run's trajectories: verdicts from MuJoCo replays, appearance/physics spot checks, and the table
+and report validate writes."""

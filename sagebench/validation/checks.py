@@ -17,13 +17,18 @@ Reasons (a trajectory passes when it has none):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from sagebench.instructions.execution import BlockedMap, execute_sentence
 from sagebench.metrics import MetricConfig, score_episode
 from sagebench.metrics.polyline import distance_to_polyline, path_length
 from sagebench.replay.physics import ReplayRecord
+
+if TYPE_CHECKING:
+    from sagebench.episodes.load import Trajectory
 
 REASONS = ("collision", "goal_not_reached", "left_corridor", "incomplete", "instruction_not_executable")
 
@@ -99,3 +104,10 @@ def judge(
                    path_length=scores.path_length, reference_length=path_length(ref), max_penetration=penetration,
                    max_deviation=deviation, contact_steps=int(record.contact.sum()), steps=record.steps,
                    duration=record.steps * timestep, outcome=record.outcome)
+
+
+def base_action_executable(traj: Trajectory, blocked: BlockedMap) -> bool:
+    """Whether every Base_Action sentence of `traj` ends within its goal radius without crossing `blocked`."""
+    start = traj.reference_path[0]
+    return all(execute_sentence(s, start[:2], float(start[3]), traj.goal[:2], blocked).ok(traj.goal_radius)
+               for s in traj.base_action)

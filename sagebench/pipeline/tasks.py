@@ -52,9 +52,9 @@ class Outcome:
 
 
 def _run_build(t: Task) -> tuple[str, bool]:
-    from sagebench.stages.build_scene import TopdownConfig, build_scene
+    from sagebench.stages.build_scene import BuildSceneConfig, build_scene
 
-    return build_scene(t.source, t.run_dir, TopdownConfig.model_validate(t.settings)).summary(), True
+    return build_scene(t.source, t.run_dir, BuildSceneConfig.model_validate(t.settings)).summary(), True
 
 
 def _run_gen(t: Task) -> tuple[str, bool]:

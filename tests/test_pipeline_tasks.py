@@ -8,8 +8,8 @@ import shutil
 
 from sagebench.episodes.shards import read_episodes
 
-from sagebench.pipeline import stages
-from sagebench.pipeline.stages import Task, run_task, stamp_path
+from sagebench.pipeline import tasks
+from sagebench.pipeline.tasks import Task, run_task, stamp_path
 from sagebench.stages.gen_trajectories import GenTrajectoriesConfig
 from sagebench.versions import output_versions
 
@@ -42,7 +42,7 @@ def test_a_changed_library_version_reruns_a_stamped_stage(demo_built_run, demo_s
     task = Task("gen_trajectories", SCENE, demo_scene_dir, run, settings)
     assert run_task(task).status == "ran" and run_task(task).status == "skipped"
     older = output_versions() | {"pyarrow": "0.0.1"}  # Parquet bytes embed the writer's version
-    monkeypatch.setattr(stages, "output_versions", lambda: older)
+    monkeypatch.setattr(tasks, "output_versions", lambda: older)
     assert run_task(task).status == "ran"
     assert run_task(task).status == "skipped"
 
@@ -55,7 +55,7 @@ def test_a_tasks_warnings_come_back_in_its_outcome_not_on_stderr(demo_scene_dir,
         ui.warn("only 3 of 5 trajectories")
         return "done", True
 
-    monkeypatch.setitem(stages.STAGES, "build_scene", stages.Stage("build_scene", warns))
+    monkeypatch.setitem(tasks.STAGES, "build_scene", tasks.Stage("build_scene", warns))
     outcome = run_task(Task("build_scene", SCENE, demo_scene_dir, tmp_path / "run", {}))
     assert outcome.status == "ran" and outcome.warnings == ("only 3 of 5 trajectories",)
     assert capsys.readouterr().err == ""
@@ -65,5 +65,5 @@ def test_a_tasks_warnings_come_back_in_its_outcome_not_on_stderr(demo_scene_dir,
 
 def test_stages_ask_for_the_cpus_their_workers_use(demo_scene_dir, tmp_path):
     task = Task("export_usd", SCENE, demo_scene_dir, tmp_path, {"workers": 3})
-    assert stages.STAGES["export_usd"].cpus(task) == 3
-    assert stages.STAGES["build_scene"].cpus(Task("build_scene", SCENE, demo_scene_dir, tmp_path, {})) == 1
+    assert tasks.STAGES["export_usd"].cpus(task) == 3
+    assert tasks.STAGES["build_scene"].cpus(Task("build_scene", SCENE, demo_scene_dir, tmp_path, {})) == 1
