@@ -24,8 +24,10 @@ from sagebench.navsim.rollout import rollout
 from sagebench.navsim.simulator import EnvConfig, Simulator
 
 ROUNDS = 3
-STEPS = 40  # actions per episode
+STEPS = 20  # actions per episode
+EPISODES = 2  # per rollout (stepped one at a time for the wait policy, together over HTTP)
 COMPETITORS = 2  # busy processes beside the measured rollout: the cores' other tenants
+_SPIN = "import os\nparent = os.getppid()\nwhile os.getppid() == parent:\n    pass\n"  # ends with its parent
 _CLEAN_ENV = {k: v for k, v in os.environ.items() if k not in ("OMP_WAIT_POLICY", "NUMBA_NUM_THREADS",
                                                                  "OMP_NUM_THREADS")}
 
@@ -37,7 +39,7 @@ from sagebench.navsim.policies import RandomWalk
 from sagebench.navsim.rollout import rollout
 from sagebench.navsim.simulator import EnvConfig, Simulator
 sim = Simulator(sys.argv[1], EnvConfig(observations=("rgb", "depth"), max_steps=int(sys.argv[3])), threads=2)
-ids = sim.order[:4]
+ids = sim.order[:int(sys.argv[4])]
 sim.start(ids[:1])
 start, cpu = time.perf_counter(), time.process_time()
 r = rollout(sim, RandomWalk(seed=0), ids, batch=1, sheet=0)
@@ -45,7 +47,7 @@ print(json.dumps([r.steps / (time.perf_counter() - start), (time.process_time() 
 """
 
 _SERVER = """
-import json, sys, time
+import json, os, sys, threading, time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from sagebench.navsim.protocol import decode_request
 
@@ -72,6 +74,12 @@ class Handler(BaseHTTPRequestHandler):
 def action(step):
     return "STOP" if step >= int(sys.argv[1]) - 1 else "TURN_LEFT" if step % 5 == 4 else "MOVE_FORWARD"
 
+def orphaned(parent):  # the bench was killed: end with it
+    while os.getppid() == parent:
+        time.sleep(1)
+    os._exit(0)
+
+threading.Thread(target=orphaned, args=(os.getppid(),), daemon=True).start()
 server = ThreadingHTTPServer(("127.0.0.1", 0), Handler)
 print(server.server_address[1], flush=True)
 server.serve_forever()
@@ -96,18 +104,18 @@ class StepPolicy:
 
 
 def _competing_load() -> list[subprocess.Popen]:
-    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(COMPETITORS)]
+    return [subprocess.Popen([sys.executable, "-c", _SPIN]) for _ in range(COMPETITORS)]
 
 
 def _wait_run(run_dir: Path, wait: str) -> tuple[float, float]:
-    done = subprocess.run([sys.executable, "-c", _ROLLOUT_CHILD, str(run_dir), wait, str(STEPS)], capture_output=True,
-                          text=True, check=True, env=_CLEAN_ENV)
+    done = subprocess.run([sys.executable, "-c", _ROLLOUT_CHILD, str(run_dir), wait, str(STEPS), str(EPISODES)],
+                          capture_output=True, text=True, check=True, env=_CLEAN_ENV)
     return tuple(json.loads(done.stdout.strip().splitlines()[-1]))
 
 
 def wait_rows(run_dir: Path) -> list[dict]:
-    """One env stepping 4 episodes x STEPS actions (224x224 RGB + depth, 2 threads) in a fresh process with OpenMP's
-    default wait and with a passive one, alternating, while COMPETITORS busy processes run."""
+    """One env stepping EPISODES episodes x STEPS actions (224x224 RGB + depth, 2 threads) in a fresh process with
+    OpenMP's default wait and with a passive one, alternating, while COMPETITORS busy processes run."""
     load_start = os.getloadavg()[0]
     competitors = _competing_load()
     try:
@@ -147,7 +155,7 @@ def _transport_run(sim: Simulator, ids: list[str], encoding: str | None, url: st
     before = _server_stats(url) if encoding else None
     policy = HttpPolicy(url, encoding=encoding, workers=2) if encoding else StepPolicy()
     start, cpu = time.perf_counter(), time.process_time()
-    r = rollout(sim, policy, ids, batch=4, sheet=0)
+    r = rollout(sim, policy, ids, batch=len(ids), sheet=0)
     wall, client = time.perf_counter() - start, time.process_time() - cpu
     if not encoding:
         return r.steps / wall, client / r.steps, 0.0, 0.0
@@ -158,13 +166,13 @@ def _transport_run(sim: Simulator, ids: list[str], encoding: str | None, url: st
 
 
 def transport_rows(run_dir: Path) -> list[dict]:
-    """4 episodes x STEPS actions stepped together (224x224 RGB + depth), the policy in-process or over HTTP in
-    each encoding, alternating ROUNDS times."""
+    """EPISODES episodes x STEPS actions stepped together (224x224 RGB + depth), the policy in-process or over HTTP
+    in each encoding, alternating ROUNDS times."""
     load_start = os.getloadavg()[0]
     proc, url = _server(STEPS)
     try:
         sim = Simulator(run_dir, EnvConfig(observations=("rgb", "depth"), max_steps=STEPS), threads=2)
-        ids = sim.order[:4]
+        ids = sim.order[:EPISODES]
         sim.start(ids)
         kinds = (None, "raw", "png", "json")
         rounds = [{k: _transport_run(sim, ids, k, url) for k in kinds} for _ in range(ROUNDS)]
@@ -173,7 +181,7 @@ def transport_rows(run_dir: Path) -> list[dict]:
         proc.wait()
     med = {k: np.median([r[k] for r in rounds], axis=0) for k in kinds}
     base = med[None][0]
-    rows = [{"name": "rollout, policy in-process (4 episodes together)", "reference": "-", "seconds": 1.0 / base,
+    rows = [{"name": f"rollout, policy in-process ({EPISODES} episodes together)", "reference": "-", "seconds": 1.0 / base,
              "speed-up": 1.0, "cpu-s": med[None][1],
              "notes": f"{base:.1f} steps/s; load average {load_start:.1f} at the start, "
                       f"{os.getloadavg()[0]:.1f} at the end"}]
