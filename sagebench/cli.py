@@ -564,7 +564,8 @@ def baseline_cmd(
 
     Reads RUN/episodes/<id>/part-*.parquet and RUN/scenes/<id>/scene.json, topdown.npz and scene.xml
     (export-usd). Writes OUT: one JSON line per episode with poses, stopped and the simulator's
-    collision_intensity, ready for `sagebench evaluate`.
+    collision_intensity, ready for `sagebench evaluate`, and OUT's stem + _rollout.json (the rollout's record:
+    its episodes, and that the baseline reads the pose and the episode).
     """
     from sagebench.stages.rollout import make_baseline_config, run_baseline
 
