@@ -15,6 +15,7 @@ from sagebench.navsim.protocol import decode_request
 
 FAULTS = ("status500", "drip", "hang", "close")
 LONGEST_FAULT = 60.0  # s: a hanging or dripping reply gives up after this
+DRIP_S = 0.2  # s between dripped bytes: well inside any read timeout, so only a request's deadline ends a drip
 
 
 def decide(fields: dict, images: dict[str, np.ndarray]) -> str:
@@ -63,18 +64,20 @@ class FakePolicy:
                     owner.seen.append((fields, images))
                 action = [0.3, 0.0, float(fields["step"] >= 3)] if owner.continuous else decide(fields, images)
                 reply = json.dumps({"action": action}).encode()
+                if fault == "drip":  # valid JSON whose whitespace tail outlasts LONGEST_FAULT at DRIP_S a byte
+                    reply += b" " * int(LONGEST_FAULT / DRIP_S)
                 self.send_response(200)
                 self.send_header("Content-Type", "application/json")
                 self.send_header("Content-Length", str(len(reply)))
                 self.end_headers()
-                if fault == "drip":  # one byte a second until the client gives up (or LONGEST_FAULT)
+                if fault == "drip":  # a byte every DRIP_S until the client gives up (or LONGEST_FAULT)
                     start = time.monotonic()
-                    for byte in reply * 100:
+                    for byte in reply:
                         if self._stopped(start):
                             return
                         self.wfile.write(bytes([byte]))
                         self.wfile.flush()
-                        time.sleep(1.0)
+                        time.sleep(DRIP_S)
                     return
                 self.wfile.write(reply)
 

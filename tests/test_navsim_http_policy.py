@@ -2,7 +2,8 @@
 request, retries for connection errors only, a failed request fails its slot alone, opaque episode ids.
 
 The two deadline tests bound a request's wall time by its timeout plus 5 s (the rollout's promise to the user);
-they measure a hang being cut, not the machine's speed, and hold with seconds to spare under any load."""
+they measure a hang being cut, not the machine's speed: the dripped reply outlasts the deadline by a minute, a byte
+every 0.2 s (so no per-read timeout fires), and a client whose watchdog missed the socket took that minute."""
 
 from __future__ import annotations
 

@@ -69,11 +69,11 @@ def _attempt(parts: urllib.parse.SplitResult, body: bytes, content_type: str, de
     kind = http.client.HTTPSConnection if parts.scheme == "https" else http.client.HTTPConnection
     conn = kind(parts.hostname, parts.port, timeout=remaining)
     cut = threading.Event()
+    socks: list[socket.socket] = []
 
     def watchdog() -> None:  # ends a request still in flight at the deadline, however its socket reads go
         cut.set()
-        sock = conn.sock
-        if sock is not None:
+        for sock in socks:
             try:
                 sock.shutdown(socket.SHUT_RDWR)
             except OSError:
@@ -84,6 +84,11 @@ def _attempt(parts: urllib.parse.SplitResult, body: bytes, content_type: str, de
     timer.start()
     path = (parts.path or "/") + (f"?{parts.query}" if parts.query else "")
     try:
+        conn.connect()
+        # held here: a reply that closes the connection takes conn.sock away while its body is still being read
+        socks.append(conn.sock)
+        if cut.is_set():  # the watchdog fired before there was a socket to cut
+            raise TimeoutError
         conn.request("POST", path, body=body, headers={"Content-Type": content_type})
         resp = conn.getresponse()
         data = resp.read()
