@@ -13,7 +13,7 @@ from typing import Annotated
 import typer
 import typer.core
 
-from sagebench.errors import SagebenchError
+from sagebench.errors import ConfigError, SagebenchError
 from sagebench.ui import SETTINGS
 
 app = typer.Typer(
@@ -49,6 +49,16 @@ def _defaults_from(settings: str, options: str = "OPTIONS") -> type[typer.core.T
 
 
 RENDERER_HELP = "Renderer: cpu (the reference), gsplat (CUDA GPU, pip install 'sagebench[gpu]') or auto (gsplat when it can run here)."
+
+
+def existing(path: Path | None) -> Path | None:
+    """The callback of every input path a command reads (its arguments, --run, --config, --predictions,
+    --furniture): one that does not exist is the error, before anything else runs or is written."""
+    if path is not None and not path.exists():
+        raise ConfigError("does not exist", path=path)
+    return path
+
+
 GLOBAL_FLAGS = ("--quiet", "-q", "--debug")  # accepted before or after the command
 
 
@@ -85,7 +95,7 @@ def synth_scene(
                                                      "synth scene (replaced whole).")],
     seed: Annotated[int, typer.Option(help="Layout seed; the same seed gives byte-identical files.")] = 0,
     furniture: Annotated[Path | None, typer.Option(
-        help="Sweet Home 3D furniture catalogue (directory or .sh3f) whose models replace the procedural pieces.")] = None,
+        callback=existing, help="Sweet Home 3D furniture catalogue (directory or .sh3f) whose models replace the procedural pieces.")] = None,
     force: Annotated[bool, typer.Option("--force", help="Replace OUT whatever it holds.")] = False,
 ) -> None:
     """Write a procedural apartment in the artist-scene input format.
@@ -102,7 +112,7 @@ def synth_scene(
 
 @app.command("check-scene")
 def check_scene(
-    scene_dir: Annotated[Path, typer.Argument(help="Artist scene directory (scene.json + meshes).")],
+    scene_dir: Annotated[Path, typer.Argument(callback=existing, help="Artist scene directory (scene.json + meshes).")],
 ) -> None:
     """Check a scene directory as build-scene would (same checks, default settings) and print a summary.
 
@@ -160,7 +170,7 @@ def demo(
 
 @app.command("build-scene", cls=_defaults_from("sagebench.stages.build_scene:BuildSceneConfig"))
 def build_scene_cmd(
-    scene_dir: Annotated[Path, typer.Argument(help="Artist scene directory (scene.json + meshes).")],
+    scene_dir: Annotated[Path, typer.Argument(callback=existing, help="Artist scene directory (scene.json + meshes).")],
     out: Annotated[Path, typer.Option("--out", help="Run directory; writes OUT/scenes/<scene_id>/.")],
     resolution: Annotated[float | None, typer.Option(help="Grid cell side, m.")] = None,
     band_min: Annotated[float | None, typer.Option(help="Lowest blocking height above the floor, m.")] = None,
@@ -193,7 +203,7 @@ def build_scene_cmd(
 
 @app.command("gen-trajectories", cls=_defaults_from("sagebench.stages.gen_trajectories:GenTrajectoriesConfig"))
 def gen_trajectories_cmd(
-    run_dir: Annotated[Path, typer.Argument(help="Run directory that build-scene wrote (RUN/scenes/<id>/).")],
+    run_dir: Annotated[Path, typer.Argument(callback=existing, help="Run directory that build-scene wrote (RUN/scenes/<id>/).")],
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene id (default: every scene).")] = None,
     per_scene: Annotated[int | None, typer.Option(help="Distinct trajectories per scene.")] = None,
     seed: Annotated[int | None, typer.Option(help="Seed of sampling and wording.")] = None,
@@ -258,7 +268,7 @@ def gen_trajectories_cmd(
 
 @app.command("render", cls=_defaults_from("sagebench.stages.render:RenderConfig"))
 def render_cmd(
-    run_dir: Annotated[Path, typer.Argument(help="Run directory with scenes/<scene_id>/ from build-scene.")],
+    run_dir: Annotated[Path, typer.Argument(callback=existing, help="Run directory with scenes/<scene_id>/ from build-scene.")],
     scene: Annotated[str, typer.Option("--scene", help="Scene id (a directory under RUN_DIR/scenes).")],
     pose: Annotated[str, typer.Option("--pose", help="X,Y,YAW: camera position on the floor, m, and heading, rad.")],
     out: Annotated[Path, typer.Option("--out", help="PNG file to write.")],
@@ -293,7 +303,7 @@ def render_cmd(
 
 @app.command("export-usd", cls=_defaults_from("sagebench.stages.export_usd:ExportConfig"))
 def export_usd_cmd(
-    run_dir: Annotated[Path, typer.Argument(help="Run directory that build-scene wrote (RUN/scenes/<id>/).")],
+    run_dir: Annotated[Path, typer.Argument(callback=existing, help="Run directory that build-scene wrote (RUN/scenes/<id>/).")],
     scene: Annotated[str | None, typer.Option("--scene", help="Export only this scene id (default: every scene).")] = None,
     cache_dir: Annotated[
         Path | None, typer.Option("--cache-dir", help="Collider piece cache (default: the user cache directory).")
@@ -348,7 +358,7 @@ def export_usd_cmd(
 
 @app.command("validate", cls=_defaults_from("sagebench.stages.validate:ValidateConfig"))
 def validate_cmd(
-    run_dir: Annotated[Path, typer.Argument(help="Run directory with scenes/<id>/ (build-scene, export-usd) and episodes/<id>/.")],
+    run_dir: Annotated[Path, typer.Argument(callback=existing, help="Run directory with scenes/<id>/ (build-scene, export-usd) and episodes/<id>/.")],
     scene: Annotated[str | None, typer.Option("--scene", help="Validate only this scene id (default: every scene).")] = None,
     frames_per_scene: Annotated[
         int | None, typer.Option(help="Trajectories per scene rendered at start, middle and goal.")
@@ -389,7 +399,7 @@ def validate_cmd(
 
 @app.command("export-vlnce")
 def export_vlnce_cmd(
-    run_dir: Annotated[Path, typer.Argument(help="Run directory with episodes/<id>/ and scenes/<id>/.")],
+    run_dir: Annotated[Path, typer.Argument(callback=existing, help="Run directory with episodes/<id>/ and scenes/<id>/.")],
     out: Annotated[Path, typer.Option("--out", help="Dataset directory to write (habitat's data_path root).")],
     split: Annotated[str | None, typer.Option("--split", help="Export only this split (default: every split).")] = None,
 ) -> None:
@@ -408,7 +418,8 @@ def export_vlnce_cmd(
 
 @app.command("export-training", cls=_defaults_from("sagebench.stages.export_training:TrainingExportConfig"))
 def export_training_cmd(
-    run_dir: Annotated[Path, typer.Argument(help="Run directory (build-scene, gen-trajectories, export-usd).")],
+    run_dir: Annotated[Path, typer.Argument(callback=existing,
+                                            help="Run directory (build-scene, gen-trajectories, export-usd).")],
     out: Annotated[Path, typer.Option("--out", help="Directory to write: new, or an interrupted export to resume.")],
     split: Annotated[str | None, typer.Option("--split", help="Export only this split (default: every split).")] = None,
     depth: Annotated[bool | None, typer.Option("--depth", help="Also write each view's depth (16-bit PNG, mm).")] = None,
@@ -442,7 +453,7 @@ def export_training_cmd(
 
 @app.command("run")
 def run_cmd(
-    config: Annotated[Path, typer.Argument(help="TOML run config (scenes, out, per-stage settings).")],
+    config: Annotated[Path, typer.Argument(callback=existing, help="TOML run config (scenes, out, per-stage settings).")],
     workers: Annotated[int | None, typer.Option(help="Scene-stage tasks at once (default: the config's, else 1).")] = None,
     executor: Annotated[str | None, typer.Option(help="local or ray (default: the config's, else local).")] = None,
     ray_address: Annotated[str | None, typer.Option("--ray-address", help="Ray cluster; none starts a local Ray.")] = None,
@@ -471,9 +482,10 @@ def run_cmd(
 
 @app.command("verify")
 def verify_cmd(
-    run_dir: Annotated[Path, typer.Argument(help="Run directory with a manifest.json.")],
+    run_dir: Annotated[Path, typer.Argument(callback=existing, help="Run directory with a manifest.json.")],
     regenerate: Annotated[bool, typer.Option("--regenerate", help="Re-run CONFIG into a temporary directory and compare.")] = False,
-    config: Annotated[Path | None, typer.Option("--config", help="The run's TOML config (needed with --regenerate).")] = None,
+    config: Annotated[Path | None, typer.Option("--config", callback=existing,
+                                                help="The run's TOML config (needed with --regenerate).")] = None,
     workers: Annotated[int, typer.Option(help="Workers for --regenerate.")] = 1,
 ) -> None:
     """Check a run byte for byte against its manifest.
@@ -497,8 +509,8 @@ def verify_cmd(
 
 @app.command("evaluate", cls=_defaults_from("sagebench.stages.evaluate:EvaluateConfig"))
 def evaluate_cmd(
-    run_dir: Annotated[Path, typer.Option("--run", help="Run directory with episodes/<id>/ (and scenes/<id>/scene.xml).")],
-    predictions: Annotated[Path, typer.Option("--predictions", help="Agent predictions, JSON Lines (one object per episode).")],
+    run_dir: Annotated[Path, typer.Option("--run", callback=existing, help="Run directory with episodes/<id>/ (and scenes/<id>/scene.xml).")],
+    predictions: Annotated[Path, typer.Option("--predictions", callback=existing, help="Agent predictions, JSON Lines (one object per episode).")],
     out: Annotated[Path | None, typer.Option("--out", help="Write the results here as JSON (default: print only).")] = None,
     scene: Annotated[str | None, typer.Option("--scene", help="Score only this scene's episodes (default: every scene).")] = None,
     split: Annotated[str | None, typer.Option(
@@ -548,7 +560,7 @@ def evaluate_cmd(
 @app.command("baseline", cls=_defaults_from("sagebench.stages.rollout:BaselineConfig", "BASELINE_OPTIONS"))
 def baseline_cmd(
     agent: Annotated[str, typer.Option("--agent", help="oracle, straight or random.")],
-    run_dir: Annotated[Path, typer.Option("--run", help="Run directory with episodes/<id>/ and scenes/<id>/scene.xml.")],
+    run_dir: Annotated[Path, typer.Option("--run", callback=existing, help="Run directory with episodes/<id>/ and scenes/<id>/scene.xml.")],
     out: Annotated[Path, typer.Option("--out", help="Predictions file to write (JSON Lines).")],
     seed: Annotated[int | None, typer.Option(help="Seed of the random agent.")] = None,
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene's episodes (default: every scene).")] = None,
@@ -575,7 +587,7 @@ def baseline_cmd(
 
 @app.command("rollout", cls=_defaults_from("sagebench.stages.rollout:RolloutConfig"))
 def rollout_cmd(
-    run_dir: Annotated[Path, typer.Option("--run", help="Run directory (build-scene, gen-trajectories, export-usd).")],
+    run_dir: Annotated[Path, typer.Option("--run", callback=existing, help="Run directory (build-scene, gen-trajectories, export-usd).")],
     out: Annotated[Path, typer.Option("--out", help="Predictions file to write (JSON Lines).")],
     policy: Annotated[str | None, typer.Option(
         help="A policy server's http(s):// URL, oracle, straight, random, or vlnce:MODULE:NAME (a VLN-CE agent class "

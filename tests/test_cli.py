@@ -113,7 +113,7 @@ def test_global_flags_are_accepted_after_the_command(run_cli, tmp_path):
     code, out, err = run_cli("synth-scene", "--out", tmp_path / "s", "--seed", "1", "--quiet")
     assert code == 0 and (tmp_path / "s" / "scene.json").is_file(), err
     code, _, err = run_cli("check-scene", tmp_path / "nope", "--quiet")
-    assert code == 2 and err == f"error: {tmp_path / 'nope'}: no scene.json in this directory\n"
+    assert code == 2 and err == f"error: {tmp_path / 'nope'}: does not exist\n"
 
 
 def test_shell_completion_completes_command_names():
@@ -125,3 +125,47 @@ def test_shell_completion_completes_command_names():
     done = subprocess.run([sys.executable, "-m", "sagebench"], env=env, capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["export-usd", "export-vlnce", "export-training"]
+
+
+INPUT_OPTIONS = {"--run", "--config", "--predictions", "--furniture"}  # options naming a file a command reads
+
+
+def _input_params():
+    """(command name, click parameter) of every path a command reads: its Path arguments and INPUT_OPTIONS."""
+    import typer.main
+
+    from sagebench.cli import app
+
+    group = typer.main.get_command(app)
+    for name, command in sorted(group.commands.items()):
+        for param in command.params:
+            is_path = "Path" in str(param.type_descriptor.annotation)
+            if param.param_type_name == "argument" and is_path or INPUT_OPTIONS & set(param.opts):
+                yield name, param
+
+
+def test_every_input_path_is_checked_by_the_one_existing_helper():
+    from sagebench.cli import existing
+
+    params = list(_input_params())
+    assert len(params) >= 14
+    for name, param in params:
+        callback = param.callback  # typer wraps it, keeping its name and module
+        assert callback is existing or (callback.__module__, callback.__qualname__) == ("sagebench.cli", "existing"), \
+            f"{name} {param.name}"
+
+
+@pytest.mark.parametrize("argv", [
+    ["check-scene", "{nope}"], ["build-scene", "{nope}", "--out", "{out}"], ["gen-trajectories", "{nope}"],
+    ["export-usd", "{nope}"], ["validate", "{nope}"], ["export-vlnce", "{nope}", "--out", "{out}"],
+    ["render", "{nope}", "--scene", "s", "--pose", "0,0,0", "--out", "{out}"], ["run", "{nope}"],
+    ["verify", "{nope}"], ["synth-scene", "--out", "{out}", "--furniture", "{nope}"],
+    ["evaluate", "--run", "{nope}", "--predictions", "{nope}"], ["baseline", "--agent", "oracle", "--run", "{nope}",
+                                                                  "--out", "{out}"],
+    ["rollout", "--run", "{nope}", "--out", "{out}"], ["export-training", "{nope}", "--out", "{out}"],
+])
+def test_a_path_that_does_not_exist_is_the_one_error_and_nothing_is_written(run_cli, tmp_path, argv):
+    nope = tmp_path / "typo" / "runs" / "r1"
+    code, out, err = run_cli(*[a.format(nope=nope, out=tmp_path / "out") for a in argv])
+    assert (code, out, err) == (2, "", f"error: {nope}: does not exist\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []

@@ -670,7 +670,7 @@ PREDICTION_CASES: list[tuple[str, Callable[[Path], None], str]] = [
      "pred.jsonl: 1 of 12 episodes have no prediction"),
     ("not-utf8", lambda run: (run / "pred.jsonl").write_bytes(b"\xff\xfe{}\n"), "pred.jsonl: cannot read"),
     ("a-directory", lambda run: (run / "pred.jsonl").mkdir(), "pred.jsonl: cannot read"),
-    ("deleted", lambda run: None, "pred.jsonl: no such file"),
+    ("deleted", lambda run: None, "pred.jsonl: does not exist"),
 ]
 
 
