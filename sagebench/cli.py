@@ -336,6 +336,12 @@ def export_usd_cmd(
     usdz: Annotated[
         bool | None, typer.Option("--usdz", help="Also write scene.usdz (the stage and its layers in one package).")
     ] = None,
+    gaussians: Annotated[str | None, typer.Option(
+        help="particlefield: ParticleField3DGaussianSplat prims per object (Isaac Sim 6); nurec: "
+             "gaussians.usdz, NuRec as NVIDIA 3DGRUT's ply_to_usd writes it (Isaac Sim 5).")] = None,
+    layout: Annotated[str | None, typer.Option(
+        help="sagebench, or sage: also sage/<id>.usda in SAGE-3D's template form with its collision payload "
+             "sage/<id>_collision.usd (needs --gaussians nurec).")] = None,
 ) -> None:
     """Decompose colliders and write each scene's USD stage and MuJoCo model.
 
@@ -344,14 +350,17 @@ def export_usd_cmd(
     Writes RUN_DIR/scenes/<id>/colliders/ (convex parts as STL + colliders.json with each object's
     collider quality), scene.usda (the stage's text root: semantics, physics) referencing geometry.usdc
     (binary: the 3D Gaussians and invisible collider meshes), scene.xml (MJCF) and with --usdz scene.usdz;
-    each finished piece goes to the cache at once, so an interrupted export resumes there.
+    with --gaussians nurec the Gaussians go to gaussians.usdz (NuRec) instead, and with --layout sage also
+    sage/<id>.usda and sage/<id>_collision.usd. Each finished piece goes to the cache at once, so an
+    interrupted export resumes there.
     """
     from sagebench.stages.export_usd import export_usd, make_config
 
     config = make_config(colliders=colliders, max_parts=max_parts, piece_limit=piece_limit,
                          band_tolerance=band_tolerance, coacd_threshold=coacd_threshold,
                          coacd_max_hulls=coacd_max_hulls, coacd_max_faces=coacd_max_faces,
-                         coacd_preprocess=coacd_preprocess, workers=workers, usdz=usdz)
+                         coacd_preprocess=coacd_preprocess, workers=workers, usdz=usdz, gaussians=gaussians,
+                         layout=layout)
     for result in export_usd(run_dir, scene_id=scene, config=config, cache_dir=cache_dir):
         typer.echo(result.line())
 

@@ -38,6 +38,8 @@ COLLIDERS_INDEX = "colliders.json"  # inside COLLIDERS
 USD = "scene.usda"  # the stage's root layer (text): prims, semantics, physics
 USD_GEOMETRY = "geometry.usdc"  # the arrays USD references (crate layer): Gaussians, collider meshes
 USDZ = "scene.usdz"  # export-usd --usdz: USD and what it references in one package
+NUREC = "gaussians.usdz"  # export-usd --gaussians nurec: the Gaussians as NVIDIA 3DGRUT's NuRec USDZ
+SAGE = "sage"  # export-usd --layout sage: <scene_id>.usda (SAGE-3D's template form) + <scene_id>_collision.usd
 MJCF = "scene.xml"
 
 # RUN/episodes/<scene_id>/ (gen-trajectories)
@@ -84,7 +86,7 @@ CONTRACT: dict[str, StageFiles] = {
     "export_usd": StageFiles(
         reads=(*NORMALISED_SCENE, Place("scene", GAUSSIANS), Place("scene", TOPDOWN)),  # the map: free_floor
         writes=(Place("scene", COLLIDERS), Place("scene", USD_GEOMETRY), Place("scene", USD), Place("scene", USDZ),
-                Place("scene", MJCF))),
+                Place("scene", NUREC), Place("scene", SAGE), Place("scene", MJCF))),
     "validate": StageFiles(
         reads=(*REPLAY_MODEL, Place("scene", GAUSSIANS), Place("scene", TOPDOWN), Place("episodes")),
         writes=(Place("validation"),)),

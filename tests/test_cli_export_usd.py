@@ -5,7 +5,10 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import subprocess
+import sys
 import time
+import zipfile
 from pathlib import Path
 
 import mujoco
@@ -14,6 +17,7 @@ import pytest
 import trimesh
 from pxr import Usd, UsdGeom, UsdPhysics, UsdSemantics, UsdValidation, UsdVol
 
+from sagebench.collider_export.bodies import DOOR_FLOOR_GAP_M
 from sagebench.collider_export.coacd_cache import CACHE_SUBDIR
 from sagebench.render.gaussians import Gaussians
 from sagebench.scene.loader import door_pose, load_scene, write_normalised_scene
@@ -141,8 +145,10 @@ def test_usd_objects_semantics_gaussians_and_transforms(tiny):
             m = np.array(cache.GetLocalToWorldTransform(part)).T
             p = np.array(UsdGeom.Mesh(part).GetPointsAttr().Get(), dtype=np.float64)
             pts.append(p @ m[:3, :3].T + m[:3, 3])
-        assert np.allclose(trimesh.PointCloud(np.concatenate(pts)).bounds, scene.meshes[obj.instance_id].bounds,
-                           atol=1e-5)
+        bounds = scene.meshes[obj.instance_id].bounds.copy()
+        if obj.door is not None:  # a door leaf's colliders clear the floor
+            bounds[0, 2] += DOOR_FLOOR_GAP_M
+        assert np.allclose(trimesh.PointCloud(np.concatenate(pts)).bounds, bounds, atol=1e-5)
         expect = obj.transform.as_matrix() if obj.door is None else door_pose(obj.door) @ obj.transform.as_matrix()
         assert np.allclose(np.array(cache.GetLocalToWorldTransform(prim)).T, expect, atol=1e-9)
     assert stage.GetPrimAtPath("/World/Objects/chair_3").HasAPI(UsdPhysics.RigidBodyAPI)
@@ -255,6 +261,9 @@ def test_without_gaussians_the_stage_still_gets_colliders(tmp_path, run_cli):
         (["--coacd-threshold", "0"], "error: --coacd-threshold: Input should be greater than 0"),
         (["--coacd-preprocess", "maybe"], "error: --coacd-preprocess: Input should be 'auto', 'on' or 'off'"),
         (["--workers", "0"], "error: --workers: Input should be greater than or equal to 1"),
+        (["--gaussians", "splats"], "error: --gaussians: Input should be 'particlefield' or 'nurec'"),
+        (["--layout", "sage"], "error: --layout: sage needs --gaussians nurec: SAGE-3D's template references a "
+                               "NuRec USDZ"),
     ],
 )
 def test_bad_options_exit_2_and_write_nothing(tmp_path, run_cli, args, message):
@@ -287,7 +296,7 @@ def test_demo_scene_exports_with_exact_parts_only(demo_scene_dir, tmp_path, run_
 
     built = build_scene(demo_scene_dir, tmp_path / "run")
     code, out, _ = run_cli("export-usd", tmp_path / "run", "--cache-dir", tmp_path / "cache")
-    assert code == 0 and "(201 exact; pieces: none; 0 cached)" in out
+    assert code == 0 and "(209 exact; pieces: none; 0 cached)" in out  # office chairs on four casters each
     scene_dir = built.out_dir
     g = read_ply(scene_dir / "gaussians.ply")
     stage = Usd.Stage.Open(str(scene_dir / "scene.usda"))
@@ -363,3 +372,45 @@ def test_an_object_the_part_budget_keeps_off_its_footprint_is_named_in_a_warning
         "over the 2 cm tolerance: hull parts of one of its pieces at the 1-part budget (--max-parts)")
     code, _, err = run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", "--colliders", "balanced")
     assert code == 0 and "tolerance" not in err
+
+
+def test_nurec_and_sage_layout_then_back_to_particlefields(tmp_path, run_cli):
+    run = make_run(tmp_path)
+    scene_dir = run / "scenes" / "tiny"
+    code, out, err = run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", "--gaussians", "nurec",
+                             "--layout", "sage", "--usdz", *FAST)
+    assert code == 0, err
+    assert {"gaussians.usdz", "sage/tiny.usda", "sage/tiny_collision.usd", "scene.usdz"} <= set(_hashes(scene_dir))
+    stage = Usd.Stage.Open(str(scene_dir / "scene.usda"))
+    volume = stage.GetPrimAtPath("/World/Gaussians/gauss")
+    assert volume.IsA(UsdVol.Volume) and volume.GetAttribute("omni:nurec:isNuRecVolume").Get()
+    assert not stage.GetPrimAtPath("/World/Objects/chair_3/Gaussians").IsValid()
+    assert not stage.GetPrimAtPath("/World/Background").IsValid()
+    crate = Usd.Stage.Open(str(scene_dir / "geometry.usdc"))
+    assert not crate.GetPrimAtPath("/Geometry/Gaussians").IsValid()  # the Gaussians are in the NuRec package only
+    for path in (scene_dir / "scene.usdz", scene_dir / "sage" / "tiny.usda"):
+        opened = Usd.Stage.Open(str(path))
+        assert len([p for p in opened.Traverse() if p.IsA(UsdVol.Volume)]) == 1, path
+    with zipfile.ZipFile(scene_dir / "gaussians.usdz") as z:  # the PLY's Gaussians, all of them, in file order
+        assert z.namelist() == ["default.usda", "gaussians.nurec", "gauss.usda"]
+    cli = Path(sys.executable).with_name("omni_asset_validate")
+    for rel in ("scene.usda", "scene.usdz", "geometry.usdc", "gaussians.usdz", "sage/tiny.usda",
+                "sage/tiny_collision.usd"):
+        done = subprocess.run([str(cli), str(scene_dir / rel)], capture_output=True, text=True)
+        assert done.returncode == 0, (rel, done.stderr[-2000:])
+    assert run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", *FAST)[0] == 0
+    files = set(_hashes(scene_dir))
+    assert not {"gaussians.usdz", "scene.usdz"} & files and not (scene_dir / "sage").exists()
+    stage.Reload()  # the layers stay open in this process: read them again
+    assert stage.GetPrimAtPath("/World/Objects/chair_3/Gaussians").IsA(UsdVol.ParticleField3DGaussianSplat)
+
+
+def test_sage_layout_without_gaussians_is_an_error_and_writes_nothing(tmp_path, run_cli):
+    run = make_run(tmp_path)
+    (run / "scenes" / "tiny" / "gaussians.ply").unlink()
+    before = _hashes(run)
+    code, _, err = run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", "--gaussians", "nurec",
+                           "--layout", "sage", *FAST)
+    assert code == 2 and err.splitlines()[-1] == \
+        "error: --layout sage needs the scene's Gaussians (gaussians.ply): run build-scene again"
+    assert _hashes(run) == before

@@ -385,3 +385,31 @@ def test_usdz_bytes_do_not_depend_on_the_time(monkeypatch):
     with zipfile.ZipFile(io.BytesIO(first)) as z:
         assert z.testzip() is None and [i.date_time for i in z.infolist()] == [(1980, 1, 1, 0, 0, 0)]
         assert z.read("scene.usda") == files["scene.usda"]
+
+
+def test_door_drive_is_the_mjcf_servo_in_usd_units(stage):
+    from sagebench.collider_export.bodies import DOOR_HOLD_DAMPING_NMS_PER_RAD, DOOR_HOLD_STIFFNESS_NM_PER_RAD
+
+    drive = UsdPhysics.DriveAPI(stage.GetPrimAtPath("/World/Objects/door_3/Hinge"), "angular")
+    per_degree = math.pi / 180  # USD's angular drive gains are per degree
+    assert drive.GetStiffnessAttr().Get() == pytest.approx(DOOR_HOLD_STIFFNESS_NM_PER_RAD * per_degree)
+    assert drive.GetDampingAttr().Get() == pytest.approx(DOOR_HOLD_DAMPING_NMS_PER_RAD * per_degree)
+
+
+def test_a_hollow_bin_weighs_its_category_typical_mass_not_its_hull_volume(tmp_path):
+    """A 0.3 x 0.3 x 0.45 m bin's hull holds 40 l: 16 kg at 400 kg/m^3, beyond a bin's 6 kg: 2 kg instead; a
+    chair's 8 kg stays as its density gives it."""
+    from sagebench.collider_export.bodies import MASS_RANGE_KG
+
+    objects = [StageObject(4, "trash_bin", "object", np.eye(4), [box_part((0.3, 0.3, 0.45), (0, 0, 0.225))]),
+               StageObject(5, "chair", "object", pose(0, (2, 0, 0)), [box_part((0.45, 0.45, 0.1), (0, 0, 0.45))])]
+    stage = build_stage(tmp_path, "bins", objects)
+    mass = {p.GetName(): UsdPhysics.MassAPI(p).GetMassAttr().Get() for p in stage.GetPrimAtPath("/World/Objects").GetChildren()}
+    assert mass["trash_bin_4"] == MASS_RANGE_KG["trash_bin"][1] == 2.0
+    assert mass["chair_5"] == pytest.approx(0.45 * 0.45 * 0.1 * 400.0, rel=1e-6)
+
+
+def test_bodies_overlapping_where_placed_are_filtered_pairs(tmp_path):
+    stage = build_stage(tmp_path, "f", OBJECTS, filtered=[("chair_2", "wall_1")])
+    rel = UsdPhysics.FilteredPairsAPI(stage.GetPrimAtPath("/World/Objects/chair_2")).GetFilteredPairsRel()
+    assert rel.GetTargets() == [Sdf.Path("/World/Objects/wall_1")]

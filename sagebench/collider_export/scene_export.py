@@ -4,6 +4,7 @@ the MuJoCo MJCF and the collider index, with the measured quality of the collide
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,14 +19,15 @@ from sagebench.collider_export.decompose import (MeshColliders, decompose_meshes
                                                  tolerance_cause)
 from sagebench.collider_export.free_floor import FloorMap, check_free_floor
 from sagebench.collider_export.methods import UNSHAPING, ColliderSettings, agent_band
-from sagebench.collider_export.mjcf_writer import MjcfBody, mjcf_text, scene_body
+from sagebench.collider_export.door_gap import clear_floor
+from sagebench.collider_export.mjcf_writer import MjcfBody, mjcf_model, room_lights, scene_body
 from sagebench.collider_export.pieces import Piece
 from sagebench.collider_export.quality import ColliderQuality, measure_objects
 from sagebench.collider_export.usd_writer import StageObject, prim_name, stage_files, usdz_package
 from sagebench.errors import DataError
 from sagebench.fileio import dumps_json
-from sagebench.render.gaussians import Gaussians
-from sagebench.run_layout import COLLIDERS, COLLIDERS_INDEX, GAUSSIANS, MJCF, USD, USD_GEOMETRY
+from sagebench.render.gaussians import Gaussians, mean_colour
+from sagebench.run_layout import COLLIDERS, COLLIDERS_INDEX, GAUSSIANS, MJCF, NUREC, SAGE, USD, USDZ
 from sagebench.scene.loader import SCENE_FILE, LoadedScene, door_pose, read_mesh, resolve_mesh_path
 
 
@@ -61,8 +63,7 @@ class SceneExport:
 
     result: ExportResult
     colliders: dict[str, bytes]  # under colliders/: each part as STL (world frame), and colliders.json
-    layers: dict[str, bytes]  # geometry.usdc, then scene.usda (the root last: it references the crate layer)
-    usdz: bytes | None  # with ExportConfig.usdz: the stage and its layers in one package
+    usd: dict[str, bytes]  # every USD file by its path in the scene directory, each before those referencing it
     mjcf: str
 
 
@@ -74,6 +75,7 @@ def build_export(scene: LoadedScene, gaussians: Gaussians | None, floor: FloorMa
     written."""
     spec = scene.spec
     per_object = None if gaussians is None else split_gaussians(gaussians, scene)
+    nurec = config.gaussians == "nurec"
     local = local_meshes(scene)
     colliders = decompose_meshes(local, config.colliders, cache=cache, workers=config.workers,
                                  convex_tolerance=config.convex_tolerance, floor_height=spec.floor_height)
@@ -90,20 +92,22 @@ def build_export(scene: LoadedScene, gaussians: Gaussians | None, floor: FloorMa
             matrix = door_pose(obj.door) @ matrix
         matrices[obj.instance_id] = matrix
         mc = colliders[obj.mesh]
+        parts = mc.parts if obj.door is None else clear_floor(mc.parts, matrix, spec.floor_height)
         so = StageObject(
-            instance_id=obj.instance_id, category=obj.category, kind=obj.kind, matrix=matrix, parts=mc.parts,
+            instance_id=obj.instance_id, category=obj.category, kind=obj.kind, matrix=matrix, parts=parts,
             room_id=obj.room_id, room_type=rooms.get(obj.room_id), attributes=obj.attributes, door=obj.door,
-            gaussians=None if per_object is None else per_object.get(obj.instance_id),
+            gaussians=None if per_object is None or nurec else per_object.get(obj.instance_id),
         )
         objects.append(so)
         name = prim_name(so)
         part_files = []
-        for i, part in enumerate(mc.parts):
+        for i, part in enumerate(parts):
             world = hull_part(trimesh.transform_points(part.vertices, matrix))
             rel = f"{name}/part_{i:03d}.stl"
             files[rel] = trimesh.Trimesh(world.vertices, world.faces, process=False).export(file_type="stl")
             part_files.append(rel)
-        bodies.append(scene_body(so, part_files))
+        bodies.append(scene_body(so, part_files, None if per_object is None or obj.instance_id not in per_object
+                                 else mean_colour(per_object[obj.instance_id])))
         index.append(_index_entry(obj.instance_id, name, obj.mesh, part_files, mc, quality.get(obj.instance_id)))
     names = {o.instance_id: prim_name(o) for o in objects}
     causes = {o.instance_id: tolerance_cause(colliders[o.mesh], config.colliders) for o in spec.objects}
@@ -112,9 +116,10 @@ def build_export(scene: LoadedScene, gaussians: Gaussians | None, floor: FloorMa
                            quality[o.instance_id].band_error_cm, causes[o.instance_id])
                           for o in spec.objects if o.instance_id in quality],
                          agent_band(spec.floor_height), floor, config.colliders.band_tolerance_cm)
-    usd = stage_files(spec.scene_id, objects, None if per_object is None else per_object.get(0))
-    usdz = usdz_package(usd) if config.usdz else None
-    mjcf = mjcf_text(spec.scene_id, bodies, meshes=files, meshdir=COLLIDERS, floor_height=spec.floor_height)
+    mjcf = mjcf_model(spec.scene_id, bodies, meshes=files, meshdir=COLLIDERS, floor_height=spec.floor_height,
+                      lights=room_lights(scene))
+    usd = _usd_files(spec.scene_id, objects, gaussians, None if per_object is None or nurec else per_object.get(0),
+                     config, mjcf.exclude)
     shaping = config.model_dump(exclude={"workers": True, "colliders": set(UNSHAPING)})  # what the files depend on
     files[COLLIDERS_INDEX] = dumps_json({
         "scene_id": spec.scene_id, "coacd_version": coacd_version(), "config": shaping,
@@ -130,7 +135,25 @@ def build_export(scene: LoadedScene, gaussians: Gaussians | None, floor: FloorMa
         methods=dict(Counter(p.method for p in pieces)), cached_pieces=sum(p.cached for p in pieces),
         gaussians=0 if per_object is None else sum(g.count for g in per_object.values()), worst=worst,
     )
-    return SceneExport(result, files, {name: usd[name] for name in (USD_GEOMETRY, USD)}, usdz, mjcf)
+    return SceneExport(result, files, usd, mjcf.xml)
+
+
+def _usd_files(scene_id: str, objects: list[StageObject], whole: Gaussians | None, background: Gaussians | None,
+               config: ExportConfig, filtered: Sequence[tuple[str, str]]) -> dict[str, bytes]:
+    """Every USD file of the export by its path in the scene directory, each before those referencing it."""
+    from sagebench.collider_export.sage_layout import sage_files
+    from sagebench.splats.nurec import nurec_usdz
+
+    nurec = config.gaussians == "nurec" and whole is not None
+    out = {NUREC: nurec_usdz(whole, Path(NUREC).stem)} if nurec else {}
+    out.update(stage_files(scene_id, objects, background, nurec=NUREC if nurec else None, filtered=filtered))
+    if config.usdz:
+        out[USDZ] = usdz_package(out)
+    if config.layout == "sage":
+        if whole is None:
+            raise DataError(f"--layout sage needs the scene's Gaussians ({GAUSSIANS}): run build-scene again")
+        out.update({f"{SAGE}/{name}": data for name, data in sage_files(scene_id, objects, f"../{NUREC}").items()})
+    return out
 
 
 def plan_scene_pieces(scene: LoadedScene, config: ExportConfig,

@@ -39,9 +39,12 @@ from pathlib import Path
 
 import numpy as np
 
-from sagebench.collider_export.bodies import FRICTION, RESTITUTION, body_mass, is_movable
+from sagebench.collider_export.bodies import (
+    DOOR_HOLD_DAMPING_NMS_PER_RAD, DOOR_HOLD_STIFFNESS_NM_PER_RAD, FRICTION, MIN_VOLUME_M3, RESTITUTION, body_mass,
+    is_movable,
+)
 from sagebench.collider_export.convex import ConvexPart
-from sagebench.render.gaussians import SH_C0, Gaussians
+from sagebench.render.gaussians import Gaussians, dc_rgb
 from sagebench.run_layout import USD, USD_GEOMETRY
 from sagebench.scene.model import Door
 
@@ -50,8 +53,6 @@ GAUSSIANS_ROOT = "/Geometry/Gaussians"  # in the crate layer: one ParticleField3
 COLLIDERS_ROOT = "/Geometry/Colliders"  # in the crate layer: <object>/part_NNN, one Mesh per convex part
 PHYSICS_MATERIAL = "/World/PhysicsMaterial"
 GAUSSIAN_COLOR_SPACE = "srgb_rec709_display"  # what 3DGRUT's writer says of SH colours (gamma-encoded)
-DOOR_DRIVE_STIFFNESS = 1000.0  # holds a door at its state's angle (per degree, USD physics units)
-DOOR_DRIVE_DAMPING = 100.0
 
 
 @dataclass(frozen=True)
@@ -83,15 +84,24 @@ def is_body(obj: StageObject) -> bool:
 
 def object_mass(obj: StageObject) -> float:
     """kg of a body, from the world volume of its collider parts (the same figure in USD and MJCF)."""
-    volume = sum(p.volume for p in obj.parts) * abs(np.linalg.det(obj.matrix[:3, :3]))
-    return body_mass(obj.category, volume)
+    return body_mass(obj.category, _world_volume(obj))
 
 
-def stage_files(scene_id: str, objects: Sequence[StageObject], background: Gaussians | None = None) -> dict[str, bytes]:
+def object_density(obj: StageObject) -> float:
+    """kg/m^3 that gives a body's collider parts its object_mass: what MJCF's geoms take."""
+    return object_mass(obj) / max(_world_volume(obj), MIN_VOLUME_M3)
+
+
+def _world_volume(obj: StageObject) -> float:
+    return sum(p.volume for p in obj.parts) * abs(np.linalg.det(obj.matrix[:3, :3]))
+
+
+def stage_files(scene_id: str, objects: Sequence[StageObject], background: Gaussians | None = None, *,
+                nurec: str | None = None, filtered: Sequence[tuple[str, str]] = ()) -> dict[str, bytes]:
     """The stage's files by name: USD (the text root) and USD_GEOMETRY (the crate layer it references).
-    Same inputs give the same bytes, in any process."""
+    Same inputs give the same bytes, in any process. `nurec`, `filtered`: see build_stage."""
     with tempfile.TemporaryDirectory(prefix="sagebench-usd-") as tmp:
-        build_stage(Path(tmp), scene_id, objects, background)
+        build_stage(Path(tmp), scene_id, objects, background, nurec=nurec, filtered=filtered)
         return {p.name: p.read_bytes() for p in sorted(Path(tmp).iterdir())}
 
 
@@ -127,18 +137,23 @@ def _without_zip_times(data: bytes) -> bytes:
     return bytes(buf)
 
 
-def build_stage(directory: Path, scene_id: str, objects: Sequence[StageObject], background: Gaussians | None = None):
+def build_stage(directory: Path, scene_id: str, objects: Sequence[StageObject], background: Gaussians | None = None,
+                *, nurec: str | None = None, filtered: Sequence[tuple[str, str]] = ()):
     """Write the stage into `directory` (USD and USD_GEOMETRY) and return it opened; `background` are the
-    Gaussians of no object (instance id 0), at /World/Background/Gaussians."""
-    from pxr import Sdf, Usd, UsdGeom
+    Gaussians of no object (instance id 0), at /World/Background/Gaussians. `nurec`: the name of a NuRec
+    USDZ beside the root holding the scene's Gaussians (splats.nurec), referenced at /World/Gaussians
+    (its volume at /World/Gaussians/gauss) in place of ParticleFields (objects then carry no Gaussians).
+    `filtered`: pairs of object prim names that do not collide (FilteredPairsAPI on the first): MJCF's
+    contact exclusions of bodies overlapping where they stand."""
+    from pxr import Sdf, Usd, UsdGeom, UsdPhysics
 
     splats = [(Sdf.Path("/World/Objects").AppendChild(prim_name(o)), o.gaussians, np.linalg.inv(o.matrix))
               for o in objects if o.gaussians is not None and o.gaussians.count]
     if background is not None and background.count:
         splats.insert(0, (Sdf.Path("/World/Background"), background, np.eye(4)))
     crate = Usd.Stage.CreateNew(str(Path(directory) / USD_GEOMETRY))
-    _stage_metadata(crate)
-    for scope in (GEOMETRY_ROOT, GAUSSIANS_ROOT, COLLIDERS_ROOT):
+    stage_metadata(crate)
+    for scope in (GEOMETRY_ROOT, *([GAUSSIANS_ROOT] if splats else []), COLLIDERS_ROOT):
         UsdGeom.Scope.Define(crate, scope)
     crate.SetDefaultPrim(crate.GetPrimAtPath(GEOMETRY_ROOT))
     for parent, g, _ in splats:
@@ -147,10 +162,23 @@ def build_stage(directory: Path, scene_id: str, objects: Sequence[StageObject], 
         group = Sdf.Path(COLLIDERS_ROOT).AppendChild(prim_name(obj))
         UsdGeom.Scope.Define(crate, group)
         for i, part in enumerate(obj.parts):
-            _write_mesh_arrays(crate, group.AppendChild(_part(i)), part)
+            write_mesh_arrays(crate, group.AppendChild(part_name(i)), part)
     crate.GetRootLayer().Save()
     stage = Usd.Stage.CreateNew(str(Path(directory) / USD))
     _author_root(stage, scene_id, objects, splats)
+    for a, b in filtered:
+        prim = stage.GetPrimAtPath(Sdf.Path("/World/Objects").AppendChild(a))
+        UsdPhysics.FilteredPairsAPI.Apply(prim).CreateFilteredPairsRel().AddTarget(
+            Sdf.Path("/World/Objects").AppendChild(b))
+    if nurec is not None:
+        from pxr import UsdUtils
+
+        from sagebench.splats.nurec import GAUSS_LAYER
+
+        gaussians = UsdGeom.Xform.Define(stage, "/World/Gaussians").GetPrim()
+        quiet = UsdUtils.CoalescingDiagnosticDelegate()  # the package is written beside the root afterwards
+        gaussians.GetReferences().AddReference(f"./{nurec}[{GAUSS_LAYER}]")
+        del quiet
     stage.GetRootLayer().Save()
     return stage
 
@@ -161,7 +189,7 @@ def _crate_path(parent):
     return Sdf.Path(GAUSSIANS_ROOT).AppendChild(parent.name)
 
 
-def _stage_metadata(stage) -> None:
+def stage_metadata(stage) -> None:
     """metersPerUnit 1, upAxis Z, kilogramsPerUnit 1: on every layer written, so each is complete alone."""
     from pxr import UsdGeom, UsdPhysics
 
@@ -173,22 +201,22 @@ def _stage_metadata(stage) -> None:
 def _author_root(stage, scene_id: str, objects: Sequence[StageObject], splats) -> None:
     from pxr import Gf, Sdf, UsdGeom, UsdPhysics
 
-    _stage_metadata(stage)
+    stage_metadata(stage)
     world = UsdGeom.Xform.Define(stage, "/World")
     stage.SetDefaultPrim(world.GetPrim())
     world.GetPrim().SetCustomDataByKey("sagebench:sceneId", scene_id)
     physics = UsdPhysics.Scene.Define(stage, "/World/PhysicsScene")
     physics.CreateGravityDirectionAttr(Gf.Vec3f(0.0, 0.0, -1.0))
     physics.CreateGravityMagnitudeAttr(9.81)
-    material = _physics_material(stage, PHYSICS_MATERIAL)
+    material = physics_material(stage, PHYSICS_MATERIAL)
     UsdGeom.Scope.Define(stage, "/World/Objects")
     if any(parent.name == "Background" for parent, _, _ in splats):
         UsdGeom.Xform.Define(stage, "/World/Background")
     for obj in objects:
         path = Sdf.Path("/World/Objects").AppendChild(prim_name(obj))
         xform = UsdGeom.Xform.Define(stage, path)
-        xform.AddTransformOp().Set(_gf_matrix(obj.matrix))
-        _write_semantics(xform.GetPrim(), obj)
+        xform.AddTransformOp().Set(gf_matrix(obj.matrix))
+        write_semantics(xform.GetPrim(), obj)
         _write_colliders(stage, path.AppendChild("Colliders"), Sdf.Path(COLLIDERS_ROOT).AppendChild(path.name),
                          len(obj.parts), material)
         if is_body(obj):
@@ -200,14 +228,14 @@ def _author_root(stage, scene_id: str, objects: Sequence[StageObject], splats) -
         _reference_gaussians(stage, parent.AppendChild("Gaussians"), _crate_path(parent), world_to_local)
 
 
-def _gf_matrix(m: np.ndarray):
+def gf_matrix(m: np.ndarray):
     from pxr import Gf
 
     # USD multiplies row vectors: its matrix is the transpose of ours
     return Gf.Matrix4d(np.asarray(m, dtype=np.float64).T.tolist())
 
 
-def _write_semantics(prim, obj: StageObject) -> None:
+def write_semantics(prim, obj: StageObject) -> None:
     from pxr import Sdf, UsdSemantics
 
     labels = {"class": obj.category, "instance": str(obj.instance_id), "kind": obj.kind}
@@ -240,7 +268,7 @@ def _reference_gaussians(stage, path, crate_path, world_to_local: np.ndarray) ->
 
     prim = UsdVol.ParticleField3DGaussianSplat.Define(stage, path).GetPrim()
     prim.GetReferences().AddReference(f"./{USD_GEOMETRY}", crate_path)
-    UsdGeom.Xformable(prim).AddTransformOp().Set(_gf_matrix(world_to_local))
+    UsdGeom.Xformable(prim).AddTransformOp().Set(gf_matrix(world_to_local))
 
 
 def _write_gaussian_arrays(stage, path, g: Gaussians) -> None:
@@ -266,7 +294,7 @@ def _write_gaussian_arrays(stage, path, g: Gaussians) -> None:
     sh = UsdGeom.Primvar(prim.CreateRadianceSphericalHarmonicsCoefficientsAttr(Vt.Vec3fArray.FromNumpy(coeffs)))
     sh.SetInterpolation(UsdGeom.Tokens.vertex)
     sh.SetElementSize(g.sh.shape[1])
-    colour = np.clip(SH_C0 * g.sh[:, 0, :].astype(np.float64) + 0.5, 0.0, 1.0).astype(np.float32)
+    colour = dc_rgb(g).astype(np.float32)
     values, index = np.unique(colour, axis=0, return_inverse=True)  # indexed: splats share colours
     display = UsdGeom.PrimvarsAPI(prim.GetPrim()).CreatePrimvar(
         "displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex)
@@ -280,11 +308,11 @@ def _write_gaussian_arrays(stage, path, g: Gaussians) -> None:
     prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]))
 
 
-def _part(i: int) -> str:
+def part_name(i: int) -> str:
     return f"part_{i:03d}"
 
 
-def _write_mesh_arrays(stage, path, part: ConvexPart) -> None:
+def write_mesh_arrays(stage, path, part: ConvexPart):
     """A collider part's geometry in the crate `stage`: points, triangles, outward face normals (uniform), no
     subdivision (the normals are the surface's)."""
     from pxr import UsdGeom, Vt
@@ -298,6 +326,7 @@ def _write_mesh_arrays(stage, path, part: ConvexPart) -> None:
     mesh.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(face_normals(part.vertices, part.faces)))
     mesh.SetNormalsInterpolation(UsdGeom.Tokens.uniform)
     mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    return mesh
 
 
 def _write_colliders(stage, path, crate_path, parts: int, material) -> None:
@@ -311,13 +340,13 @@ def _write_colliders(stage, path, crate_path, parts: int, material) -> None:
     UsdShade.MaterialBindingAPI.Apply(group.GetPrim()).Bind(
         material, UsdShade.Tokens.weakerThanDescendants, "physics")  # the purpose PhysX reads
     for i in range(parts):
-        mesh = UsdGeom.Mesh.Define(stage, path.AppendChild(_part(i)))
-        mesh.GetPrim().GetReferences().AddReference(f"./{USD_GEOMETRY}", crate_path.AppendChild(_part(i)))
+        mesh = UsdGeom.Mesh.Define(stage, path.AppendChild(part_name(i)))
+        mesh.GetPrim().GetReferences().AddReference(f"./{USD_GEOMETRY}", crate_path.AppendChild(part_name(i)))
         UsdPhysics.CollisionAPI.Apply(mesh.GetPrim())
         UsdPhysics.MeshCollisionAPI.Apply(mesh.GetPrim()).CreateApproximationAttr(UsdPhysics.Tokens.convexHull)
 
 
-def _physics_material(stage, path: str):
+def physics_material(stage, path: str):
     """The scene's one physics material: MuJoCo's sliding friction (static and dynamic alike), no bounce."""
     from pxr import UsdPhysics, UsdShade
 
@@ -358,8 +387,9 @@ def _write_hinge(stage, body_path, obj: StageObject) -> None:
     joint.CreateUpperLimitAttr(float(max(0.0, full)))
     drive = UsdPhysics.DriveAPI.Apply(joint.GetPrim(), "angular")
     drive.CreateTargetPositionAttr(float(angle))
-    drive.CreateStiffnessAttr(DOOR_DRIVE_STIFFNESS)
-    drive.CreateDampingAttr(DOOR_DRIVE_DAMPING)
+    per_degree = math.pi / 180.0  # USD's angular drive: torque per degree (and per degree per second)
+    drive.CreateStiffnessAttr(DOOR_HOLD_STIFFNESS_NM_PER_RAD * per_degree)
+    drive.CreateDampingAttr(DOOR_HOLD_DAMPING_NMS_PER_RAD * per_degree)
     joint.GetPrim().CreateAttribute("sagebench:stateAngleDeg", Sdf.ValueTypeNames.Float, custom=True).Set(float(angle))
 
 

@@ -90,6 +90,17 @@ def empty(sh_degree: int = 0) -> Gaussians:
                      z((0, k, 3), np.float32), z(0, np.int32))
 
 
+def dc_rgb(g: Gaussians) -> np.ndarray:
+    """[N, 3] float64 in 0..1: each Gaussian's view-independent colour, SH_C0 * f_dc + 0.5 clipped."""
+    return np.clip(SH_C0 * g.sh[:, 0, :].astype(np.float64) + 0.5, 0.0, 1.0)
+
+
+def mean_colour(g: Gaussians) -> tuple[float, float, float]:
+    """The mean dc_rgb of `g` (non-empty): the colour a set of Gaussians shows from afar."""
+    r, gr, b = dc_rgb(g).mean(axis=0)
+    return float(r), float(gr), float(b)
+
+
 def rgb_to_sh_dc(rgb: np.ndarray) -> np.ndarray:
     """[..., 3] colour in [0, 1] -> the DC coefficient that renders as that colour."""
     return ((np.asarray(rgb, dtype=np.float64) - 0.5) / SH_C0).astype(np.float32)

@@ -125,12 +125,13 @@ def build_replay_model(
     """Add the agent to a scene (an MjSpec, left untouched, or a path to scene.xml) and compile it.
 
     `floor_bodies` names bodies whose geoms are floor (slabs of kind floor) and must not collide. The
-    scene's own joints (doors' hinges, furniture's free joints) are removed: the agent moves through the
-    world as exported, doors at their state's angle and furniture where it stands.
+    scene's own joints (doors' hinges, furniture's free joints), the door servos on them and its contact
+    exclusions are removed: the agent moves through the world as exported, doors at their state's angle and
+    furniture where it stands.
     """
     spec = mujoco.MjSpec.from_file(str(scene)) if isinstance(scene, str | Path) else scene.copy()
-    for joint in list(spec.joints):
-        spec.delete(joint)
+    for element in [*spec.actuators, *spec.excludes, *spec.joints]:
+        spec.delete(element)
     dt = config.timestep
     spec.option.timestep = dt
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_EULER

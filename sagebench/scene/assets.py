@@ -69,7 +69,10 @@ def chair(w: float, d: float, h: float, rgb: RGB) -> trimesh.Trimesh:
 
 
 def office_chair(w: float, d: float, h: float, rgb: RGB) -> trimesh.Trimesh:
+    caster = 0.035  # the base's casters stand it on the floor
     parts = [
+        *(box((0.04, 0.04, caster), (x, y, caster / 2), METAL)
+          for x, y in ((-(w / 2 - 0.02), 0), (w / 2 - 0.02, 0), (0, -(d / 2 - 0.02)), (0, d / 2 - 0.02))),
         box((w, 0.08, 0.03), (0, 0, 0.05), METAL),
         box((0.08, d, 0.03), (0, 0, 0.05), METAL),
         cylinder(0.03, 0.05, 0.42, (0, 0), METAL),

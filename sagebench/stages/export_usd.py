@@ -1,5 +1,5 @@
 """`export-usd`: RUN/scenes/<id>/ -> colliders/ (convex parts), scene.usda + geometry.usdc (3DGS, colliders,
-semantics), scene.xml, and with --usdz scene.usdz.
+semantics), scene.xml, and with --usdz scene.usdz (with --gaussians nurec gaussians.usdz, with --layout sage sage/).
 
 Reads the normalised scene (scene.json + meshes) and gaussians.ply that build-scene wrote. Writes
 colliders/<category>_<instance_id>/part_NNN.stl (world frame) and colliders/colliders.json, then
@@ -9,6 +9,7 @@ first byte is written.
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 from sagebench import ui
@@ -21,7 +22,7 @@ from sagebench.collider_export.scene_export import ExportResult, build_export, p
 from sagebench.config import from_options
 from sagebench.fileio import staged_dir, write_bytes, write_text
 from sagebench.render.gaussians import Gaussians
-from sagebench.run_layout import COLLIDERS, GAUSSIANS, MJCF, TOPDOWN, USDZ, run_scene_dir, run_scenes
+from sagebench.run_layout import COLLIDERS, GAUSSIANS, MJCF, NUREC, SAGE, TOPDOWN, USDZ, run_scene_dir, run_scenes
 from sagebench.scene.loader import load_scene
 from sagebench.topdown.grid_file import read_topdown_grids
 
@@ -31,20 +32,22 @@ OPTIONS = {"--colliders": "colliders.mode", "--max-parts": "colliders.max_parts"
            "--piece-limit": "colliders.piece_limit_s", "--band-tolerance": "colliders.band_tolerance_cm",
            "--coacd-threshold": "colliders.coacd.threshold",
            "--coacd-max-faces": "colliders.coacd_max_faces", "--coacd-max-hulls": "colliders.coacd.max_convex_hull",
-           "--coacd-preprocess": "colliders.coacd.preprocess_mode", "--workers": "workers", "--usdz": "usdz"}
+           "--coacd-preprocess": "colliders.coacd.preprocess_mode", "--workers": "workers", "--usdz": "usdz",
+           "--gaussians": "gaussians", "--layout": "layout"}
 
 
 def make_config(
     *, colliders: str | None = None, max_parts: int | None = None, piece_limit: float | None = None,
     band_tolerance: float | None = None, coacd_threshold: float | None = None, coacd_max_faces: int | None = None,
     coacd_max_hulls: int | None = None, coacd_preprocess: str | None = None, workers: int | None = None,
-    usdz: bool | None = None,
+    usdz: bool | None = None, gaussians: str | None = None, layout: str | None = None,
 ) -> ExportConfig:
     """An ExportConfig from the options given (None = keep the default); a bad value is a ConfigError."""
     coacd = {"threshold": coacd_threshold, "max_convex_hull": coacd_max_hulls, "preprocess_mode": coacd_preprocess}
     given = {"mode": colliders, "max_parts": max_parts, "piece_limit_s": piece_limit,
              "band_tolerance_cm": band_tolerance, "coacd_max_faces": coacd_max_faces, "coacd": coacd}
-    return from_options(ExportConfig, {"colliders": given, "workers": workers, "usdz": usdz}, OPTIONS)
+    return from_options(ExportConfig, {"colliders": given, "workers": workers, "usdz": usdz, "gaussians": gaussians,
+                                       "layout": layout}, OPTIONS)
 
 
 def default_cache_dir() -> Path:
@@ -93,14 +96,27 @@ def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> 
     with staged_dir(scene_dir / COLLIDERS) as tmp:
         for rel, data in made.colliders.items():
             write_bytes(tmp / rel, data)
-    for name, data in made.layers.items():
-        write_bytes(scene_dir / name, data)
-    if made.usdz is not None:
-        write_bytes(scene_dir / USDZ, made.usdz)
-    else:
-        (scene_dir / USDZ).unlink(missing_ok=True)  # a previous export's, which this stage no longer matches
+    _write_usd_files(scene_dir, made.usd)
     write_text(scene_dir / MJCF, made.mjcf)
     return made.result
+
+
+def _write_usd_files(scene_dir: Path, files: dict[str, bytes]) -> None:
+    """Write `files` (SceneExport.usd) in order, sage/ as one directory, and remove what a previous export with
+    other options wrote and this one did not."""
+    sage = {rel: data for rel, data in files.items() if rel.startswith(f"{SAGE}/")}
+    for rel, data in files.items():
+        if rel not in sage:
+            write_bytes(scene_dir / rel, data)
+    if sage:
+        with staged_dir(scene_dir / SAGE) as tmp:
+            for rel, data in sage.items():
+                write_bytes(tmp / Path(rel).name, data)
+    else:
+        shutil.rmtree(scene_dir / SAGE, ignore_errors=True)
+    for name in (USDZ, NUREC):
+        if name not in files:
+            (scene_dir / name).unlink(missing_ok=True)
 
 
 def _floor_map(scene_dir: Path) -> FloorMap | None:
