@@ -10,7 +10,7 @@ import pytest
 import trimesh
 
 from sagebench.errors import SceneError
-from sagebench.scene.furniture import CATALOGUE_FILE, Catalogue, fit_to_slot
+from sagebench.scene.furniture import CATALOGUE_FILE, Catalogue
 from sagebench.scene.loader import load_scene
 from sagebench.scene.synth import write_synth_scene
 
@@ -62,33 +62,53 @@ def test_bad_catalogues_name_the_file_and_key(tmp_path):
     root = _catalogue(tmp_path / "c", PROPS.replace("depth#3=60", "depth#3=wide"))
     with pytest.raises(SceneError, match=r"depth#3: depth is missing or not a number"):
         Catalogue(root)
+    root = _catalogue(tmp_path / "e", PROPS + "elevation#3=high\n")
+    with pytest.raises(SceneError, match=r"elevation#3: elevation is not a number"):
+        Catalogue(root)
 
 
-def test_fit_to_slot_shrinks_uniformly_and_never_grows():
+def test_fixture_elevations_are_parsed_in_metres():
     cat = Catalogue(FIXTURE)
-    couch = cat.load_model(cat.entries[0])  # 2.30 x 1.597 x 0.866
-    small = fit_to_slot(couch, (1.15, 2.0, 2.0), max_height=2.6)
-    np.testing.assert_allclose(np.ptp(small.vertices, axis=0), np.array([2.3, 1.597, 0.866]) / 2, rtol=1e-9)
-    same = fit_to_slot(couch, (5.0, 5.0, 5.0), max_height=2.6)
-    np.testing.assert_allclose(same.vertices, couch.vertices)
+    assert {e.id.split("#")[1]: e.elevation_m for e in cat.entries if e.elevation_m} == \
+        {"upperCabinet": pytest.approx(1.45), "upperCornerCabinet": pytest.approx(1.45)}
 
 
-def test_furnished_demo_keeps_the_layout_and_uses_the_models(tmp_path):
-    write_synth_scene(tmp_path / "plain", seed=0)
-    write_synth_scene(tmp_path / "real", seed=0, furniture=FIXTURE)
+@pytest.mark.parametrize("seed", [0, 1])
+def test_furnished_demo_keeps_the_layout_with_the_catalogue_sizes_as_sweet_home_3d(tmp_path, seed):
+    """Each model at its catalogue width, depth and height (within 2 %: not shrunk to its slot) standing at its
+    catalogue elevation; a model wider or deeper than its slot by more than a quarter is not used there."""
+    write_synth_scene(tmp_path / "plain", seed=seed)
+    write_synth_scene(tmp_path / "real", seed=seed, furniture=FIXTURE)
     plain, real = load_scene(tmp_path / "plain"), load_scene(tmp_path / "real")
-    assert [(o.instance_id, o.category, o.transform) for o in plain.spec.objects] == \
-        [(o.instance_id, o.category, o.transform) for o in real.spec.objects]
+    assert [(o.instance_id, o.category, o.transform.translation[:2], o.transform.rotation_wxyz)
+            for o in plain.spec.objects] == \
+        [(o.instance_id, o.category, o.transform.translation[:2], o.transform.rotation_wxyz) for o in real.spec.objects]
     models = {e.id: e for e in Catalogue(FIXTURE).entries}
     used = [o for o in real.spec.objects if "asset" in o.attributes]
-    # every fixture model found a slot but the third cabinet: the demo has two nightstands
-    assert {o.attributes["asset"] for o in used} == set(models) - {"Blend Swap CC-0#upperCornerCabinet"}
+    names = {o.attributes["asset"].split("#")[1] for o in used}
+    assert {"chair2", "dustbin", "JapaneseLantern", "couch2"} <= names  # (the 2.35 m table fits no slot)
+    assert "table" not in names
     for o in used:
-        size = np.ptp(trimesh.load(tmp_path / "real" / o.mesh, force="mesh").vertices, axis=0)
         entry = models[o.attributes["asset"]]
-        np.testing.assert_allclose(size / size[2], np.array(entry.size_m) / entry.size_m[2], rtol=1e-6)
-        slot = np.ptp(trimesh.load(tmp_path / "plain" / plain.object(o.instance_id).mesh, force="mesh").vertices, axis=0)
-        assert size[0] <= slot[0] + 1e-6 and size[1] <= slot[1] + 1e-6
+        size = np.ptp(trimesh.load(tmp_path / "real" / o.mesh, force="mesh").vertices, axis=0)
+        np.testing.assert_allclose(size, entry.size_m, rtol=0.02)
+        slot = plain.object(o.instance_id)
+        assert real.meshes[o.instance_id].bounds[0, 2] == pytest.approx(slot.transform.translation[2] + entry.elevation_m,
+                                                                          abs=1e-6)
+
+
+def test_a_wall_cabinet_hangs_at_its_catalogue_elevation(tmp_path):
+    """The fixture's upper cabinet (elevation 145 cm) as the only cabinet: seed 1's counter hangs 1.45 m up."""
+    import sagebench.scene.synth as synth
+
+    cat = Catalogue(FIXTURE)
+    cat.entries = [e for e in cat.entries if e.id.endswith("#upperCabinet")]
+    spec, files = synth.synth_spec_and_meshes(1, cat)
+    (counter,) = [o for o in spec.objects if o.attributes.get("asset") == "Blend Swap CC-0#upperCabinet"]
+    assert counter.transform.translation[2] == pytest.approx(1.45)
+    mesh = trimesh.load(trimesh.util.wrap_as_stream(files[counter.mesh]), file_type="glb", force="mesh")
+    np.testing.assert_allclose(np.ptp(mesh.vertices, axis=0), (0.60, 0.41, 0.72), rtol=0.02)
+    assert mesh.bounds[0, 2] == pytest.approx(0.0, abs=1e-9)  # the model stands on its own z = 0
 
 
 def test_cli_bad_furniture_dir_writes_nothing(run_cli, tmp_path):

@@ -1,9 +1,10 @@
 """Sweet Home 3D furniture catalogues: their entries, and each OBJ model as a Z-up metre mesh at its catalogue size.
 
 A catalogue is a directory or a `.sh3f` zip holding `PluginFurnitureCatalog.properties` (entries
-`key#N=value`: name, model path, width/depth/height in cm, optional modelRotation) and the OBJ + MTL
-files it names. Sweet Home 3D models are Y-up with their front towards +Z and in arbitrary units;
-Sweet Home 3D stretches each to width x height x depth, and so does `load_model`.
+`key#N=value`: name, model path, width/depth/height in cm, optional modelRotation and elevation) and the
+OBJ + MTL files it names. Sweet Home 3D models are Y-up with their front towards +Z and in arbitrary units;
+Sweet Home 3D stretches each to width x height x depth and stands it `elevation` above the floor, and so
+does sagebench: `load_model` gives the model at that size, the scene places its bottom at the elevation.
 """
 
 from __future__ import annotations
@@ -55,6 +56,13 @@ class CatalogueEntry:
     size_m: tuple[float, float, float]  # width (x), depth (y), height (z), metres
     rotation: tuple[float, ...] | None  # modelRotation, 3x3 row-major, applied before the size
     creator: str
+    elevation_m: float = 0.0  # its bottom above the floor (a wall cabinet's, a washbasin's), metres
+
+    def fits(self, slot: tuple[float, float, float], headroom: float, slack: float) -> bool:
+        """Whether it fits a slot (width, depth, m) at its own size, up to `slack` (a fraction) wider or deeper,
+        with its top under `headroom` (m above the slot's floor)."""
+        w, d, h = self.size_m
+        return w <= slot[0] * (1 + slack) and d <= slot[1] * (1 + slack) and self.elevation_m + h <= headroom
 
     @property
     def head_noun(self) -> str:
@@ -149,15 +157,13 @@ def parse_entries(text: str, path: Path) -> list[CatalogueEntry]:
             rotation = tuple(float(x) for x in f["modelRotation"].split())
             if len(rotation) != 9:
                 raise SceneError("modelRotation needs 9 numbers", path=path, field=f"modelRotation#{n}")
+        try:
+            elevation = float(f.get("elevation", "0")) / 100.0
+        except ValueError:
+            raise SceneError("elevation is not a number", path=path, field=f"elevation#{n}") from None
+        if not elevation >= 0:
+            raise SceneError("elevation must be >= 0 cm", path=path, field=f"elevation#{n}")
         entries.append(CatalogueEntry(n, f.get("id", str(n)), f.get("name", ""), model, (size[0], size[1], size[2]),
-                                      rotation, f.get("creator", "")))
+                                      rotation, f.get("creator", ""), elevation))
     return entries
 
-
-def fit_to_slot(mesh: trimesh.Trimesh, slot: tuple[float, float, float], max_height: float) -> trimesh.Trimesh:
-    """Shrink uniformly (never grow) so the mesh fits the slot's width and depth and stays under max_height."""
-    extent = np.ptp(np.asarray(mesh.vertices), axis=0)
-    scale = min(1.0, slot[0] / extent[0], slot[1] / extent[1], max_height / extent[2])
-    out = mesh.copy()
-    out.vertices = np.asarray(mesh.vertices) * scale
-    return out

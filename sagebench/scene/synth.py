@@ -24,12 +24,13 @@ from shapely.geometry import Polygon, box as rect
 from sagebench.errors import ConfigError
 from sagebench.fileio import dumps_json, staged_dir, write_bytes
 from sagebench.scene import assets
-from sagebench.scene.furniture import CATEGORY_NOUNS, Catalogue, fit_to_slot
+from sagebench.scene.furniture import CATEGORY_NOUNS, Catalogue, CatalogueEntry
 from sagebench.scene.loader import SCENE_FILE, yaw_quaternion
 from sagebench.scene.model import Door, Room, SceneObject, SceneSpec, Transform
 
 WALL_T = 0.1  # wall thickness, m
 CEILING = 2.7  # m
+SLOT_SLACK = 0.25  # a catalogue model may be this much wider or deeper than the slot it takes
 DOOR_W = 1.0  # opening width, m
 DOOR_H = 2.1  # opening height, m
 LEAF_W, LEAF_T, LEAF_H = 0.95, 0.04, 2.05
@@ -79,8 +80,9 @@ class _Layout:
 def synth_spec_and_meshes(seed: int, furniture: Catalogue | None = None) -> tuple[SceneSpec, dict[str, bytes]]:
     """The demo scene for `seed`: its spec and mesh files (relative path -> bytes).
 
-    With a `furniture` catalogue, each piece whose category some catalogue entry fits (by its name's head
-    noun, entries taken in turn) is that entry's model instead of the procedural one; the layout is the same.
+    With a `furniture` catalogue, each piece whose category and slot some catalogue entry fits (by its name's
+    head noun and size, entries taken in turn) is that entry's model at its catalogue size, its bottom at the
+    entry's elevation, instead of the procedural piece; the layout is the same.
     """
     if seed < 0:
         raise ConfigError(f"must be 0 or more (got {seed})", field="--seed")
@@ -120,10 +122,12 @@ def synth_spec_and_meshes(seed: int, furniture: Catalogue | None = None) -> tupl
     for room in layout.rooms:
         for item, colour, material in _furnish(room, layout, rng):
             transform = Transform(translation=_r3((*item.xy, item.z)), rotation_wxyz=yaw_quaternion(item.yaw))
-            model = None if pick is None else pick(item)
-            if model is not None:
-                mesh, entry_id = model
-                add(item.category, "object", mesh, "glb", transform, room_id=room.id, attributes={"asset": entry_id})
+            entry = None if pick is None else pick(item)
+            if entry is not None:
+                placed = Transform(translation=_r3((*item.xy, item.z + entry.elevation_m)),
+                                   rotation_wxyz=transform.rotation_wxyz)
+                add(item.category, "object", pick.model(entry), "glb", placed, room_id=room.id,
+                    attributes={"asset": entry.id})
                 continue
             asset = assets.CATALOGUE[item.category]
             mesh = asset.build(*item.size, assets.COLOURS[colour])
@@ -137,26 +141,31 @@ def synth_spec_and_meshes(seed: int, furniture: Catalogue | None = None) -> tupl
 
 
 class _FurniturePicker:
-    """Catalogue models for placed items: the entries fitting a category in turn (shared between categories
-    with the same nouns, so a scene shows as many different models as the catalogue has), each shrunk to its
-    slot; None where no entry fits."""
+    """Catalogue entries for placed items, each at its catalogue size and elevation as Sweet Home 3D places
+    it: among the entries naming a category and fitting the item's slot (up to SLOT_SLACK wider or deeper,
+    under the ceiling), one in turn (turns shared between categories with the same nouns, so a scene shows as
+    many different models as the catalogue has); None where no entry fits, and the procedural piece stays."""
 
     def __init__(self, catalogue: Catalogue):
         self.catalogue = catalogue
         self.turn: dict[frozenset[str], int] = {}
         self.models: dict[int, trimesh.Trimesh] = {}
 
-    def __call__(self, item: _Item) -> tuple[trimesh.Trimesh, str] | None:
-        entries = self.catalogue.matching(item.category)
-        if not entries or item.size is None:
+    def __call__(self, item: _Item) -> CatalogueEntry | None:
+        entries = [e for e in self.catalogue.matching(item.category)
+                   if item.size is not None and e.fits(item.size, CEILING - 0.1 - item.z, SLOT_SLACK)]
+        if not entries:
             return None
         key = CATEGORY_NOUNS[item.category]
         k = self.turn.get(key, 0)
         self.turn[key] = k + 1
-        entry = entries[k % len(entries)]
+        return entries[k % len(entries)]
+
+    def model(self, entry: CatalogueEntry) -> trimesh.Trimesh:
+        """The entry's mesh at its catalogue size, standing on z = 0 (loaded once)."""
         if entry.number not in self.models:
             self.models[entry.number] = self.catalogue.load_model(entry)
-        return fit_to_slot(self.models[entry.number], item.size, CEILING - 0.1 - item.z), entry.id
+        return self.models[entry.number]
 
 
 def write_synth_scene(out: Path, *, seed: int = 0, furniture: Path | None = None, force: bool = False) -> SceneSpec:
