@@ -416,8 +416,11 @@ def export_vlnce_cmd(
 
     Reads RUN_DIR/episodes/<id>/part-*.parquet and RUN_DIR/scenes/<id>/scene.json + meshes/.
 
-    Writes OUT/<split>/<split>.json.gz per split (episodes and instruction_vocab), OUT/vocab.txt and
-    OUT/scenes/<id>/<id>.glb (the scene's visual meshes, Y up) for habitat-sim.
+    Writes OUT/<split>/<split>.json.gz per split (episodes and instruction_vocab) with
+    OUT/<split>/<split>_gt.json.gz (the oracle's teacher path: what VLN-CE's NDTW and recollect trainer
+    read), OUT/vocab.txt, OUT/vlnce_opts.txt (the VLN-CE config options for this data, printed too: paths,
+    splits, vocabulary size, success distance) and OUT/scenes/<id>/<id>.glb (the scene's visual meshes,
+    Y up) for habitat-sim.
     """
     from sagebench.stages.export_vlnce import export_vlnce
 

@@ -66,14 +66,19 @@ def load_episodes(run_dir: Path, scene_id: str | None = None) -> list[Episode]:
         columns = ["episode_id", "scene_id", "instruction_level", "instruction_type", "start_position", "start_yaw",
                    "goal_position", "goal_radius", "geodesic_distance", "reference_path"]
         for row in table.select(columns + (["split"] if "split" in table.column_names else [])).to_pylist():
-            path = np.asarray(row["reference_path"], dtype=np.float64).reshape(-1, 4)
-            if len(path) == 0:
-                raise DataError(f"episode {row['episode_id']}: empty path", path=episodes_dir, field="reference_path")
-            out.append(Episode(
-                episode_id=row["episode_id"], scene_id=row["scene_id"],
-                level=row["instruction_level"] or NO_LEVEL, type=row["instruction_type"] or NO_LEVEL,
-                start=np.asarray(row["start_position"], dtype=np.float64), start_yaw=float(row["start_yaw"]),
-                goal=np.asarray(row["goal_position"], dtype=np.float64), goal_radius=float(row["goal_radius"]),
-                geodesic_distance=float(row["geodesic_distance"]), reference_path=path,
-                split=row.get("split") or NO_LEVEL))
+            out.append(episode_from_row(row, episodes_dir))
     return out
+
+
+def episode_from_row(row: dict, where: Path) -> Episode:
+    """An episode row (Parquet columns as a dict) as an Episode; an empty path is a DataError at `where`."""
+    path = np.asarray(row["reference_path"], dtype=np.float64).reshape(-1, 4)
+    if len(path) == 0:
+        raise DataError(f"episode {row['episode_id']}: empty path", path=where, field="reference_path")
+    return Episode(
+        episode_id=row["episode_id"], scene_id=row["scene_id"],
+        level=row["instruction_level"] or NO_LEVEL, type=row["instruction_type"] or NO_LEVEL,
+        start=np.asarray(row["start_position"], dtype=np.float64), start_yaw=float(row["start_yaw"]),
+        goal=np.asarray(row["goal_position"], dtype=np.float64), goal_radius=float(row["goal_radius"]),
+        geodesic_distance=float(row["geodesic_distance"]), reference_path=path,
+        split=row.get("split") or NO_LEVEL)

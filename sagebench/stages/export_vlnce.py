@@ -1,9 +1,11 @@
 """`export-vlnce`: a run's episodes as a VLN-CE / habitat dataset, in habitat's Y-up frame.
 
 Reads RUN/episodes/<id>/part-*.parquet and RUN/scenes/<id>/scene.json + meshes/. Writes into OUT:
-{split}/{split}.json.gz per split (R2R-CE episodes with the vocabulary), vocab.txt (one word a line) and
-scenes/<id>/<id>.glb (every visual mesh of the scene). Everything is computed before the first byte is
-written; rows without an instruction (gen-trajectories --instructions none) are left out.
+{split}/{split}.json.gz per split (R2R-CE episodes with the vocabulary) and {split}/{split}_gt.json.gz (the
+oracle's teacher path: NDTW's locations, the recollect trainer's actions), vocab.txt (one word a line),
+vlnce_opts.txt (the VLN-CE config options for this data, `KEY VALUE` a line) and scenes/<id>/<id>.glb (every
+visual mesh of the scene). Everything is computed before the first byte is written; rows without an
+instruction (gen-trajectories --instructions none) are left out.
 """
 
 from __future__ import annotations
@@ -13,22 +15,32 @@ from pathlib import Path
 
 import pyarrow as pa
 
+from sagebench.episodes.load import episode_from_row
 from sagebench.episodes.shards import read_episodes
 from sagebench.episodes.splits import SPLITS
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import write_bytes, write_text
 from sagebench.run_layout import CONTRACT, require, run_episodes_dir, run_scene_dir, run_scenes
 from sagebench.scene.loader import load_scene
+from sagebench.metrics.episode import MetricConfig
+from sagebench.navsim.teacher import teacher_path
 from sagebench.vlnce.episodes import dataset_bytes, scene_glb_path
+from sagebench.vlnce.gt import gt_bytes, gt_entry
+from sagebench.vlnce.overrides import DATA, GT, opts_text, vlnce_opts
 from sagebench.vlnce.glb import scene_glb
 from sagebench.vlnce.vocab import Vocabulary
 
 VOCAB_FILE = "vocab.txt"
+OPTS_FILE = "vlnce_opts.txt"
 SCENES_DIR = "scenes"
 
 
 def split_file(split: str) -> str:
-    return f"{split}/{split}.json.gz"
+    return DATA.format(split=split)
+
+
+def gt_file(split: str) -> str:
+    return GT.format(split=split)
 
 
 @dataclass(frozen=True)
@@ -39,6 +51,8 @@ class VlnceExport:
     vocabulary: int  # words, special tokens included
     skipped: int = 0  # rows without an instruction
     files: list[Path] = field(default_factory=list)
+    opts: list[tuple[str, str]] = field(default_factory=list)  # VLN-CE config options, as in OPTS_FILE
+    radii: tuple[float, ...] = ()  # the episodes' goal radii, each once
 
     def lines(self) -> list[str]:
         counts = ", ".join(f"{s} {n}" for s, n in self.episodes.items())
@@ -46,6 +60,14 @@ class VlnceExport:
                f"{self.vocabulary} words -> {self.out_dir}"]
         if self.skipped:
             out.append(f"left out {self.skipped} rows without an instruction")
+        if "val_unseen" not in self.episodes:
+            out.append("no val_unseen split (its scenes are all seen ones): VLN-CE evaluates on "
+                       f"{dict(self.opts)['EVAL.SPLIT']} instead")
+        if len(self.radii) > 1:
+            out.append(f"goal radii {', '.join(f'{r:g}' for r in self.radii)} m: VLN-CE takes one success distance, "
+                       f"the largest")
+        out.append(f"VLN-CE config options ({self.out_dir / OPTS_FILE}; run.py ... $(cat {OPTS_FILE})):")
+        out += [f"  {k} {v}" for k, v in self.opts]
         return out
 
 
@@ -73,6 +95,11 @@ def export_vlnce(run_dir: Path, out_dir: Path, *, split: str | None = None) -> V
         raise DataError(f"no episodes with an instruction in {what}", path=Path(run_dir))
     scenes = sorted({r["scene_id"] for v in by_split.values() for r in v})
     files = {split_file(s): dataset_bytes(v, vocab) for s, v in by_split.items()}
+    files.update({gt_file(s): _gt(v, Path(run_dir)) for s, v in by_split.items()})
+    radii = tuple(sorted({float(r["goal_radius"]) for v in by_split.values() for r in v}))
+    opts = vlnce_opts(Path(out_dir), SCENES_DIR, list(by_split), len(vocab.word_list), radii[-1],
+                      MetricConfig().ndtw_threshold)
+    files[OPTS_FILE] = opts_text(opts).encode()
     for sid in scenes:
         files[f"{SCENES_DIR}/{scene_glb_path(sid)}"] = scene_glb(load_scene(run_scene_dir(run_dir, sid)))
     written = []
@@ -81,4 +108,13 @@ def export_vlnce(run_dir: Path, out_dir: Path, *, split: str | None = None) -> V
         written.append(Path(out_dir) / rel)
     write_text(Path(out_dir) / VOCAB_FILE, vocab.to_text())
     return VlnceExport(Path(out_dir), {s: len(v) for s, v in by_split.items()}, scenes, len(vocab.word_list),
-                       skipped, [*written, Path(out_dir) / VOCAB_FILE])
+                       skipped, [*written, Path(out_dir) / VOCAB_FILE], opts, radii)
+
+
+def _gt(rows: list[dict], run_dir: Path) -> bytes:
+    """The {split}_gt.json.gz of one split's rows: the oracle's teacher path of each episode."""
+    entries = {}
+    for row in rows:
+        path = teacher_path(episode_from_row(row, run_episodes_dir(run_dir, row["scene_id"])))
+        entries[row["episode_id"]] = gt_entry(path.actions, path.positions)
+    return gt_bytes(entries)
