@@ -163,7 +163,7 @@ def demo(
     if result.scores:
         typer.echo("oracle baseline scores (sagebench evaluate):\n" + result.scores)
     typer.echo(f"results are in {out}/ (top-down maps: {out}/scenes/*/topdown.png, paths: "
-               f"{out}/episodes/*/_preview/paths.png, frames: {out}/validation/*/frames/)")
+               f"{out}/previews/*/paths.png, frames: {out}/reports/*/frames/)")
     if not summary.ok:
         raise typer.Exit(1)
 
@@ -236,7 +236,7 @@ def gen_trajectories_cmd(
 
     Reads RUN_DIR/scenes/<id>/topdown.npz, semantic_map.json and scene.json. Writes
     RUN_DIR/episodes/<id>/part-<split>-NNNNN.parquet (one row per trajectory-instruction pair) and
-    RUN_DIR/episodes/<id>/_preview/paths.png. With --instructions llm it also reads and writes the
+    RUN_DIR/previews/<id>/paths.png. With --instructions llm it also reads and writes the
     answer cache; the API key comes from the environment variable SAGEBENCH_LLM_API_KEY (or the one
     --llm-api-key-env names). Exit status 1 when the LLM gave no usable answer for a scene.
     """
@@ -384,8 +384,8 @@ def validate_cmd(
     RUN_DIR/episodes/<id>/part-*.parquet.
 
     Writes RUN_DIR/validation/<id>/part-00000.parquet (one row per trajectory: pass/fail, reasons,
-    CSR, ICP, PS, path length, steps, ...), report.json (counts, failures by reason, metric
-    distributions, alignment per frame) and frames/*.png with frames/contact_sheet.png.
+    CSR, ICP, PS, path length, steps, ...) and RUN_DIR/reports/<id>/: report.json (counts, failures by
+    reason, metric distributions, alignment per frame) and frames/*.png with frames/contact_sheet.png.
 
     Exit status 1 when any trajectory fails or a frame's depths disagree, listing the failures.
     """

@@ -21,6 +21,8 @@ from sagebench.errors import DataError
 SCENES = "scenes"
 EPISODES = "episodes"
 VALIDATION = "validation"
+PREVIEWS = "previews"  # beside episodes/ and validation/, which hold Parquet only: readers take each as one table
+REPORTS = "reports"
 BASELINES = "baselines"  # the demo's baseline predictions and scores
 STAMPS = ".stamps"  # RUN/.stamps/<scene_id>/<stage>.json
 MANIFEST = "manifest.json"
@@ -42,18 +44,21 @@ NUREC = "gaussians.usdz"  # export-usd --gaussians nurec: the Gaussians as NVIDI
 SAGE = "sage"  # export-usd --layout sage: <scene_id>.usda (SAGE-3D's template form) + <scene_id>_collision.usd
 MJCF = "scene.xml"
 
-# RUN/episodes/<scene_id>/ (gen-trajectories)
+# RUN/episodes/<scene_id>/ (gen-trajectories): the shards, nothing else
 SHARDS = "part-*.parquet"
-PREVIEW = "_preview/paths.png"
+# RUN/previews/<scene_id>/ (gen-trajectories)
+PREVIEW = "paths.png"
 
-# RUN/validation/<scene_id>/ (validate)
+# RUN/validation/<scene_id>/ (validate): its one shard, nothing else
 VALIDATION_SHARD = "part-00000.parquet"
+# RUN/reports/<scene_id>/ (validate)
 REPORT = "report.json"
 FRAMES = "frames"
 CONTACT_SHEET = "contact_sheet.png"  # inside FRAMES
 
-Root = Literal["source", "scene", "episodes", "validation"]
-_RUN_ROOTS = {"scene": SCENES, "episodes": EPISODES, "validation": VALIDATION}
+Root = Literal["source", "scene", "episodes", "previews", "validation", "reports"]
+_RUN_ROOTS = {"scene": SCENES, "episodes": EPISODES, "previews": PREVIEWS, "validation": VALIDATION,
+              "reports": REPORTS}
 
 
 @dataclass(frozen=True)
@@ -82,14 +87,14 @@ CONTRACT: dict[str, StageFiles] = {
                 Place("scene", GAUSSIANS))),
     "gen_trajectories": StageFiles(
         reads=(Place("scene", SCENE_FILE), Place("scene", TOPDOWN), Place("scene", SEMANTIC_MAP)),
-        writes=(Place("episodes"),)),
+        writes=(Place("episodes"), Place("previews"))),
     "export_usd": StageFiles(
         reads=(*NORMALISED_SCENE, Place("scene", GAUSSIANS), Place("scene", TOPDOWN)),  # the map: free_floor
         writes=(Place("scene", COLLIDERS), Place("scene", USD_GEOMETRY), Place("scene", USD), Place("scene", USDZ),
                 Place("scene", NUREC), Place("scene", SAGE), Place("scene", MJCF))),
     "validate": StageFiles(
         reads=(*REPLAY_MODEL, Place("scene", GAUSSIANS), Place("scene", TOPDOWN), Place("episodes")),
-        writes=(Place("validation"),)),
+        writes=(Place("validation"), Place("reports"))),
     "evaluate": StageFiles(reads=(Place("episodes"), Place("scene", TOPDOWN), *REPLAY_MODEL)),  # the model only to replay poses
     "baseline": StageFiles(reads=(Place("episodes"), Place("scene", TOPDOWN), *REPLAY_MODEL)),  # rollout, no images
     "render": StageFiles(reads=(Place("scene", SCENE_FILE), Place("scene", GAUSSIANS))),
@@ -131,6 +136,14 @@ def run_episodes_dir(run_dir: Path, scene_id: str) -> Path:
 
 def run_validation_dir(run_dir: Path, scene_id: str) -> Path:
     return Path(run_dir) / VALIDATION / scene_id
+
+
+def run_previews_dir(run_dir: Path, scene_id: str) -> Path:
+    return Path(run_dir) / PREVIEWS / scene_id
+
+
+def run_reports_dir(run_dir: Path, scene_id: str) -> Path:
+    return Path(run_dir) / REPORTS / scene_id
 
 
 def root_dir(root: Root, run_dir: Path, scene_id: str, source: Path | None = None) -> Path:

@@ -89,7 +89,7 @@ def test_demo_runs_the_whole_pipeline_and_verifies(run_cli, tmp_path):
     assert re.search(r"1 scenes, \d{3,} episodes, 1 scenes complete in", stdout), stdout
     for rel in ("run.toml", "manifest.json", "scenes/demo_apartment_0/topdown.png", "scenes/demo_apartment_0/scene.usda",
                 "episodes/demo_apartment_0/part-train-00000.parquet", "episodes/demo_apartment_0/part-val_seen-00000.parquet",
-                "validation/demo_apartment_0/report.json",
+                "reports/demo_apartment_0/report.json",
                 "README.md",
                 "baselines/oracle.jsonl"):
         assert (out / rel).is_file(), rel

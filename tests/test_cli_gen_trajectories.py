@@ -50,8 +50,9 @@ def test_default_run_writes_200_trajectories_with_low_and_high_level_instruction
     assert len({r["episode_id"] for r in rows}) == 600
     assert {r["instruction_source"] for r in rows} == {"template"}
     assert {r["goal_radius"] for r in rows} == {1.0} and {r["seed"] for r in rows} == {0}
-    assert (generated / "episodes" / SCENE / "_preview" / "paths.png").stat().st_size > 1000
+    assert (generated / "previews" / SCENE / "paths.png").stat().st_size > 1000
     assert pq.read_table(generated / "episodes" / SCENE).num_rows == 600  # the directory reads as one dataset
+    assert {p.suffix for p in (generated / "episodes").rglob("*") if p.is_file()} == {".parquet"}  # shards only
 
 
 def test_every_episode_starts_and_ends_on_navigable_cells_in_range(generated):

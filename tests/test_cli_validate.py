@@ -30,7 +30,7 @@ def validated_run(demo_built_run, tmp_path_factory) -> Path:
 
 def _copy(run: Path, tmp_path: Path) -> Path:
     out = tmp_path / "run"
-    shutil.copytree(run, out, ignore=shutil.ignore_patterns("validation"))
+    shutil.copytree(run, out, ignore=shutil.ignore_patterns("validation", "reports"))
     return out
 
 
@@ -40,6 +40,7 @@ def test_demo_trajectories_all_pass(validated_run, tmp_path, run_cli):
     assert code == 0, out + err
     assert f"validate {SCENE}: 20/20 trajectories pass" in out and "alignment ok on 6 frames" in out
     vdir = run / "validation" / SCENE
+    assert sorted(p.name for p in vdir.iterdir()) == ["part-00000.parquet"]  # Parquet only: one table to readers
     table = pq.read_table(vdir / "part-00000.parquet")
     assert table.num_rows == 20
     assert all(table.column("passed").to_pylist())
@@ -47,17 +48,17 @@ def test_demo_trajectories_all_pass(validated_run, tmp_path, run_cli):
     assert max(table.column("icp").to_pylist()) < 0.05  # brushes within map precision only
     episodes = pq.read_table(run / "episodes" / SCENE)
     assert sorted(sum(table.column("episode_ids").to_pylist(), [])) == sorted(episodes.column("episode_id").to_pylist())
-    report = json.loads((vdir / "report.json").read_text())
+    report = json.loads((run / "reports" / SCENE / "report.json").read_text())
     assert report["trajectories"] == 20 and report["failed"] == 0 and report["episodes"] == episodes.num_rows
     assert report["failures_by_reason"] == {"collision": 0, "goal_not_reached": 0, "left_corridor": 0, "incomplete": 0,
                                             "instruction_not_executable": 0}
     assert report["metrics"]["csr"]["min"] == 1.0
     assert len(report["alignment"]["frames"]) == 6
     assert all(f["median_abs_diff"] < 0.10 for f in report["alignment"]["frames"])
-    frames = sorted(p.name for p in (vdir / "frames").iterdir())
+    frames = sorted(p.name for p in (run / "reports" / SCENE / "frames").iterdir())
     assert "contact_sheet.png" in frames and len(frames) == 1 + 6 * 2  # RGB and instance ids per frame
     # same inputs, same bytes
-    first = {p: p.read_bytes() for p in (vdir / "part-00000.parquet", vdir / "report.json")}
+    first = {p: p.read_bytes() for p in (vdir / "part-00000.parquet", run / "reports" / SCENE / "report.json")}
     assert run_cli("validate", run, "--frames-per-scene", "2")[0] == 0
     assert all(p.read_bytes() == b for p, b in first.items())
 
@@ -80,7 +81,7 @@ def test_a_path_through_a_wall_fails_with_collision(validated_run, tmp_path, run
     assert code == 1
     assert "19/20 trajectories pass" in out
     assert f"FAIL {SCENE} {bad}: collision, goal_not_reached, instruction_not_executable" in out
-    report = json.loads((run / "validation" / SCENE / "report.json").read_text())
+    report = json.loads((run / "reports" / SCENE / "report.json").read_text())
     assert report["failures_by_reason"]["collision"] == 1
     assert report["failures"][0]["trajectory_id"] == bad
 
@@ -97,7 +98,7 @@ def test_a_base_action_sentence_that_misses_the_goal_fails_as_not_executable(val
     assert code == 1
     assert "19/20 trajectories pass" in out
     assert f"FAIL {SCENE} {row['trajectory_id']}: instruction_not_executable" in out
-    report = json.loads((run / "validation" / SCENE / "report.json").read_text())
+    report = json.loads((run / "reports" / SCENE / "report.json").read_text())
     assert report["failures_by_reason"]["instruction_not_executable"] == 1
 
 
@@ -113,7 +114,7 @@ def test_shifted_gaussians_fail_the_alignment(validated_run, tmp_path, run_cli):
     code, out, _ = run_cli("validate", run, "--frames-per-scene", "2")
     assert code == 1
     assert "alignment FAILED on 6 frames" in out and "median depth difference" in out
-    report = json.loads((run / "validation" / SCENE / "report.json").read_text())
+    report = json.loads((run / "reports" / SCENE / "report.json").read_text())
     assert report["alignment"]["ok"] is False and report["failed"] == 0  # the paths themselves are fine
 
 
@@ -132,7 +133,7 @@ def test_no_gaussians_to_compare_fail_the_alignment(validated_run, tmp_path, run
     assert "alignment FAILED on 3 frames" in out
     assert (f"  FAIL {SCENE} frames/" in out and "_start.png: 0 of 1200 sampled pixels compared, fewer than the "
             "minimum 300 (0.25 of them): nothing to align with" in out), out
-    report = json.loads((run / "validation" / SCENE / "report.json").read_text())
+    report = json.loads((run / "reports" / SCENE / "report.json").read_text())
     assert report["alignment"]["ok"] is False and report["alignment"]["min_compared_fraction"] == 0.25
     assert [f["compared_pixels"] for f in report["alignment"]["frames"]] == [0, 0, 0]
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 from scipy.spatial import ConvexHull
 
@@ -45,7 +45,6 @@ def test_limit_below_a_tetrahedron_is_refused():
         limit_vertices(hull_part(trimesh.creation.box((1, 1, 1)).vertices), 3)
 
 
-@settings(deadline=None)  # qhull calls: slow under load, never wrong
 @given(st.integers(4, 40), st.integers(0, 2**32 - 1))
 def test_any_point_cloud_hull_keeps_within_the_limit_inside_the_original(limit, seed):
     points = np.random.default_rng(seed).normal(size=(200, 3)) * [1.0, 0.5, 0.2]

@@ -79,7 +79,7 @@ def test_manifest_lists_every_output(serial_run):
     files = manifest["files"]
     for sid in ("demo_apartment_0", "demo_apartment_1"):
         for rel in ("scenes/{}/topdown.npz", "scenes/{}/gaussians.ply", "scenes/{}/scene.usda",
-                    "scenes/{}/scene.xml", "scenes/{}/geometry.usdc", "validation/{}/report.json"):
+                    "scenes/{}/scene.xml", "scenes/{}/geometry.usdc", "reports/{}/report.json"):
             assert rel.format(sid) in files
         assert any(f.startswith(f"episodes/{sid}/part-") and f.endswith("-00000.parquet") for f in files)
     assert set(manifest["inputs"]) == {"demo_apartment_0", "demo_apartment_1"}
@@ -425,7 +425,7 @@ def test_a_broken_scene_fails_alone(workspace, run_cli):
     assert "run " in out and "3 scenes" in out and "2 scenes complete" in out
     assert f"FAILED broken at build_scene: {broken / 'scene.json'}: objects[20].mesh: cannot read mesh" in out
     files = json.loads((root / "out" / "manifest.json").read_text())["files"]
-    assert "validation/demo_apartment_0/report.json" in files and not any("broken" in f for f in files)
+    assert "reports/demo_apartment_0/report.json" in files and not any("broken" in f for f in files)
     failure = f"{broken / 'scene.json'}: objects[20].mesh: cannot read mesh"
     manifest = json.loads((root / "out" / "manifest.json").read_text())
     assert manifest["failed"]["broken"]["stage"] == "build_scene" and list(manifest["failed"]) == ["broken"]

@@ -55,7 +55,7 @@ def test_every_file_of_a_run_is_written_by_exactly_one_stage(full_run):
     written = [p.relative_to(run).as_posix() for name in STAGES for p in stage_files(name, "writes", run, SCENE)]
     assert len(written) == len(set(written))
     assert sorted(written) == sorted(hash_run(run))  # the manifest's files: everything under OUTPUT_ROOTS
-    assert set(OUTPUT_ROOTS) == {"scenes", "episodes", "validation"}
+    assert set(OUTPUT_ROOTS) == {"scenes", "episodes", "previews", "validation", "reports"}
 
 
 def test_stages_wait_for_the_stages_that_write_what_they_read():
@@ -114,7 +114,8 @@ def _render(run: Path, out: Path) -> bytes:
 def _export_vlnce(run: Path, out: Path) -> bytes:
     from sagebench.stages.export_vlnce import export_vlnce
 
-    return b"".join(p.read_bytes() for p in export_vlnce(run, out).files)
+    # vlnce_opts.txt names `out` by its absolute path: the rest must match
+    return b"".join(p.read_bytes() for p in export_vlnce(run, out).files if p.name != "vlnce_opts.txt")
 
 
 def _rollout(run: Path, out: Path) -> bytes:
@@ -163,7 +164,8 @@ def test_changing_any_file_a_stage_reads_makes_it_rerun(stage, full_run, demo_sc
 def test_the_readme_output_layout_names_every_file_the_stages_write():
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
     block = readme.split("## Output layout", 1)[1].split("```", 2)[1]
-    roots = {"scene": "scenes/<scene_id>/", "episodes": "episodes/<scene_id>/", "validation": "validation/<scene_id>/"}
+    roots = {"scene": "scenes/<scene_id>/", "episodes": "episodes/<scene_id>/", "validation": "validation/<scene_id>/",
+             "previews": "previews/<scene_id>/", "reports": "reports/<scene_id>/"}
     for name, contract in CONTRACT.items():
         for place in contract.writes:
             assert roots[place.root] in block, (name, place)

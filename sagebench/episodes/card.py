@@ -1,8 +1,10 @@
 """The dataset card: README.md (run_layout.DATASET_CARD) at a run's root, so Hugging Face `datasets` (and people) read the run.
 
-Its YAML front matter declares `configs`: `episodes` (the default) with one split per episode split
-present (the shards' file pattern), and `validation` with validate's per-trajectory results. A split
-with no shard is left out: `datasets` refuses a pattern that matches nothing.
+Its YAML front matter declares what the Hub indexes a dataset by: `license` (the scenes' licences, read from each
+scene.json: the one they share, `other` where they differ, `unknown` where a scene gives none), `task_categories`,
+`language`, `size_categories` (by episode rows) and `tags`; and `configs`: `episodes` (the default) with one split
+per episode split present (the shards' file pattern), and `validation` with validate's per-trajectory results.
+A split with no shard is left out: `datasets` refuses a pattern that matches nothing.
 """
 
 from __future__ import annotations
@@ -10,10 +12,15 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pyarrow.parquet as pq
+
 from sagebench.episodes.schema import field_descriptions
 from sagebench.episodes.shards import split_pattern
 from sagebench.episodes.splits import SPLITS
-from sagebench.run_layout import EPISODES, SHARDS, VALIDATION
+from sagebench.run_layout import EPISODES, PREVIEWS, REPORTS, SCENE_FILE, SCENES, SHARDS, VALIDATION
+
+SIZE_CATEGORIES = ((1_000, "n<1K"), (10_000, "1K<n<10K"), (100_000, "10K<n<100K"), (1_000_000, "100K<n<1M"),
+                   (10_000_000, "1M<n<10M"), (100_000_000, "10M<n<100M"), (1_000_000_000, "100M<n<1B"))
 
 
 def card_text(run_dir: Path, *, title: str = "sagebench run") -> str:
@@ -27,9 +34,14 @@ def card_text(run_dir: Path, *, title: str = "sagebench run") -> str:
         configs.append({"config_name": "validation",
                         "data_files": [{"split": "trajectories", "path": f"{VALIDATION}/*/{SHARDS}"}]})
     scenes = sorted(p.name for p in (run_dir / EPISODES).glob("*") if p.is_dir())
+    licences = scene_licences(run_dir)
+    rows = sum(pq.read_metadata(f).num_rows for f in sorted(run_dir.glob(f"{EPISODES}/*/{SHARDS}")))
     # JSON is YAML's flow style: the front matter needs no YAML writer
-    front = json.dumps({"pretty_name": title, "configs": configs, "tags": ["vision-language-navigation", "robotics"]},
-                       indent=2)
+    front = json.dumps({"pretty_name": title, "license": card_licence(licences), "task_categories": ["robotics"],
+                        "language": ["en"], "size_categories": [size_category(rows)], "configs": configs,
+                        "tags": ["vision-language-navigation", "robotics"]}, indent=2)
+    licence_lines = "\n".join(f"- `{sid}`: {licences.get(sid) or 'not given in its scene.json'}"
+                               for sid in sorted(licences)) or "- (no scenes)"
     columns = "\n".join(f"| `{name}` | {doc} |" for name, doc in field_descriptions().items())
     split_lines = "\n".join(f"- `{s}`: `{EPISODES}/*/{split_pattern(s)}`" for s in splits) or "- (none yet)"
     return f"""---
@@ -51,10 +63,11 @@ results = datasets.load_dataset("path/to/this/run", "validation")["trajectories"
 ```
 
 ```python
-import pyarrow.parquet as pq, duckdb, pandas as pd
+import pyarrow.parquet as pq, duckdb, pandas as pd, polars as pl
 table = pq.read_table("{EPISODES}")                                  # every scene's shards as one table
-duckdb.sql("SELECT split, count(*) FROM '{EPISODES}/*/{SHARDS}' GROUP BY split")
 frame = pd.read_parquet("{EPISODES}")
+frame = pl.read_parquet("{EPISODES}")
+duckdb.sql("SELECT split, count(*) FROM '{EPISODES}/**/*.parquet' GROUP BY split")
 ```
 
 ## Splits
@@ -73,6 +86,40 @@ Unseen splits hold whole scenes; seen splits share scenes with train (one split 
 
 - `scenes/<scene_id>/`: the normalised scene, top-down maps, Gaussians (`gaussians.ply`), the USD stage
   (`scene.usda` + `geometry.usdc`) and the MuJoCo model (`scene.xml`).
-- `validation/<scene_id>/`: replay results per trajectory, `report.json`, spot-check frames.
+- `{VALIDATION}/<scene_id>/`: validate's results, one row per trajectory (the `validation` config).
+- `{PREVIEWS}/<scene_id>/paths.png`, `{REPORTS}/<scene_id>/`: sample paths, validate's `report.json` and
+  spot-check frames; outside `{EPISODES}/` and `{VALIDATION}/`, which hold Parquet only, so
+  `pd.read_parquet("{EPISODES}")` or `pl.read_parquet("{VALIDATION}")` read each as one table.
+
+## Licence
+
+Each scene's, from its `scene.json`:
+
+{licence_lines}
 - `manifest.json`: sha256 of every file, the versions and the configuration that made the run.
 """
+
+
+def scene_licences(run_dir: Path) -> dict[str, str | None]:
+    """Each scene's `license` from RUN/scenes/<id>/scene.json (None where it gives none or cannot be read)."""
+    out: dict[str, str | None] = {}
+    for path in sorted(Path(run_dir).glob(f"{SCENES}/*/{SCENE_FILE}")):
+        try:
+            value = json.loads(path.read_text(encoding="utf-8")).get("license")
+        except (OSError, ValueError, AttributeError):
+            value = None
+        out[path.parent.name] = value if isinstance(value, str) else None
+    return out
+
+
+def card_licence(licences: dict[str, str | None]) -> str:
+    """The card's `license`: the scenes' one licence, `unknown` if a scene gives none, `other` if they differ."""
+    values = set(licences.values())
+    if not values or None in values:
+        return "unknown"
+    return values.pop() if len(values) == 1 else "other"
+
+
+def size_category(rows: int) -> str:
+    """The Hub's size category of `rows` rows."""
+    return next((name for limit, name in SIZE_CATEGORIES if rows < limit), "n>1B")

@@ -82,6 +82,13 @@ class Catalogue:
             raise SceneError(f"no {CATALOGUE_FILE} (expected a Sweet Home 3D catalogue directory or .sh3f)",
                              path=self.source) from None
         self.entries = parse_entries(text, self.source / CATALOGUE_FILE)
+        header = re.search(r"^\s*license\s*[=:]\s*(.*?)\s*$", text, re.MULTILINE)
+        self.license = header[1] if header else None  # the catalogue's own `license=` line, as written
+
+    @property
+    def public_domain(self) -> bool:
+        """Whether its `license=` says public domain or CC0 (Sweet Home 3D's CC-0 catalogues write "Public domain")."""
+        return self.license is not None and re.search(r"public domain|cc-?0", self.license, re.IGNORECASE) is not None
 
     def _read(self, name: str) -> bytes:
         if self._zip is not None:

@@ -30,6 +30,7 @@ from sagebench.scene.model import Door, Room, SceneObject, SceneSpec, Transform
 
 WALL_T = 0.1  # wall thickness, m
 CEILING = 2.7  # m
+SYNTH_LICENSE = "apache-2.0"  # sagebench's: the procedural scenes are its output
 SLOT_SLACK = 0.25  # a catalogue model may be this much wider or deeper than the slot it takes
 DOOR_W = 1.0  # opening width, m
 DOOR_H = 2.1  # opening height, m
@@ -136,7 +137,7 @@ def synth_spec_and_meshes(seed: int, furniture: Catalogue | None = None) -> tupl
 
     rooms = [Room(id=r.id, type=r.type, polygon=[_r2(p) for p in r.poly.exterior.coords[:-1]]) for r in layout.rooms]
     spec = SceneSpec(scene_id=f"demo_apartment_{seed}", units="m", up_axis="Z", floor_height=0.0,
-                     rooms=rooms, objects=objects)
+                     rooms=rooms, objects=objects, license=_license(pick))
     return spec, files
 
 
@@ -150,6 +151,7 @@ class _FurniturePicker:
         self.catalogue = catalogue
         self.turn: dict[frozenset[str], int] = {}
         self.models: dict[int, trimesh.Trimesh] = {}
+        self.used = False  # some entry was picked
 
     def __call__(self, item: _Item) -> CatalogueEntry | None:
         entries = [e for e in self.catalogue.matching(item.category)
@@ -159,6 +161,7 @@ class _FurniturePicker:
         key = CATEGORY_NOUNS[item.category]
         k = self.turn.get(key, 0)
         self.turn[key] = k + 1
+        self.used = True
         return entries[k % len(entries)]
 
     def model(self, entry: CatalogueEntry) -> trimesh.Trimesh:
@@ -166,6 +169,14 @@ class _FurniturePicker:
         if entry.number not in self.models:
             self.models[entry.number] = self.catalogue.load_model(entry)
         return self.models[entry.number]
+
+
+def _license(pick: _FurniturePicker | None) -> str:
+    """The procedural scene is sagebench's, under its own licence (apache-2.0); catalogue models in the public
+    domain (Sweet Home 3D's `license=Public domain`, CC0) add no terms, any other licence makes it `other`."""
+    if pick is None or not pick.used:
+        return SYNTH_LICENSE
+    return SYNTH_LICENSE if pick.catalogue.public_domain else "other"
 
 
 def write_synth_scene(out: Path, *, seed: int = 0, furniture: Path | None = None, force: bool = False) -> SceneSpec:

@@ -1,8 +1,8 @@
 """`gen-trajectories`: A* episodes with low-level instructions, from build-scene's maps to Parquet shards.
 
 Reads RUN/scenes/<scene_id>/{topdown.npz, semantic_map.json, scene.json}; writes
-RUN/episodes/<scene_id>/part-<split>-NNNNN.parquet and _preview/paths.png, replacing the directory whole. The
-preview sits in a "_" folder so that the directory reads as one Parquet dataset (pyarrow skips "_" names).
+RUN/episodes/<scene_id>/part-<split>-NNNNN.parquet and RUN/previews/<scene_id>/paths.png, replacing each
+directory whole; the preview lives outside episodes/ so that directory reads as one Parquet dataset.
 """
 
 from __future__ import annotations
@@ -27,7 +27,8 @@ from sagebench.fileio import staged_dir, write_bytes
 from sagebench.instructions.execution import BlockedMap
 from sagebench.instructions.llm_client import API_KEY_ENV, check_cache_dir, default_cache_dir
 from sagebench.run_layout import (
-    CONTRACT, PREVIEW, SCENE_FILE, SEMANTIC_MAP, TOPDOWN, require, run_episodes_dir, run_scene_dir, run_scenes,
+    CONTRACT, PREVIEW, SCENE_FILE, SEMANTIC_MAP, TOPDOWN, require, run_episodes_dir, run_previews_dir, run_scene_dir,
+    run_scenes,
 )
 from sagebench.scene.loader import parse_spec
 from sagebench.scene.model import SceneSpec
@@ -93,13 +94,14 @@ def gen_trajectories(run_dir: Path, config: GenTrajectoriesConfig, *, scene_id: 
         if problem is not None:
             raise ConfigError(problem, path=cache_dir, field="--llm-cache-dir")
     key = os.environ.get(API_KEY_ENV) if api_key is None else api_key
-    return [generate_scene(d, run_episodes_dir(run_dir, d.name), config, api_key=key)
+    return [generate_scene(d, run_dir, config, api_key=key)
             for d in ui.track(scene_dirs, "gen-trajectories")]
 
 
-def generate_scene(scene_dir: Path, out_dir: Path, config: GenTrajectoriesConfig, *,
+def generate_scene(scene_dir: Path, run_dir: Path, config: GenTrajectoriesConfig, *,
                    api_key: str | None = None) -> SceneEpisodes:
-    """One scene: read its maps, sample trajectories, write shards and the paths preview into `out_dir` (replaced).
+    """One scene: read its maps, sample trajectories, write its shards into RUN/episodes/<id>/ and the paths
+    preview into RUN/previews/<id>/ (each replaced whole).
 
     In llm mode, a scene whose high-level rows come from the model less often than `llm.min_share`
     (or never) is a ServiceError and nothing is written.
@@ -118,7 +120,6 @@ def generate_scene(scene_dir: Path, out_dir: Path, config: GenTrajectoriesConfig
         ctx, instructor = with_instructor(ctx, config.llm, api_key=api_key)
     blocked = BlockedMap(occupancy != 0, grid.resolution, grid.origin)
     made = episode_rows(spec.scene_id, result.trajectories, names, config, ctx, blocked)
-    rows = made.rows
     if instructor is not None:
         share = instructor.share()
         if not share.enough:
@@ -127,12 +128,14 @@ def generate_scene(scene_dir: Path, out_dir: Path, config: GenTrajectoriesConfig
             raise ServiceError(f"--instructions llm: {why} ({instructor.summary()}); nothing written", path=scene_dir)
         if instructor.stats["fallback"]:
             ui.warn(f"{spec.scene_id}: {instructor.summary()}")
+    png = render_paths(grid.navigable, occupancy, [t.waypoints for t in result.trajectories[:config.preview_paths]],
+                       grid.resolution, grid.origin)
+    out_dir = run_episodes_dir(run_dir, spec.scene_id)
     with staged_dir(out_dir) as tmp:
-        shards = write_shards(rows, tmp, round(config.shard_mb * 2**20))
-        png = render_paths(grid.navigable, occupancy, [t.waypoints for t in result.trajectories[:config.preview_paths]],
-                           grid.resolution, grid.origin)
+        shards = write_shards(made.rows, tmp, round(config.shard_mb * 2**20))
+    with staged_dir(run_previews_dir(run_dir, spec.scene_id)) as tmp:
         write_bytes(tmp / PREVIEW, png)
-    return SceneEpisodes(spec.scene_id, out_dir, len(result.trajectories), len(rows),
+    return SceneEpisodes(spec.scene_id, out_dir, len(result.trajectories), len(made.rows),
                          [out_dir / p.name for p in shards], None if instructor is None else instructor.summary(),
                          unreachable_rooms(smap), None if made.balance is None else made.balance.summary())
 

@@ -2,8 +2,9 @@
 
 Reads RUN/scenes/<id>/{scene.json, scene.xml, colliders/, gaussians.ply, topdown.npz} and
 RUN/episodes/<id>/part-*.parquet (Base_Action sentences are executed literally against topdown.npz's occupancy).
-Writes RUN/validation/<id>/ whole: part-00000.parquet (one row per trajectory), report.json (counts, failures
-by reason, metric distributions, alignment per frame), frames/*.png and frames/contact_sheet.png.
+Writes RUN/validation/<id>/part-00000.parquet (one row per trajectory) and RUN/reports/<id>/: report.json
+(counts, failures by reason, metric distributions, alignment per frame), frames/*.png and
+frames/contact_sheet.png; each directory whole.
 """
 
 from __future__ import annotations
@@ -22,8 +23,8 @@ from sagebench.topdown.grid_file import read_topdown_grids
 from sagebench.replay.physics import replay_batch
 from sagebench.replay.scene_model import open_replay_model
 from sagebench.run_layout import (
-    CONTRACT, FRAMES, GAUSSIANS, REPORT, TOPDOWN, VALIDATION_SHARD, require, run_episodes_dir, run_scene_dir,
-    run_scenes, run_validation_dir,
+    CONTRACT, FRAMES, GAUSSIANS, REPORT, TOPDOWN, VALIDATION_SHARD, require, run_episodes_dir, run_reports_dir,
+    run_scene_dir, run_scenes, run_validation_dir,
 )
 from sagebench.splats.ply import read_ply
 from sagebench.validation.checks import base_action_executable, judge
@@ -93,11 +94,12 @@ def validate_scene(run_dir: Path, scene_id: str, config: ValidateConfig) -> Scen
     frames, pngs = spot_checks(read_ply(scene_dir / GAUSSIANS), rm, picks, config) if picks else ([], {})
     alignment_ok = all(f.problem is None for f in frames)
     out_dir = run_validation_dir(run_dir, scene_id)
-    with staged_dir(out_dir) as tmp:
+    with staged_dir(run_reports_dir(run_dir, scene_id)) as tmp:
         for name, png in pngs.items():
             write_bytes(tmp / FRAMES / name, png)
-        write_bytes(tmp / VALIDATION_SHARD, table_bytes(scene_id, trajectories, verdicts))
         write_text(tmp / REPORT, dumps_json(report(scene_id, trajectories, verdicts, frames, alignment_ok, config)))
+    with staged_dir(out_dir) as tmp:
+        write_bytes(tmp / VALIDATION_SHARD, table_bytes(scene_id, trajectories, verdicts))
     failures = [(t.trajectory_id, v.reasons) for t, v in zip(trajectories, verdicts) if v.reasons]
     return SceneValidation(scene_id=scene_id, out_dir=out_dir, trajectories=len(trajectories),
                            episodes=sum(len(t.episode_ids) for t in trajectories), failures=failures,
