@@ -59,6 +59,28 @@ def existing(path: Path | None) -> Path | None:
     return path
 
 
+def values_of(settings: str, option: str, options: str = "OPTIONS"):
+    """Shell completion of an option's values: the Literal values of the settings field it sets ("module:Model",
+    through the module's OPTIONS or `options`), read only when a shell asks."""
+
+    def complete(incomplete: str) -> list[str]:
+        from sagebench.config import option_choices
+
+        module_name, model = settings.split(":")
+        module = importlib.import_module(module_name)
+        return [v for v in option_choices(getattr(module, model), getattr(module, options), option)
+                if v.startswith(incomplete)]
+
+    return complete
+
+
+def splits(incomplete: str) -> list[str]:
+    """Shell completion of --split: the benchmark's splits."""
+    from sagebench.episodes.splits import SPLITS
+
+    return [s for s in SPLITS if s.startswith(incomplete)]
+
+
 GLOBAL_FLAGS = ("--quiet", "-q", "--debug")  # accepted before or after the command
 
 
@@ -209,7 +231,9 @@ def gen_trajectories_cmd(
     seed: Annotated[int | None, typer.Option(help="Seed of sampling and wording.")] = None,
     shard_mb: Annotated[float | None, typer.Option(help="Largest Parquet shard, MB (one split per shard).")] = None,
     instructions: Annotated[
-        str | None, typer.Option(help="template: two low-level rows and one high-level row per trajectory; llm: the "
+        str | None, typer.Option(autocompletion=values_of("sagebench.stages.gen_trajectories:GenTrajectoriesConfig",
+                                                          "--instructions"),
+                                 help="template: two low-level rows and one high-level row per trajectory; llm: the "
                                       "high-level row from a chat model; none: bare trajectories.")
     ] = None,
     min_geodesic: Annotated[float | None, typer.Option(help="Shortest accepted path, m.")] = None,
@@ -310,7 +334,7 @@ def export_usd_cmd(
     ] = None,
     workers: Annotated[int | None, typer.Option(help="Processes splitting meshes, decomposing pieces and measuring colliders.")] = None,
     colliders: Annotated[
-        str | None, typer.Option(help="quality (CoACD), balanced (hull, voxel or CoACD, whichever first fits the "
+        str | None, typer.Option(autocompletion=values_of("sagebench.stages.export_usd:ExportConfig", "--colliders"), help="quality (CoACD), balanced (hull, voxel or CoACD, whichever first fits the "
                                       "agent band) or fast (hull or voxel).")
     ] = None,
     max_parts: Annotated[int | None, typer.Option(help="Part budget per object; parts are merged to stay within it.")] = None,
@@ -331,16 +355,17 @@ def export_usd_cmd(
         int | None, typer.Option(help="CoACD is tried only on pieces of at most this many faces.")
     ] = None,
     coacd_preprocess: Annotated[
-        str | None, typer.Option(help="CoACD manifold preprocessing: auto, on or off.")
+        str | None, typer.Option(autocompletion=values_of("sagebench.stages.export_usd:ExportConfig", "--coacd-preprocess"),
+                                 help="CoACD manifold preprocessing: auto, on or off.")
     ] = None,
     usdz: Annotated[
         bool | None, typer.Option("--usdz", help="Also write scene.usdz (the stage and its layers in one package).")
     ] = None,
     gaussians: Annotated[str | None, typer.Option(
-        help="particlefield: ParticleField3DGaussianSplat prims per object (Isaac Sim 6); nurec: "
+        autocompletion=values_of("sagebench.stages.export_usd:ExportConfig", "--gaussians"), help="particlefield: ParticleField3DGaussianSplat prims per object (Isaac Sim 6); nurec: "
              "gaussians.usdz, NuRec as NVIDIA 3DGRUT's ply_to_usd writes it (Isaac Sim 5).")] = None,
     layout: Annotated[str | None, typer.Option(
-        help="sagebench, or sage: also sage/<id>.usda in SAGE-3D's template form with its collision payload "
+        autocompletion=values_of("sagebench.stages.export_usd:ExportConfig", "--layout"), help="sagebench, or sage: also sage/<id>.usda in SAGE-3D's template form with its collision payload "
              "sage/<id>_collision.usd (needs --gaussians nurec).")] = None,
 ) -> None:
     """Decompose colliders and write each scene's USD stage and MuJoCo model.
@@ -410,7 +435,8 @@ def validate_cmd(
 def export_vlnce_cmd(
     run_dir: Annotated[Path, typer.Argument(callback=existing, help="Run directory with episodes/<id>/ and scenes/<id>/.")],
     out: Annotated[Path, typer.Option("--out", help="Dataset directory to write (habitat's data_path root).")],
-    split: Annotated[str | None, typer.Option("--split", help="Export only this split (default: every split).")] = None,
+    split: Annotated[str | None, typer.Option("--split", autocompletion=splits,
+                                              help="Export only this split (default: every split).")] = None,
 ) -> None:
     """Export the episodes as a VLN-CE / habitat R2R dataset, in habitat's Y-up frame.
 
@@ -526,7 +552,8 @@ def evaluate_cmd(
     out: Annotated[Path | None, typer.Option("--out", help="Write the results here as JSON (default: print only).")] = None,
     scene: Annotated[str | None, typer.Option("--scene", help="Score only this scene's episodes (default: every scene).")] = None,
     split: Annotated[str | None, typer.Option(
-        "--split", help="Score only this split's episodes: train, val_seen, val_unseen or test (default: all).")] = None,
+        "--split", autocompletion=splits,
+        help="Score only this split's episodes: train, val_seen, val_unseen or test (default: all).")] = None,
     allow_missing: Annotated[
         bool, typer.Option("--allow-missing", help="Score episodes without a prediction as failures instead of stopping.")
     ] = False,
@@ -571,7 +598,8 @@ def evaluate_cmd(
 
 @app.command("baseline", cls=_defaults_from("sagebench.stages.rollout:BaselineConfig", "BASELINE_OPTIONS"))
 def baseline_cmd(
-    agent: Annotated[str, typer.Option("--agent", help="oracle, straight or random.")],
+    agent: Annotated[str, typer.Option("--agent", help="oracle, straight or random.", autocompletion=values_of(
+        "sagebench.stages.rollout:BaselineConfig", "--agent", "BASELINE_OPTIONS"))],
     run_dir: Annotated[Path, typer.Option("--run", callback=existing, help="Run directory with episodes/<id>/ and scenes/<id>/scene.xml.")],
     out: Annotated[Path, typer.Option("--out", help="Predictions file to write (JSON Lines).")],
     seed: Annotated[int | None, typer.Option(help="Seed of the random agent.")] = None,
@@ -604,22 +632,24 @@ def rollout_cmd(
     policy: Annotated[str | None, typer.Option(
         help="A policy server's http(s):// URL, oracle, straight, random, or vlnce:MODULE:NAME (a VLN-CE agent class "
              "or object, run in-process).")] = None,
-    split: Annotated[str | None, typer.Option("--split", help="Only this split's episodes: train, val_seen, "
+    split: Annotated[str | None, typer.Option("--split", autocompletion=splits,
+                                              help="Only this split's episodes: train, val_seen, "
                                                                "val_unseen or test.")] = None,
     episode_id: Annotated[list[str] | None, typer.Option("--episode-id", help="Only this episode (repeat for "
                                                                                "more).")] = None,
     episodes: Annotated[int | None, typer.Option(help="Run a seeded sample of N of those episodes (default: all).")] = None,
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene's episodes (default: every scene).")] = None,
-    preset: Annotated[str | None, typer.Option(help="Another benchmark's settings: vlnce (success distance 3 m, "
+    preset: Annotated[str | None, typer.Option(autocompletion=values_of("sagebench.stages.rollout:RolloutConfig", "--preset"), help="Another benchmark's settings: vlnce (success distance 3 m, "
                                                     "VLN-CE's body, camera and observations).")] = None,
-    profile: Annotated[str | None, typer.Option(help="Observations: custom (--obs at --width x --height), vlnce, "
+    profile: Annotated[str | None, typer.Option(autocompletion=values_of("sagebench.stages.rollout:RolloutConfig", "--profile"), help="Observations: custom (--obs at --width x --height), vlnce, "
                                                      "sage or full (privileged included).")] = None,
     obs: Annotated[str | None, typer.Option(help="custom profile: images to render, rgb and/or depth, or none.")] = None,
     privileged: Annotated[str | None, typer.Option(
         help="Privileged observations to add, comma-separated: pose, gps_compass, instance.")] = None,
     width: Annotated[int | None, typer.Option(help="Image width, px (default: the profile's).")] = None,
     height: Annotated[int | None, typer.Option(help="Image height, px (default: the profile's).")] = None,
-    action_space: Annotated[str | None, typer.Option("--action-space", help="discrete (STOP, MOVE_FORWARD, "
+    action_space: Annotated[str | None, typer.Option("--action-space", autocompletion=values_of("sagebench.stages.rollout:RolloutConfig", "--action-space"),
+                                                     help="discrete (STOP, MOVE_FORWARD, "
                                                      "TURN_LEFT, TURN_RIGHT) or continuous (v m/s, omega rad/s, stop).")] = None,
     max_steps: Annotated[int | None, typer.Option(help="Actions per episode before it is cut off.")] = None,
     policy_timeout: Annotated[float | None, typer.Option(
@@ -627,7 +657,7 @@ def rollout_cmd(
     policy_retries: Annotated[int | None, typer.Option(
         help="Retries of a policy request after a connection error, with backoff, within its deadline.")] = None,
     policy_encoding: Annotated[str | None, typer.Option(
-        help="How images go to a policy server: raw, png (RGB as PNG) or json (base64, as before).")] = None,
+        autocompletion=values_of("sagebench.stages.rollout:RolloutConfig", "--policy-encoding"), help="How images go to a policy server: raw, png (RGB as PNG) or json (base64, as before).")] = None,
     max_policy_failures: Annotated[int | None, typer.Option(
         help="Episodes the policy may fail (a request that failed) before the rollout stops.")] = None,
     resume: Annotated[bool, typer.Option("--resume", help="Run the episodes a killed or stopped rollout into OUT "

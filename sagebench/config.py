@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import types
 from collections.abc import Mapping
-from typing import TypeVar
+from typing import Literal, TypeVar, Union, get_args, get_origin
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
@@ -49,6 +50,31 @@ def option_defaults(model: type[BaseModel], options: Mapping[str, str]) -> dict[
             value = getattr(value, part)
         defaults[option] = value
     return defaults
+
+
+def option_choices(model: type[BaseModel], options: Mapping[str, str], option: str) -> tuple[str, ...]:
+    """The values an option may take where the model field it sets is a Literal (shell completion offers
+    them), else (); options as in `from_options`."""
+    annotation: object = model
+    for part in options[option].split("."):
+        annotation = _model_of(annotation).model_fields[part].annotation
+    return tuple(str(v) for v in _literal_values(annotation))
+
+
+def _model_of(annotation: object) -> type[BaseModel]:
+    """The BaseModel class of a field annotation (`X` or `X | None`)."""
+    for t in (annotation, *get_args(annotation)):
+        if isinstance(t, type) and issubclass(t, BaseModel):
+            return t
+    raise TypeError(f"{annotation!r} is not a settings model")
+
+
+def _literal_values(annotation: object) -> list[object]:
+    if get_origin(annotation) is Literal:
+        return list(get_args(annotation))
+    if get_origin(annotation) in (Union, types.UnionType):
+        return [v for arg in get_args(annotation) for v in _literal_values(arg)]
+    return []
 
 
 def _drop_none(given: Mapping[str, object]) -> dict[str, object]:

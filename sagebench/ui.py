@@ -1,11 +1,17 @@
-"""Process-wide output settings (--quiet, --debug), the progress bar every long stage uses, and warnings
+"""Process-wide output settings (--quiet, --debug), the progress every long stage shows, and warnings
 (printed at once, or collected while a pipeline task runs so the driver prints them: a Ray worker's
-stderr never reaches the terminal)."""
+stderr never reaches the terminal).
+
+Progress is a rich bar on a terminal; off one (a log, CI, a pipe) it is a plain line on stderr at most every
+PROGRESS_EVERY_S seconds, so a stage that runs for a while still says where it is; --quiet hides both.
+"""
 
 from __future__ import annotations
 
 import contextlib
 import sys
+import threading
+import time
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -22,24 +28,81 @@ class Settings:
 
 
 SETTINGS = Settings()
+PROGRESS_EVERY_S = 5.0  # off a terminal, a long stage prints where it is at most this often
 
 
 def track(items: Iterable[T], description: str, total: int | None = None) -> Iterator[T]:
-    """Iterate with a rich progress bar on a terminal; plain iteration when quiet or not a TTY."""
-    if SETTINGS.quiet or not sys.stderr.isatty():
+    """Iterate with a rich progress bar on a terminal, progress lines off one (_Lines); plain iteration when
+    quiet."""
+    if SETTINGS.quiet:
         yield from items
+        return
+    if not sys.stderr.isatty():
+        lines = _Lines(description, total if total is not None else _length(items))
+        for n, item in enumerate(items, 1):
+            yield item
+            lines.update(n)
         return
     from rich.progress import track as rich_track
 
     yield from rich_track(items, description=description, total=total, transient=True)
 
 
+def _length(items: Iterable) -> int | None:
+    try:
+        return len(items)  # type: ignore[arg-type]
+    except TypeError:
+        return None
+
+
+class _Lines:
+    """`description: 12/40 in 31 s, status` on stderr when PROGRESS_EVERY_S have passed since the last line."""
+
+    def __init__(self, description: str, total: int | None):
+        self.description, self.total = description, total
+        self.start = self.last = time.monotonic()
+
+    def update(self, completed: int, status: str = "") -> None:
+        now = time.monotonic()
+        if now - self.last < PROGRESS_EVERY_S:
+            return
+        self.last = now
+        of = f"/{self.total}" if self.total is not None else ""
+        tail = f", {status}" if status else ""
+        print(f"{self.description}: {completed}{of} in {now - self.start:.0f} s{tail}", file=sys.stderr, flush=True)
+
+
+@contextmanager
+def working(description: str) -> Iterator[None]:
+    """A step that reports no progress of its own (a batch of MuJoCo replays): off a terminal, `description: 12 s`
+    on stderr every PROGRESS_EVERY_S while it runs; nothing on a terminal or when quiet."""
+    if SETTINGS.quiet or sys.stderr.isatty():
+        yield
+        return
+    stop, start = threading.Event(), time.monotonic()
+
+    def tick() -> None:
+        while not stop.wait(PROGRESS_EVERY_S):
+            print(f"{description}: {time.monotonic() - start:.0f} s", file=sys.stderr, flush=True)
+
+    thread = threading.Thread(target=tick, name="sagebench-progress", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
+
+
 @contextmanager
 def progress(total: int, description: str) -> Iterator[Callable[[int, str], None]]:
     """A bar the caller advances: `update(completed, status)` (status: a short text shown after the bar, such
-    as a rate); does nothing when quiet or not a TTY."""
-    if SETTINGS.quiet or not sys.stderr.isatty():
+    as a rate); progress lines off a terminal (_Lines), nothing when quiet."""
+    if SETTINGS.quiet:
         yield lambda completed, status: None
+        return
+    if not sys.stderr.isatty():
+        yield _Lines(description, total).update
         return
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 

@@ -169,3 +169,24 @@ def test_a_path_that_does_not_exist_is_the_one_error_and_nothing_is_written(run_
     code, out, err = run_cli(*[a.format(nope=nope, out=tmp_path / "out") for a in argv])
     assert (code, out, err) == (2, "", f"error: {nope}: does not exist\n")
     assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(("words", "want"), [
+    ("sagebench export-usd run --colliders ", ["quality", "balanced", "fast"]),
+    ("sagebench export-usd run --colliders f", ["fast"]),
+    ("sagebench export-usd run --gaussians ", ["particlefield", "nurec"]),
+    ("sagebench gen-trajectories run --instructions ", ["template", "llm", "none"]),
+    ("sagebench export-vlnce run --split val_", ["val_seen", "val_unseen"]),
+    ("sagebench baseline --agent ", ["oracle", "straight", "random"]),
+])
+def test_shell_completion_completes_option_values(words, want):
+    """The values come from the settings models' Literal fields (and the splits), read when the shell asks."""
+    import os
+    import subprocess
+    import sys
+
+    cword = str(len(words.split()) - (0 if words.endswith(" ") else 1))
+    env = {**os.environ, "_SAGEBENCH_COMPLETE": "complete_bash", "COMP_WORDS": words, "COMP_CWORD": cword}
+    done = subprocess.run([sys.executable, "-m", "sagebench"], env=env, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == want

@@ -28,7 +28,6 @@ from sagebench.collider_export.fanout import worker_context
 from sagebench.collider_export.methods import UNSHAPING, ColliderSettings, Method, band_error_cm, good_enough, run_method
 from sagebench.errors import ColliderError
 
-PROGRESS_EVERY_S = 5.0
 
 
 @dataclass(frozen=True)
@@ -248,7 +247,7 @@ class PieceProgress:
 
     def tick(self, running: dict[str, float]) -> None:
         now = time.monotonic()
-        if not self.quiet and now - self.last >= PROGRESS_EVERY_S:
+        if not self.quiet and now - self.last >= ui.PROGRESS_EVERY_S:
             self.last = now
             ui.info(self.line(running))
 

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sagebench import ui
 from sagebench.config import from_options
 from sagebench.fileio import dumps_json, staged_dir, write_bytes, write_text
 from sagebench.episodes.load import read_trajectories
@@ -82,7 +83,8 @@ def validate_scene(run_dir: Path, scene_id: str, config: ValidateConfig) -> Scen
     trajectories = read_trajectories(run_episodes_dir(run_dir, scene_id))
     rm = open_replay_model(run_dir, scene_id, agent=config.agent, replay=config.replay)
     start = time.perf_counter()
-    records = replay_batch(rm, [t.reference_path for t in trajectories], threads=config.workers)
+    with ui.working(f"validate {scene_id}: replaying {len(trajectories)} trajectories"):
+        records = replay_batch(rm, [t.reference_path for t in trajectories], threads=config.workers)
     grids = read_topdown_grids(scene_dir / TOPDOWN)
     blocked = BlockedMap(grids.occupancy != 0, grids.resolution, grids.origin)
     verdicts = [judge(rec, t.reference_path, t.goal, goal_radius=t.goal_radius,

@@ -1,0 +1,55 @@
+"""Progress off a terminal: plain lines on stderr at most every PROGRESS_EVERY_S, none when quiet."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from sagebench import ui
+
+
+@pytest.fixture
+def clock(monkeypatch):
+    """time.monotonic as a number the test advances."""
+    now = [1000.0]
+    monkeypatch.setattr(ui.time, "monotonic", lambda: now[0])
+    return now
+
+
+def test_track_prints_a_line_every_interval_off_a_terminal(clock, capsys):
+    for _ in ui.track(range(6), "replaying"):
+        clock[0] += 2.0  # each item takes 2 s: a line after items 3 (6 s) and 6 (12 s)
+    assert capsys.readouterr().err.splitlines() == ["replaying: 3/6 in 6 s", "replaying: 6/6 in 12 s"]
+
+
+def test_quick_loops_print_nothing(clock, capsys):
+    assert list(ui.track(iter(range(3)), "quick")) == [0, 1, 2]
+    with ui.progress(3, "quick") as update:
+        update(3, "done")
+    assert capsys.readouterr().err == ""
+
+
+def test_progress_lines_carry_the_status(clock, capsys):
+    with ui.progress(40, "rollout") as update:
+        clock[0] += 7.0
+        update(12, "3.1 episodes/s")
+    assert capsys.readouterr().err == "rollout: 12/40 in 7 s, 3.1 episodes/s\n"
+
+
+def test_quiet_hides_the_lines(clock, capsys, monkeypatch):
+    monkeypatch.setattr(ui.SETTINGS, "quiet", True)
+    for _ in ui.track(range(3), "hidden"):
+        clock[0] += 10.0
+    assert capsys.readouterr().err == ""
+
+
+def test_working_ticks_while_a_silent_step_runs(capsys, monkeypatch):
+    monkeypatch.setattr(ui, "PROGRESS_EVERY_S", 0.05)
+    with ui.working("validate s: replaying 20 trajectories"):
+        time.sleep(0.5)  # ten intervals: at least one tick however loaded the machine
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) >= 1 and all(line.startswith("validate s: replaying 20 trajectories: ") for line in lines)
+    with ui.working("done at once"):
+        pass
+    assert capsys.readouterr().err == ""  # the ticker stops with the step
