@@ -59,9 +59,10 @@ def _overall(run_dir: Path, predictions: Path) -> dict[str, float]:
 def test_the_three_baselines_score_as_expected(demo_eval_run, baselines):
     oracle, straight, rand = (_overall(demo_eval_run, baselines[a]) for a in ("oracle", "straight", "random"))
     # measured: the oracle's 15-degree headings and 0.25 m moves leave the reference by centimetres, and pass
-    # within the 0.01 m contact distance of a collider on a few steps (SPL 0.9927, nDTW 0.9828, ICP 0.0016)
+    # within the 0.01 m contact distance of a collider on a few steps (SPL 0.9914, nDTW 0.9826, ICP 0.0016; SPL
+    # was 0.9927 before the demo's office chairs stood on casters: a changed scene, other trajectories)
     assert oracle["sr"] == 1.0 and oracle["csr"] == 1.0 and 0.0 < oracle["icp"] < 0.01
-    assert oracle["spl"] == pytest.approx(0.9927, abs=1e-3) and oracle["ndtw"] == pytest.approx(0.9828, abs=1e-3)
+    assert oracle["spl"] == pytest.approx(0.9914, abs=1e-3) and oracle["ndtw"] == pytest.approx(0.9826, abs=1e-3)
     assert oracle["ne"] < 0.1
     # straight knows where the goal is but not the walls: fails some, bumps, cuts corners
     assert 0.0 < straight["sr"] < 1.0 and straight["icp"] > 0.05 and straight["ndtw"] < oracle["ndtw"]  # ICP 0.099

@@ -160,7 +160,7 @@ def test_bad_options_are_exit_2(demo_eval_run, oracle, run_cli, args, message):
 
 def test_absent_predictions_file_is_exit_2(demo_eval_run, tmp_path, run_cli):
     code, _, err = run_cli("evaluate", "--run", demo_eval_run, "--predictions", tmp_path / "none.jsonl")
-    assert code == 2 and err.strip() == f"error: {tmp_path / 'none.jsonl'}: no such file"
+    assert code == 2 and err.strip() == f"error: {tmp_path / 'none.jsonl'}: does not exist"
 
 
 def test_splits_are_scored_apart_and_predictions_of_other_splits_are_left_out(demo_built_run, tmp_path, run_cli):
