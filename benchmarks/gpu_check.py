@@ -10,10 +10,11 @@ and the next one runs. Writes DIR/gpu_check.md (the table), DIR/gpu_check.json (
 machines without a GPU, and the tests).
 
 Sections: device (the card, torch, gsplat, and gsplat's one-time CUDA build, timed), render (gsplat frames/s at
-224x224 for 1, 16, 64 and 256 views per call: through sagebench's renderer, frames back as arrays, and gsplat's
-rasterization alone), agreement (PSNR and median depth difference of gsplat against the CPU renderer on 20 demo
-views), env (closed-loop steps/s with physics for 1, 16 and 64 batched episodes, gsplat; 16 with the CPU
-renderer for reference), export (export-training frames/s with gsplat).
+224x224 for 1, 16, 64 and 256 views per call: through sagebench's renderer, float frames back as arrays; the
+observations the env takes, uint8 RGB + depth converted on the GPU, back as arrays; and gsplat's rasterization
+alone), agreement (PSNR and median depth difference of gsplat against the CPU renderer on 20 demo views, and the
+observations against the float frames converted on the host), env (closed-loop steps/s with physics for 1, 16
+and 64 batched episodes, gsplat; 16 with the CPU renderer for reference), export (export-training frames/s with gsplat).
 """
 
 from __future__ import annotations
@@ -135,6 +136,10 @@ def section_render(c: Check) -> Iterator[dict]:
         fps = _rate(lambda cams=cams: renderer.render(cams), v)
         yield {"what": f"render {c.size}x{c.size}, {v} views per call, frames back as arrays",
                "value": round(fps, 1), "unit": "frames/s", "target": TARGETS.get(("render", v), "")}
+        fps = _rate(lambda cams=cams: renderer.observe(cams, ("rgb", "depth")), v)
+        yield {"what": f"observations {c.size}x{c.size} (uint8 RGB + depth, as the env takes them), {v} views per "
+                       "call, back as arrays", "value": round(fps, 1), "unit": "frames/s",
+               "target": TARGETS.get(("render", v), "")}
         if c.backend == "gsplat":
             yield {"what": f"gsplat rasterization alone, {v} views per call (frames left on the GPU)",
                    "value": round(_rate(lambda cams=cams: renderer.rasterize(cams), v), 1), "unit": "frames/s"}
@@ -142,10 +147,12 @@ def section_render(c: Check) -> Iterator[dict]:
 
 def section_agreement(c: Check) -> Iterator[dict]:
     from sagebench.render.backends import CpuRenderer, open_renderer
+    from sagebench.render.observations import observation_arrays
 
     _, packed = c.scene()
     cams = c.cameras(c.agreement_views)
-    gpu = open_renderer(packed, c.backend, needs=("rgb", "depth")).render(cams)
+    renderer = open_renderer(packed, c.backend, needs=("rgb", "depth"))
+    gpu = renderer.render(cams)
     cpu = CpuRenderer(packed).render(cams)
     psnr, depth, compared = [], [], []
     for a, b in zip(gpu, cpu):
@@ -160,6 +167,14 @@ def section_agreement(c: Check) -> Iterator[dict]:
            "target": TARGETS["psnr"], "note": f"min {min(psnr):.2f} dB"}
     yield {"what": "median abs(depth gsplat - CPU), median over views", "value": round(float(np.nanmedian(depth)), 4),
            "unit": "m", "target": TARGETS["depth"], "note": f"max {np.nanmax(depth):.4f} m; {note}"}
+    # the observations as the env gets them (converted where the frames are) against the float frames converted here
+    got = renderer.observe(cams, ("rgb", "depth"))
+    want = observation_arrays({"rgb": np.stack([f.rgb for f in gpu]), "depth": np.stack([f.depth for f in gpu]),
+                               "alpha": np.stack([f.alpha for f in gpu])}, ("rgb", "depth"))
+    same = [float(np.mean(got[k] == want[k])) for k in ("rgb", "depth")]
+    yield {"what": "observations vs float frames converted on the host: equal values (RGB, depth)",
+           "value": f"{100 * same[0]:.2f} %, {100 * same[1]:.2f} %", "target": "100 %",
+           "note": f"{len(cams)} views; uint8 RGB + depth from observe() against render()'s frames"}
 
 
 def section_env(c: Check) -> Iterator[dict]:

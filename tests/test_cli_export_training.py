@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sagebench.navsim.observe import to_uint8
+from sagebench.render.observations import to_uint8
 from sagebench.render.camera import agent_camera
 from sagebench.render.chunks import pack
 from sagebench.render.splat_render import render_packed

@@ -11,7 +11,7 @@ import pytest
 from sagebench.evaluation.intensity import (
     STEP_REPLAY, blocked_fraction, derive_intensity, pure_turns, replay_intensity,
 )
-from sagebench.replay.contact import contact_share
+from sagebench.replay.contact import ContactProbe, contact_share
 from sagebench.replay.physics import build_replay_model, replay_one
 
 
@@ -95,3 +95,18 @@ def test_a_derived_turn_in_place_counts_no_contact_but_pressing_does(rm):
     (c,) = derive_intensity(rm, [poses])
     assert c.tolist() == [0.0, 0.0, 1.0, 0.0]  # turn; pressed (no move, no turn); turn
     assert contact_share(rm, [poses])[0].tolist() == [0.0, 1.0, 1.0, 1.0]  # what contact alone counted before
+
+
+def test_a_probe_kept_open_answers_each_call_as_a_fresh_one(rm):
+    """The env keeps one ContactProbe per scene and asks it every step: its MjData carry nothing from one call
+    to the next (warm start included), so each answer is contact_share's on those poses alone."""
+    touch = 2.95 - 0.2 - 0.005
+    walks = [np.array([[touch, -2.0], [touch, -1.0], [touch - 0.19, -1.0]]), np.array([[0.0, -2.0], [0.5, -2.5]]),
+             np.array([[2.0, -1.0], [2.9, -1.0]]), np.array([[touch, 0.0], [touch, 0.0]])]
+    probe = ContactProbe(rm, threads=2)
+    for _ in range(2):
+        for k in range(len(walks)):
+            ask = walks[k:] + walks[:k]
+            got = probe.shares(ask)
+            assert [g.tobytes() for g in got] == [c.tobytes() for c in contact_share(rm, ask)]
+    assert probe.shares([]) == [] and probe.shares([walks[0][:1]])[0].tolist() == [0.0]

@@ -43,7 +43,10 @@ def test_the_dry_run_measures_every_section(small_run, tmp_path):
     assert {r["section"] for r in rows} == set(gpu_check.SECTIONS)
     assert all(r.get("status", "ok") == "ok" for r in rows), rows
     numbers = {r["what"]: r["value"] for r in rows if r.get("unit") in ("frames/s", "steps/s")}
-    assert len(numbers) == 2 + 2 + 1 and all(v > 0 for v in numbers.values())  # 2 view counts, 2 batches, export
+    # 2 view counts (float frames and observations), 2 batches, export
+    assert len(numbers) == 2 * 2 + 2 + 1 and all(v > 0 for v in numbers.values())
+    same = next(r for r in rows if r["what"].startswith("observations vs float frames"))
+    assert same["value"] == "100.00 %, 100.00 %"
     table = (tmp_path / "gpu_check.md").read_text()
     assert table.startswith("## GPU check (dry run on the CPU)") and "PSNR" in table
     assert "===== env" in (tmp_path / "gpu_check.log").read_text()

@@ -17,6 +17,7 @@ from sagebench.evaluation.scoring import (
     METRIC_NAMES, EpisodeScore, missing_metrics, score_prediction, summarise_scores,
 )
 from sagebench.metrics import NavigableMap, distance_on_foot
+from sagebench.metrics.on_foot import distances_on_foot
 
 RES = 0.05
 # a 6 m x 4 m flat: bathroom (x < 2.9) and kitchen (x > 3.1) split by a wall x in [2.9, 3.1] from y = 0 to
@@ -64,6 +65,25 @@ def test_a_clear_line_to_the_goal_is_the_straight_distance_and_succeeds():
                                [1.0, 0.0, math.hypot(2.4, 2.9)])
     m = score_prediction(_episode(), _prediction([(0.5, 1.0), (2.5, 3.5), (4.3, 1.6)]), np.zeros(3), on_foot=field)
     assert m.sr == 1.0 and m.ne == pytest.approx(1.0)
+
+
+def test_each_agents_distance_to_its_own_goal_is_what_it_alone_gets():
+    """The env asks for every agent at once, each walking to its own goal: each answer is that point's alone,
+    whatever else is asked with it (a long segment beside a short one samples neither differently)."""
+    navmap = NavigableMap(NAV, RES, (0.0, 0.0), snap_radius=0.2)
+    goals = [navmap.field(GOAL), navmap.field(np.array([0.5, 0.5])), navmap.field(GOAL)]
+    xy = np.array([[2.6, 1.0], [5.5, 3.7], [4.3, 1.6]])  # behind the wall; far across the flat; in clear sight
+    got = distances_on_foot(goals, xy)
+    alone = [float(f.distance(p[None])[0]) for f, p in zip(goals, xy)]
+    assert got.tobytes() == np.array(alone).tobytes()
+    assert got[2] == pytest.approx(1.0) and got[0] > 2.0  # straight where clear, round the wall where not
+    far = np.array([[5.9, 0.1], [0.1, 0.1]])  # the second segment crosses the wall, the first is short and clear
+    assert navmap.clear_to(far, np.array([[5.8, 0.2], [5.9, 0.1]])).tolist() == [True, False]
+    with pytest.raises(ValueError, match="one goal field per point, got 3 for 2 points"):
+        distances_on_foot(goals, xy[:2])
+    other = NavigableMap(NAV, RES, (0.0, 0.0), snap_radius=0.2).field(GOAL)
+    with pytest.raises(ValueError, match="different maps"):
+        distances_on_foot([goals[0], other], xy[:2])
 
 
 def test_a_pose_pressed_into_the_wall_snaps_back_within_the_agent_radius():

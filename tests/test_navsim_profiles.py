@@ -63,12 +63,12 @@ def test_the_vlnce_profile_is_vlnces_observations(demo_eval_run):
     assert [words[t] for t in tokens if t] == re.findall(r"[a-z0-9-]+", obs["instruction"].lower())
     s = env.sim.slots[0]  # depth: the metres of a 256x256 render from VLN-CE's camera height, over 0-10 m
     w = env.sim.world(s.episode.scene_id)
-    (metres,) = observe(w.renderer, np.array([s.poses[-1]]), ("depth",), floor_z=w.model.floor_z, camera_height=1.25,
-                        hfov_deg=90.0, width=256, height=256)
+    metres = observe(w.renderer, np.array([s.poses[-1]]), ("depth",), floor_z=w.model.floor_z, camera_height=1.25,
+                     hfov_deg=90.0, width=256, height=256)["depth"][0]
     assert env.config.agent.camera_height == 1.2  # the profile alone keeps the run's camera; --preset vlnce moves it
     env = NavEnv(demo_eval_run, {"profile": "vlnce", "max_steps": 2, "agent": {"camera_height": 1.25}})
     obs, _ = env.reset(options={"episode_id": info["episode_id"]})
-    expected = np.clip(metres["depth"], 0, VLNCE_MAX_DEPTH) / VLNCE_MAX_DEPTH
+    expected = np.clip(metres, 0, VLNCE_MAX_DEPTH) / VLNCE_MAX_DEPTH
     assert obs["depth"][..., 0].tobytes() == expected.astype(np.float32).tobytes()
 
 

@@ -9,6 +9,7 @@ snapped to the nearest navigable cell within `snap_radius` (the agent radius), e
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,16 +45,39 @@ class GoalField:
 
     def distance(self, xy: np.ndarray) -> np.ndarray:
         """[N] distance on foot (m) from points [N, >=2] to the goal; inf where a point cannot reach it."""
-        xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))[:, :2]
-        straight = np.linalg.norm(xy - self.goal_xy, axis=1)
-        cells = self.navmap.snap(xy)
-        out = np.full(len(xy), np.inf)
-        ok = cells[:, 0] >= 0
-        out[ok] = np.maximum(straight[ok], self.cost[cells[ok, 0], cells[ok, 1]])
-        check = np.flatnonzero(ok & (out > straight))  # only where a clear line could shorten it
-        clear = check[self.navmap.clear_to(xy[check], self.goal_xy)]
-        out[clear] = straight[clear]
+        xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))
+        return distances_on_foot([self] * len(xy), xy)
+
+
+def distances_on_foot(fields: Sequence[GoalField], xy: np.ndarray) -> np.ndarray:
+    """[N] distance on foot (m) from each point xy[k] [N, >=2] to the goal of fields[k] (goal fields of one map):
+    the env's agents, each walking to its own goal, in one call. Each point's distance is what it alone gives."""
+    xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))[:, :2]
+    if len(fields) != len(xy):
+        raise ValueError(f"expected one goal field per point, got {len(fields)} for {len(xy)} points")
+    out = np.full(len(xy), np.inf)
+    if not len(xy):
         return out
+    navmap = fields[0].navmap
+    if any(f.navmap is not navmap for f in fields):
+        raise ValueError("the goal fields belong to different maps")
+    goals = np.array([f.goal_xy for f in fields], dtype=np.float64).reshape(-1, 2)
+    straight = np.linalg.norm(xy - goals, axis=1)
+    cells = navmap.snap(xy)
+    snapped = cells[:, 0] >= 0
+    ok = np.flatnonzero(snapped)
+    walk = np.empty(len(ok))
+    by_field: dict[int, list[int]] = {}
+    for j, k in enumerate(ok.tolist()):
+        by_field.setdefault(id(fields[k].cost), []).append(j)
+    for js in by_field.values():
+        at = cells[ok[js]]
+        walk[js] = fields[ok[js[0]]].cost[at[:, 0], at[:, 1]]
+    out[ok] = np.maximum(straight[ok], walk)
+    check = np.flatnonzero(snapped & (out > straight))  # only where a clear line could shorten it
+    clear = check[navmap.clear_to(xy[check], goals[check])]
+    out[clear] = straight[clear]
+    return out
 
 
 @dataclass
@@ -95,14 +119,20 @@ class NavigableMap:
         return out
 
     def clear_to(self, xy: np.ndarray, goal_xy: np.ndarray) -> np.ndarray:
-        """[N] bool: the straight segment from each point to the goal crosses only navigable cells."""
+        """[N] bool: the straight segment from each point [N, >=2] to the goal ([2], or one per point [N, 2])
+        crosses only navigable cells. Each segment is sampled every quarter cell or closer (its own length / its
+        own count, ends included), so a point's answer does not depend on the other points asked with it."""
         xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))[:, :2]
-        length = np.linalg.norm(xy - goal_xy, axis=1)
         if not len(xy):
             return np.zeros(0, dtype=bool)
-        steps = int(np.ceil(length.max() / (0.25 * self.resolution))) + 1
-        t = np.linspace(0.0, 1.0, steps + 1)
-        samples = xy[:, None, :] + (np.asarray(goal_xy)[None, None, :] - xy[:, None, :]) * t[None, :, None]
+        goal = np.broadcast_to(np.asarray(goal_xy, dtype=np.float64).reshape(-1, 2), xy.shape)
+        length = np.linalg.norm(xy - goal, axis=1)
+        steps = np.ceil(length / (0.25 * self.resolution)).astype(np.int64) + 1
+        # sample j of a segment at t = j / steps (np.linspace's values), the far end exactly 1, repeated to the
+        # longest segment's count
+        j = np.arange(steps.max() + 1)
+        t = np.where(j[None, :] < steps[:, None], j[None, :] * (1.0 / steps[:, None]), 1.0)
+        samples = xy[:, None, :] + (goal[:, None, :] - xy[:, None, :]) * t[:, :, None]
         cells = self.cell_of(samples.reshape(-1, 2))
         h, w = self.navigable.shape
         inside = (cells[:, 0] >= 0) & (cells[:, 0] < h) & (cells[:, 1] >= 0) & (cells[:, 1] < w)

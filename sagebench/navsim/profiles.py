@@ -57,14 +57,14 @@ class DepthFormat:
     channel: bool = False
 
     def apply(self, depth: np.ndarray) -> np.ndarray:
-        """[H, W] float32 m -> the observation (float32)."""
+        """[..., H, W] float32 m -> the observation (float32), one view or a batch."""
         d = depth.astype(np.float32)
         if self.clip is not None:
             lo, hi = self.clip
             d = np.clip(d, np.float32(lo), np.float32(hi))
             if self.normalised:
                 d = (d - np.float32(lo)) / np.float32(hi - lo)
-        return d[:, :, None] if self.channel else d
+        return d[..., None] if self.channel else d
 
     def bounds(self) -> tuple[float, float]:
         """The values the observation can take."""

@@ -37,6 +37,8 @@ class Views:
     steps: int = 0
 
     def add(self, step: int, rgb: np.ndarray) -> None:
+        """Keep a copy of the step's view (an observation's images are rows of the step's batch arrays)."""
+        rgb = np.array(rgb)
         self.last, self.steps = rgb, step
         if step % self.stride == 0:
             self.frames.append(rgb)

@@ -25,13 +25,14 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from sagebench.config import AgentConfig
 from sagebench.evaluation.predictions import Prediction
 from sagebench.episodes.episode import Episode
+from sagebench.metrics.on_foot import GoalField, distances_on_foot
 from sagebench.navsim.actions import ActionConfig, continuous_commands, discrete_commands
 from sagebench.navsim.motion import Agents, MotionConfig, wrap
 from sagebench.navsim.observe import observe
 from sagebench.navsim.profiles import PrivilegedKey, ProfileName, Sensors, gps_compass, resolve
 from sagebench.navsim.world import World, open_world, run_episodes, run_vocabulary
 from sagebench.render.backends import RendererChoice
-from sagebench.replay.contact import contact_share
+from sagebench.replay.contact import ContactProbe
 from sagebench.replay.physics import ReplayConfig
 
 POSE_DECIMALS = 6  # predictions are written to the micrometre / microradian
@@ -80,6 +81,7 @@ class Slot:
     episode: Episode
     instruction: str
     world: World
+    goal: GoalField  # distances on foot to the episode's goal
     row: int  # the agent's row in its scene's Agents
     poses: list[tuple[float, float, float, float]]
     intensity: list[float]
@@ -88,6 +90,8 @@ class Slot:
     stopped: bool = False
     outcome: str = ""  # "" while running, else stop / step_limit / left_map / policy_failed
     collided: bool = False
+    # the images of the slot's last view: rows of that step's render arrays (one array per image for all the
+    # slots rendered together) while the slot runs, its own copies once it has ended (`detach`)
     last: dict[str, np.ndarray] = field(default_factory=dict)
     tokens: np.ndarray | None = None  # [TOKENS_PER_INSTRUCTION] int64 when the profile gives them
 
@@ -98,6 +102,10 @@ class Slot:
     @property
     def success(self) -> float:
         return float(self.stopped and self.distance <= self.episode.goal_radius)
+
+    def detach(self) -> None:
+        """Copy the last view out of its step's arrays: an ended slot keeps it, and would keep them all alive."""
+        self.last = {k: np.array(v) for k, v in self.last.items()}
 
     def prediction(self) -> Prediction:
         """The episode so far as a predictions.jsonl row, c(t) as the simulator measured it."""
@@ -130,12 +138,14 @@ class Simulator:
         self._worlds: dict[str, World] = {}
         self.slots: list[Slot] = []
         self._agents: dict[str, Agents] = {}
+        self._probes: dict[str, ContactProbe] = {}
 
     def world(self, scene_id: str) -> World:
         if scene_id not in self._worlds:
             c = self.config
-            self._worlds[scene_id] = open_world(self.run_dir, scene_id, agent=c.agent, replay=c.replay,
-                                                images=tuple(self.sensors.images), renderer=c.renderer)
+            self._worlds[scene_id] = w = open_world(self.run_dir, scene_id, agent=c.agent, replay=c.replay,
+                                                    images=tuple(self.sensors.images), renderer=c.renderer)
+            self._probes[scene_id] = ContactProbe(w.model, threads=self.threads)
         return self._worlds[scene_id]
 
     def start(self, episode_ids: Sequence[str]) -> list[StepResult]:
@@ -152,9 +162,10 @@ class Simulator:
             pose = (float(e.start[0]), float(e.start[1]), w.model.floor_z, float(wrap(e.start_yaw)))
             text = self.instructions.get(eid, "")
             tokens = np.array(self.vocabulary.encode(text), np.int64) if self.vocabulary is not None else None
-            self.slots.append(Slot(episode=e, instruction=text, world=w, row=len(rows), poses=[_rounded(pose)],
-                                   intensity=[0.0], distance=float(w.navmap.field(e.goal).distance(e.start[None])[0]),
-                                   tokens=tokens))
+            goal = w.navmap.field(e.goal)
+            self.slots.append(Slot(episode=e, instruction=text, world=w, goal=goal, row=len(rows),
+                                   poses=[_rounded(pose)], intensity=[0.0],
+                                   distance=float(goal.distance(e.start[None])[0]), tokens=tokens))
             rows.append(i)
         for sid, rows in by_scene.items():
             starts = np.array([[self.slots[i].episode.start[0], self.slots[i].episode.start[1],
@@ -175,47 +186,62 @@ class Simulator:
             else:
                 v, omega, stop = continuous_commands(np.array([actions[i] for i in running]), c.replay)
         before = {i: self.slots[i].distance for i in running}
-        moving: dict[str, list[tuple[int, float, float]]] = {}
+        moving: dict[str, list[int]] = {}  # scene -> indices into running
         for k, i in enumerate(running):
             s = self.slots[i]
             if stop[k]:
                 s.stopped, s.outcome, s.collided = True, "stop", False  # STOP takes no action: no new pose
             else:
-                moving.setdefault(s.episode.scene_id, []).append((i, float(v[k]), float(omega[k])))
+                moving.setdefault(s.episode.scene_id, []).append(k)
         moved = []
-        for sid, items in moving.items():
-            slots = [self.slots[i] for i, _, _ in items]
-            motion = self._agents[sid].move(np.array([s.row for s in slots]), np.array([x[1] for x in items]),
-                                            np.array([x[2] for x in items]), c.actions.control_interval, c.motion)
-            steps = [np.array([s.poses[-1][:2], p[:2]]) for s, p in zip(slots, motion.pose)]
-            near = [share[1] for share in contact_share(self._worlds[sid].model, steps, threads=self.threads)]
-            translating = np.array([x[1] for x in items]) > 0  # a pure turn counts only its own blocking
-            intensity = np.where(translating, np.maximum(motion.intensity, near), motion.intensity)
-            for k, s in enumerate(slots):
-                x, y, yaw = motion.pose[k]
-                s.poses.append(_rounded((float(x), float(y), s.world.model.floor_z, float(wrap(yaw)))))
-                s.intensity.append(round(float(intensity[k]), POSE_DECIMALS))
-                s.collided = bool(motion.collided[k])
-                s.steps += 1
-                s.distance = float(s.world.navmap.field(s.episode.goal).distance(np.array([[x, y]]))[0])
-                if not s.world.inside(np.array([[x, y]]))[0]:
-                    s.outcome = "left_map"
-                elif s.steps >= c.max_steps:
-                    s.outcome = "step_limit"
-            moved += [i for i, _, _ in items]
+        for sid, ks in moving.items():
+            moved += self._move(sid, [running[k] for k in ks], np.asarray(v)[ks], np.asarray(omega)[ks])
         self._render(sorted(moved))
+        for i in running:
+            if self.slots[i].done:
+                self.slots[i].detach()
         out = []
         for i, s in enumerate(self.slots):
             gained = before[i] - s.distance if i in before and np.isfinite(before[i] - s.distance) else 0.0
             out.append(self._result(s, gained, s.intensity[-1] if i in moved else 0.0))
         return out
 
+    def _move(self, sid: str, rows: list[int], v: np.ndarray, omega: np.ndarray) -> list[int]:
+        """Move these slots of one scene (commands v, omega [b]) and update their poses, c(t), distances on foot
+        and outcomes, each kind in one call for all of them; the slots moved."""
+        c, w = self.config, self._worlds[sid]
+        slots = [self.slots[i] for i in rows]
+        motion = self._agents[sid].move(np.array([s.row for s in slots]), v, omega, c.actions.control_interval,
+                                        c.motion)
+        steps = [np.array([s.poses[-1][:2], p[:2]]) for s, p in zip(slots, motion.pose)]
+        near = np.array([share[1] for share in self._probes[sid].shares(steps)])
+        translating = np.asarray(v, dtype=np.float64) > 0  # a pure turn counts only its own blocking
+        intensity = np.where(translating, np.maximum(motion.intensity, near), motion.intensity)
+        xy = motion.pose[:, :2]
+        distance = distances_on_foot([s.goal for s in slots], xy).tolist()
+        inside = w.inside(xy).tolist()
+        yaw = wrap(motion.pose[:, 2]).tolist()
+        for k, s in enumerate(slots):
+            x, y = xy[k].tolist()
+            s.poses.append(_rounded((x, y, w.model.floor_z, yaw[k])))
+            s.intensity.append(round(float(intensity[k]), POSE_DECIMALS))
+            s.collided = bool(motion.collided[k])
+            s.steps += 1
+            s.distance = distance[k]
+            if not inside[k]:
+                s.outcome = "left_map"
+            elif s.steps >= c.max_steps:
+                s.outcome = "step_limit"
+        return rows
+
     def fail(self, slot: int) -> None:
         """End a running slot because its policy could not answer (it takes no further step)."""
         self.slots[slot].outcome = "policy_failed"
+        self.slots[slot].detach()
 
     def _render(self, slots: Sequence[int]) -> None:
-        """Each slot's images, one renderer call per scene and image size; depth as the profile gives it."""
+        """Each slot's images, one renderer call per scene and image size; depth as the profile gives it. A slot's
+        images are rows of the call's arrays (views, no copy per slot)."""
         c, sensors = self.config, self.sensors
         by_scene: dict[str, list[int]] = {}
         for i in slots:
@@ -223,17 +249,15 @@ class Simulator:
         for sid, rows in by_scene.items():
             w = self._worlds[sid]
             poses = np.array([self.slots[i].poses[-1] for i in rows])
-            images: list[dict[str, np.ndarray]] = [{} for _ in rows]
+            images: dict[str, np.ndarray] = {}
             for (width, height), keys in sensors.sizes().items():
-                views = observe(w.renderer, poses, keys, floor_z=w.model.floor_z,
-                                camera_height=c.agent.camera_height, hfov_deg=c.agent.hfov_deg, width=width,
-                                height=height)
-                for img, view in zip(images, views):
-                    img.update(view)
-            for i, img in zip(rows, images):
-                if "depth" in img:
-                    img["depth"] = sensors.depth.apply(img["depth"])
-                self.slots[i].last = {k: img[k] for k in sensors.keys if k in img}
+                images |= observe(w.renderer, poses, keys, floor_z=w.model.floor_z,
+                                  camera_height=c.agent.camera_height, hfov_deg=c.agent.hfov_deg, width=width,
+                                  height=height)
+            if "depth" in images:
+                images["depth"] = sensors.depth.apply(images["depth"])
+            for j, i in enumerate(rows):
+                self.slots[i].last = {k: images[k][j] for k in sensors.keys if k in images}
 
     def _result(self, s: Slot, reward: float, c_t: float) -> StepResult:
         obs = observation(self.sensors, s)
@@ -243,13 +267,14 @@ class Simulator:
 
 
 def observation(sensors: Sensors, s: Slot) -> dict:
-    """The observation dict of a slot now: the profile's keys only (sagebench.navsim.profiles)."""
+    """The observation dict of a slot now: the profile's keys only (sagebench.navsim.profiles). Its images are the
+    slot's rows of the last render's arrays, not copies (Slot.last)."""
     extra = {"instruction": s.instruction, "instruction_tokens": s.tokens, "collided": s.collided}
     if "pose" in sensors.privileged:
         extra["pose"] = np.array(s.poses[-1], dtype=np.float64)
     if "gps_compass" in sensors.privileged:
         extra["gps"], extra["compass"] = gps_compass(np.array(s.poses[-1]), s.episode.start, s.episode.start_yaw)
-    return {k: s.last[k].copy() if k in s.last else extra[k] for k in sensors.keys}
+    return {k: s.last[k] if k in s.last else extra[k] for k in sensors.keys}
 
 
 def _rounded(pose: tuple[float, float, float, float]) -> tuple[float, float, float, float]:

@@ -1,7 +1,9 @@
 """Renderer backends behind one interface: the CPU splat renderer (the reference) and gsplat on a CUDA GPU.
 
-A caller opens a renderer for one scene's Gaussians (`open_renderer`) and hands it every view it needs at once
-(`render(cams)`: the env, all its batched episodes' views in one call). `auto` takes gsplat when a CUDA device,
+A caller opens a renderer for one scene's Gaussians (`open_renderer`) and hands it every view it needs at once:
+`observe(cams, keys)` gives what an agent sees, the batch as arrays (render/observations.py: uint8 RGB, masked
+depth, alpha, instance ids), converted where the frames are (on the GPU for gsplat) and copied back once;
+`render(cams)` gives the float frames (the render stage, the GPU check's agreement). `auto` takes gsplat when a CUDA device,
 torch and gsplat (`pip install 'sagebench[gpu]'`) are present and gsplat draws every image asked for, else the
 CPU renderer. gsplat builds its CUDA kernels on first use (about a minute) into the user cache directory, once.
 """
@@ -16,25 +18,33 @@ from importlib import metadata
 from pathlib import Path
 from typing import Literal, Protocol
 
+import numpy as np
+
 from sagebench import ui
 from sagebench.errors import ConfigError
 from sagebench.render.camera import Camera
 from sagebench.render.chunks import PackedGaussians
 from sagebench.render.gaussians import Gaussians
+from sagebench.render.observations import fields_for, observation_arrays
 from sagebench.render.splat_reference import Frame
 
 RendererChoice = Literal["auto", "cpu", "gsplat"]
 CHOICES: tuple[str, ...] = ("auto", "cpu", "gsplat")
-OUTPUTS = {"cpu": frozenset({"rgb", "depth", "alpha", "instance"}), "gsplat": frozenset({"rgb", "depth", "alpha"})}
 Background = tuple[float, float, float]
 
 
 class Renderer(Protocol):
     name: str  # the backend: cpu or gsplat
+    draws: frozenset[str]  # the images it draws, of rgb, depth, alpha, instance
 
     def render(self, cams: Sequence[Camera]) -> list[Frame]:
         """One frame per camera (all of one image size for gsplat); `instance` is None where the backend draws
         no instance ids."""
+        ...
+
+    def observe(self, cams: Sequence[Camera], keys: Collection[str]) -> dict[str, np.ndarray]:
+        """The images `keys` of every camera (at least one, all of one size) as [C, H, W(, 3)] arrays
+        (render/observations.py). The arrays are the caller's: no later call writes into them."""
         ...
 
 
@@ -42,6 +52,7 @@ class CpuRenderer:
     """The CPU splat renderer (splat_render): packed Gaussians are culled by chunk, frames render side by side."""
 
     name = "cpu"
+    draws = frozenset({"rgb", "depth", "alpha", "instance"})
 
     def __init__(self, gaussians: Gaussians | PackedGaussians, background: Background = (0.0, 0.0, 0.0)):
         self.gaussians, self.background = gaussians, background
@@ -53,11 +64,16 @@ class CpuRenderer:
             return render_packed(self.gaussians, cams, background=self.background)
         return [render(self.gaussians, cam, background=self.background) for cam in cams]
 
+    def observe(self, cams: Sequence[Camera], keys: Collection[str]) -> dict[str, np.ndarray]:
+        frames = self.render(_checked(cams, keys, self))
+        return observation_arrays({f: np.stack([getattr(fr, f) for fr in frames]) for f in fields_for(keys)}, keys)
+
 
 class GsplatRenderer:
     """gsplat's `rasterization` on a CUDA device: the Gaussians stay on the device, one call renders every view."""
 
     name = "gsplat"
+    draws = frozenset({"rgb", "depth", "alpha"})
 
     def __init__(self, gaussians: Gaussians | PackedGaussians, background: Background = (0.0, 0.0, 0.0), *,
                  device: str = "cuda"):
@@ -80,6 +96,21 @@ class GsplatRenderer:
         colors, alphas = self.rasterize(cams)
         return frames_from_gsplat(colors.cpu().numpy(), alphas.cpu().numpy())
 
+    def observe(self, cams: Sequence[Camera], keys: Collection[str]) -> dict[str, np.ndarray]:
+        """Converted on the device, then each array copied once into page-locked host memory (a fast DMA copy)
+        that becomes the caller's: torch's caching host allocator hands a block out again only after the caller
+        has let go of every array in it (a frame kept alone keeps its whole batch's block)."""
+        colors, alphas = self.rasterize(_checked(cams, keys, self))
+        torch = self._torch
+        with torch.no_grad():
+            fields = {"rgb": colors[..., :3], "depth": colors[..., 3], "alpha": alphas[..., 0]}
+            device = observation_arrays(fields, keys, torch)
+            host = {k: torch.empty(a.shape, dtype=a.dtype, pin_memory=True) for k, a in device.items()}
+            for k, a in device.items():
+                host[k].copy_(a, non_blocking=True)
+            torch.cuda.current_stream().synchronize()
+        return {k: h.numpy() for k, h in host.items()}
+
     def rasterize(self, cams: Sequence[Camera]):
         """gsplat's output on the device: colors [C, H, W, 4] (RGB + expected depth) and alphas [C, H, W, 1]."""
         from sagebench.render.gsplat_convention import camera_arrays, raster_settings
@@ -93,6 +124,19 @@ class GsplatRenderer:
                 sh_degree=self._sh_degree, backgrounds=self._background.expand(len(cams), 3), packed=False,
                 **raster_settings())
         return colors, alphas
+
+
+def _checked(cams: Sequence[Camera], keys: Collection[str], renderer: Renderer) -> Sequence[Camera]:
+    """The cameras of one `observe` call, checked: at least one, one image size, images the backend draws."""
+    if not cams:
+        raise ValueError("no cameras to observe from")
+    sizes = {(c.width, c.height) for c in cams}
+    if len(sizes) > 1:
+        raise ValueError(f"one observe call takes cameras of one image size, got {sorted(sizes)}")
+    lacking = sorted(set(fields_for(keys)) - renderer.draws)
+    if lacking:
+        raise ValueError(f"the {renderer.name} renderer draws no {lacking[0]} images")
+    return cams
 
 
 def gsplat_missing() -> str | None:
@@ -112,7 +156,7 @@ def choose_backend(choice: str, needs: Collection[str]) -> str:
     gsplat); an explicit gsplat that cannot draw them or cannot run here is a ConfigError naming --renderer."""
     if choice not in CHOICES:
         raise ConfigError(f"{choice!r} is not one of {', '.join(CHOICES)}", field="--renderer")
-    lacking = sorted(set(needs) - OUTPUTS["gsplat"])
+    lacking = sorted(set(needs) - GsplatRenderer.draws)
     if choice == "cpu":
         return "cpu"
     if choice == "auto":

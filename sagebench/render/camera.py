@@ -68,9 +68,24 @@ def agent_camera(
 ) -> Camera:
     """The agent's camera: at (x, y, floor_z + camera_height), looking along `yaw` (radians, CCW from +X),
     tilted up by `pitch_deg` (negative looks down), Z up, square pixels."""
+    return agent_cameras(np.array([[x, y, yaw]], dtype=np.float64), floor_z=floor_z, camera_height=camera_height,
+                         pitch_deg=pitch_deg, hfov_deg=hfov_deg, width=width, height=height)[0]
+
+
+def agent_cameras(poses: np.ndarray, *, floor_z: float = 0.0, camera_height: float = 1.2, pitch_deg: float = 0.0,
+                  hfov_deg: float = 90.0, width: int = 640, height: int = 480) -> list[Camera]:
+    """`agent_camera` at each pose [B, >=3] (x, y, ..., yaw last) in one go. Sines and cosines come from `math`
+    (libm, as for one camera; numpy's vectorised ones may differ in the last bit)."""
+    poses = np.atleast_2d(np.asarray(poses, dtype=np.float64))
     pitch = math.radians(pitch_deg)
-    forward = np.array([math.cos(yaw) * math.cos(pitch), math.sin(yaw) * math.cos(pitch), math.sin(pitch)])
-    right = np.array([math.sin(yaw), -math.cos(yaw), 0.0])
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cos = np.array([math.cos(v) for v in poses[:, -1].tolist()])
+    sin = np.array([math.sin(v) for v in poses[:, -1].tolist()])
+    zero = np.zeros(len(poses))
+    forward = np.stack([cos * cp, sin * cp, zero + sp], axis=1)
+    right = np.stack([sin, -cos, zero], axis=1)
     down = np.cross(forward, right)
-    rot = np.column_stack([right, down, forward])
-    return look_camera(np.array([x, y, floor_z + camera_height]), rot, width=width, height=height, hfov_deg=hfov_deg)
+    rotations = np.stack([right, down, forward], axis=2)  # each [3, 3] C-ordered, as np.column_stack makes it
+    positions = np.stack([poses[:, 0], poses[:, 1], zero + (floor_z + camera_height)], axis=1)
+    # one camera at a time from here: a stacked matmul may round the translation differently from one camera's
+    return [look_camera(p, r, width=width, height=height, hfov_deg=hfov_deg) for p, r in zip(positions, rotations)]

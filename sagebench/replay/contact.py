@@ -24,37 +24,60 @@ def contact_share(rm: ReplayModel, poses: Sequence[np.ndarray], *, distance: flo
     """[T_i] per pose sequence [T_i, >=2]: for each step (0 for row 0) the share of its positions where the agent's
     cylinder is within `distance` of a collider (module docstring). Every position is one state of one
     `mujoco.rollout` call whose contact sensor reads it."""
-    from mujoco import rollout
+    return ContactProbe(rm, distance=distance, threads=threads).shares(poses, spacing=spacing)
 
-    model = copy.copy(rm.model)
-    g = model.geom(AGENT_GEOM).id
-    model.geom_margin[g] = model.geom_gap[g] = distance  # contacts reported (at least) this far out, exact dist
-    seqs = [np.asarray(p, dtype=np.float64)[:, :2] for p in poses]
-    points, owner = [], []  # every position checked, and the (sequence, step) it belongs to
-    for k, xy in enumerate(seqs):
-        for t in range(1, len(xy)):
-            n = int(np.ceil(np.linalg.norm(xy[t] - xy[t - 1]) / spacing))
-            points.append(xy[t - 1] + (xy[t] - xy[t - 1]) * np.linspace(0.0, 1.0, n + 1)[:, None] if n else xy[t][None])
-            owner += [(k, t)] * len(points[-1])
-    out = [np.zeros(len(xy)) for xy in seqs]
-    if not points:
+
+class ContactProbe:
+    """`contact_share` kept open for one model: the model copy with the agent's contact margin and the MjData
+    of each thread are made once (about a millisecond each), not per call: the env checks every step with it."""
+
+    def __init__(self, rm: ReplayModel, *, distance: float = CONTACT_DISTANCE, threads: int = 2):
+        self.rm, self.distance, self.threads = rm, distance, max(1, threads)
+        self.model = copy.copy(rm.model)
+        g = self.model.geom(AGENT_GEOM).id
+        self.model.geom_margin[g] = self.model.geom_gap[g] = distance  # contacts reported this far out, exact dist
+        self._datas = [mujoco.MjData(self.model) for _ in range(self.threads)]
+        full = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        self._rest = np.empty(mujoco.mj_stateSize(self.model, full))
+        mujoco.mj_getState(self.model, self._datas[0], self._rest, full)
+        self._xy_cols = mujoco.mj_stateSize(self.model, mujoco.mjtState.mjSTATE_TIME) + np.array(rm.qpos[:2])
+
+    def shares(self, poses: Sequence[np.ndarray], *, spacing: float = SAMPLE_SPACING) -> list[np.ndarray]:
+        """`contact_share` of these pose sequences."""
+        from mujoco import rollout
+
+        seqs = [np.asarray(p, dtype=np.float64)[:, :2] for p in poses]
+        out = [np.zeros(len(xy)) for xy in seqs]
+        steps = [(k, t) for k, xy in enumerate(seqs) for t in range(1, len(xy))]
+        if not steps:
+            return out
+        a = np.concatenate([xy[:-1] for xy in seqs])  # every step's start and end, in `steps` order
+        b = np.concatenate([xy[1:] for xy in seqs])
+        xy, owner = _positions(a, b, spacing)
+        model = self.model
+        state = np.repeat(self._rest[None], len(xy), axis=0)
+        state[:, self._xy_cols] = xy
+        n = min(self.threads, len(xy))
+        with rollout.Rollout(nthread=n if n > 1 else 0) as pool:
+            _, sensor = pool.rollout(model, self._datas[:n], state, np.zeros((len(xy), 1, model.nu)), nstep=1,
+                                     initial_warmstart=np.zeros((len(xy), model.nv)))
+        found, dist = sensor[:, 0, self.rm.sensor], sensor[:, 0, self.rm.sensor + 1]
+        touching = (found > 0) & (dist <= self.distance)
+        share = np.bincount(owner, weights=touching, minlength=len(steps)) / np.bincount(owner, minlength=len(steps))
+        for (k, t), v in zip(steps, share.tolist()):
+            out[k][t] = v
         return out
-    xy = np.concatenate(points)
-    full = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    data = mujoco.MjData(model)
-    state = np.empty((len(xy), mujoco.mj_stateSize(model, full)))
-    mujoco.mj_getState(model, data, state[0], full)
-    state[:] = state[0]
-    state[:, mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_TIME) + np.array(rm.qpos[:2])] = xy
-    n = max(1, min(threads, len(xy)))
-    with rollout.Rollout(nthread=n if n > 1 else 0) as pool:
-        _, sensor = pool.rollout(model, [mujoco.MjData(model) for _ in range(n)], state,
-                                 np.zeros((len(xy), 1, model.nu)), nstep=1)
-    found, dist = sensor[:, 0, rm.sensor], sensor[:, 0, rm.sensor + 1]
-    touching = (found > 0) & (dist <= distance)
-    sums: dict[tuple[int, int], list[float]] = {}
-    for key, hit in zip(owner, touching):
-        sums.setdefault(key, []).append(float(hit))
-    for (k, t), hits in sums.items():
-        out[k][t] = float(np.mean(hits))
-    return out
+
+
+def _positions(a: np.ndarray, b: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """The positions checked along steps a -> b [S, 2]: n = ceil(length / spacing) + 1 evenly spaced, ends
+    included (np.linspace's values), or the end alone for a step that does not move; and the step of each."""
+    n = np.ceil(np.linalg.norm(b - a, axis=1) / spacing).astype(np.int64)
+    count = np.where(n > 0, n + 1, 1)
+    owner = np.repeat(np.arange(len(a)), count)
+    j = np.arange(len(owner)) - np.repeat(np.cumsum(count) - count, count)  # index within its step
+    nj = n[owner]
+    t = np.where(j < nj, j * (1.0 / np.maximum(nj, 1)), 1.0)
+    d = b - a
+    xy = np.where((nj > 0)[:, None], a[owner] + d[owner] * t[:, None], b[owner])
+    return xy, owner

@@ -20,6 +20,8 @@ if TYPE_CHECKING:
     from sagebench.render.gaussians import Gaussians
 
 FRAME_POINTS = ("start", "middle", "goal")
+# the images of each spot-check frame; instance ids from the CPU renderer where the backend draws none
+VIEW_IMAGES = ("rgb", "depth", "alpha", "instance")
 
 
 @dataclass(frozen=True)
@@ -60,13 +62,14 @@ def spot_checks(gaussians: Gaussians, rm: ReplayModel, picks: list[tuple[Traject
             x, y, _, yaw = rec.poses[k]
             cam = agent_camera(x, y, yaw, floor_z=rm.floor_z, camera_height=config.agent.camera_height,
                                hfov_deg=config.agent.hfov_deg, width=config.frame_width, height=config.frame_height)
-            frame = renderer.render([cam])[0]
+            view = renderer.observe([cam], [img for img in VIEW_IMAGES if img in renderer.draws])
+            if "instance" not in view:
+                view |= CpuRenderer(gaussians).observe([cam], ("instance",))
             grid = pixel_grid(cam, config.ray_stride)
-            a = compare_depth(frame.depth, frame.alpha, grid,
+            a = compare_depth(view["depth"][0], view["alpha"][0], grid,
                               collider_depth(rm.model, data, cam, grid, bodyexclude=agent_body),
                               min_alpha=config.min_alpha)
-            instance = frame.instance if frame.instance is not None else CpuRenderer(gaussians).render([cam])[0].instance
-            rgb, ids = _rgb8(frame.rgb), _id_colours(instance)
+            rgb, ids = view["rgb"][0], _id_colours(view["instance"][0])
             name = f"{traj.trajectory_id}_{point}"
             pngs[f"{name}.png"] = _png(rgb)
             pngs[f"{name}_ids.png"] = _png(ids)
@@ -77,10 +80,6 @@ def spot_checks(gaussians: Gaussians, rm: ReplayModel, picks: list[tuple[Traject
         rows.append(np.hstack(tiles))
     pngs[CONTACT_SHEET] = _png(np.vstack(rows))
     return checks, pngs
-
-
-def _rgb8(rgb: np.ndarray) -> np.ndarray:
-    return (np.clip(rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
 
 
 def _id_colours(instance: np.ndarray) -> np.ndarray:
