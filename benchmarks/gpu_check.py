@@ -33,6 +33,9 @@ from collections.abc import Iterator
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+# What a GPU image brings (the distributions of sagebench's dependencies it has); gpu_pack.sh packs the rest the
+# sections import, and a test runs the sections with every other dependency made unimportable.
+IMAGE_HAS = ("numpy", "scipy", "numba", "pyarrow", "opencv-python-headless", "torch")
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 

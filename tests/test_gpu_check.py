@@ -1,10 +1,13 @@
 """benchmarks/gpu_check.py on a machine without a GPU: the dry run goes through every section with the CPU renderer,
-and a section that fails or runs out of time is reported in the table while the others still run."""
+importing only what a GPU image has plus what gpu_pack.sh packs, and a section that fails or runs out of time is
+reported in the table while the others still run."""
 
 from __future__ import annotations
 
+import importlib.metadata
 import importlib.util
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -33,11 +36,50 @@ def small_run(demo_eval_run, tmp_path_factory) -> Path:
     return tgz
 
 
+def _norm(dist: str) -> str:
+    return re.sub(r"[-_.]+", "-", dist).lower()
+
+
+def unavailable_modules() -> set[str]:
+    """Top-level modules of sagebench's dependencies that neither a GPU image (gpu_check.IMAGE_HAS) nor
+    gpu_pack.sh's wheels bring."""
+    script = (Path(gpu_check.__file__).parent / "gpu_pack.sh").read_text()
+    packed = {_norm(n) for n in re.findall(r"\$\(pin ([\w.-]+)\)", script) + re.findall(r'"([\w.-]+)==', script)}
+    needed = {_norm(re.split(r"[<>=!~; \[]", r, maxsplit=1)[0]) for r in importlib.metadata.requires("sagebench")
+              if "extra ==" not in r}
+    missing = needed - packed - {_norm(d) for d in gpu_check.IMAGE_HAS}
+    return {module for module, dists in importlib.metadata.packages_distributions().items()
+            if dists and all(_norm(d) in missing for d in dists)}
+
+
+@pytest.fixture
+def gpu_image_imports(tmp_path_factory, monkeypatch) -> set[str]:
+    """Sections (child processes) that import anything else fail with ModuleNotFoundError, as on the GPU machine."""
+    site = tmp_path_factory.mktemp("gpu_image")
+    blocked = unavailable_modules()
+    (site / "sitecustomize.py").write_text(
+        "import sys\n"
+        f"BLOCKED = {sorted(blocked)!r}\n"
+        "class Block:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name.partition('.')[0] in BLOCKED:\n"
+        "            raise ModuleNotFoundError(f'No module named {name!r} (not on a GPU image)', name=name)\n"
+        "sys.meta_path.insert(0, Block())\n")
+    monkeypatch.setenv("PYTHONPATH", str(site))
+    return blocked
+
+
+def test_the_gpu_machine_lacks_what_is_not_packed():
+    blocked = unavailable_modules()
+    assert {"trimesh", "pxr", "coacd", "typer"} <= blocked  # the heavy ones stay home
+    assert not {"shapely", "mujoco", "pydantic", "numpy", "numba"} & blocked
+
+
 def _rows(out: Path) -> list[dict]:
     return json.loads((out / "gpu_check.json").read_text())
 
 
-def test_the_dry_run_measures_every_section(small_run, tmp_path):
+def test_the_dry_run_measures_every_section(small_run, tmp_path, gpu_image_imports):
     assert gpu_check.main(["--run", str(small_run), "--out", str(tmp_path), "--dry-run"]) == 0
     rows = _rows(tmp_path)
     assert {r["section"] for r in rows} == set(gpu_check.SECTIONS)
