@@ -1,5 +1,17 @@
-"""`python -m sagebench` is the `sagebench` command."""
+"""`python -m sagebench` is the `sagebench` command; `entry` is its console script."""
 
-from sagebench.cli import main
+import sys
 
-main()
+
+def entry() -> None:
+    """Run the CLI; Ctrl-C while it is still being imported ends in one line too (cli.main covers the rest)."""
+    try:
+        from sagebench.cli import main
+    except KeyboardInterrupt:
+        print("error: interrupted: nothing was written", file=sys.stderr)
+        sys.exit(130)
+    main()
+
+
+if __name__ == "__main__":
+    entry()

@@ -13,8 +13,8 @@ from typing import Annotated
 import typer
 import typer.core
 
-from sagebench.errors import ConfigError, SagebenchError
-from sagebench.ui import SETTINGS
+from sagebench.errors import ConfigError, Interrupted, OutputError, SagebenchError
+from sagebench.ui import SETTINGS, interrupted, interrupts_noted
 
 app = typer.Typer(
     add_completion=True,
@@ -82,6 +82,9 @@ def splits(incomplete: str) -> list[str]:
 
 
 GLOBAL_FLAGS = ("--quiet", "-q", "--debug")  # accepted before or after the command
+Force = Annotated[bool, typer.Option(
+    "--force", help="Write into a folder that also holds files other than a sagebench run's; they are never changed "
+                    "(one where the command writes still refuses it).")]
 
 
 def _show_version(value: bool) -> None:
@@ -168,6 +171,7 @@ def schemas(
 def demo(
     out: Annotated[Path, typer.Option("--out", help="Run directory for the demo.")] = Path("out/demo"),
     seed: Annotated[int, typer.Option(help="Seed of the demo scene and of every stage.")] = 0,
+    force: Force = False,
 ) -> None:
     """Generate the built-in demo scene and run the whole pipeline on it.
 
@@ -178,7 +182,7 @@ def demo(
     """
     from sagebench.pipeline.demo import run_demo
 
-    result = run_demo(out, seed=seed)
+    result = run_demo(out, seed=seed, force=force)
     summary = result.run
     for line in summary.lines():
         typer.echo(line)
@@ -204,6 +208,7 @@ def build_scene_cmd(
     object_density: Annotated[float | None, typer.Option(help="Sampled Gaussians per m^2 on objects.")] = None,
     structure_density: Annotated[float | None, typer.Option(help="Sampled Gaussians per m^2 on walls, floors, ceilings.")] = None,
     prune: Annotated[float | None, typer.Option(help="Drop this fraction of Gaussians by blending contribution.")] = None,
+    force: Force = False,
 ) -> None:
     """Build the semantic top-down map, the height-band occupancy and the Gaussians of one scene.
 
@@ -213,14 +218,18 @@ def build_scene_cmd(
     semantic_map.json, topdown.png and gaussians.ply (the scene's trained gaussians.ply with
     instance ids, else Gaussians sampled on every mesh).
 
-    With --prune it prints the held-out PSNR of the pruned against the unpruned Gaussians.
+    With --prune it prints the held-out PSNR of the pruned against the unpruned Gaussians. OUT must be new,
+    empty or a sagebench run (unless --force), and is locked while it is written.
     """
+    from sagebench.run_folder import check_scenes_apart, claim_run_dir
     from sagebench.stages.build_scene import build_scene, make_config
 
     config = make_config(resolution=resolution, band_min=band_min, band_max=band_max, sample_density=sample_density,
                          wall_gap=wall_gap, agent_radius=agent_radius, seed=seed, prune=prune,
                          object_density=object_density, structure_density=structure_density)
-    typer.echo(build_scene(scene_dir, out, config).summary())
+    check_scenes_apart(out, [scene_dir])
+    with claim_run_dir(out, "build-scene", force=force):
+        typer.echo(build_scene(scene_dir, out, config).summary())
 
 
 @app.command("gen-trajectories", cls=_defaults_from("sagebench.stages.gen_trajectories:GenTrajectoriesConfig"))
@@ -244,7 +253,9 @@ def gen_trajectories_cmd(
     llm_model: Annotated[str | None, typer.Option(help="Chat model name for --instructions llm.")] = None,
     llm_cache_dir: Annotated[Path | None, typer.Option(
         help="Answer cache, keyed by sha256 of (model, prompt) (default: the user cache directory).")] = None,
-    llm_concurrency: Annotated[int | None, typer.Option(help="LLM requests in flight at once.")] = None,
+    llm_concurrency: Annotated[int | None, typer.Option(
+        help="LLM requests in flight at once (default: the slots the server reports, else 1 for a server on this "
+             "machine or network, else 4).")] = None,
     llm_timeout: Annotated[float | None, typer.Option(
         help="Deadline of one whole LLM request (connect to last byte), s.")] = None,
     llm_attempts: Annotated[int | None, typer.Option(help="HTTP attempts per LLM request (429, 5xx, timeouts).")] = None,
@@ -253,8 +264,14 @@ def gen_trajectories_cmd(
     llm_min_share: Annotated[float | None, typer.Option(
         help="Exit 1 (writing nothing) when a scene gets a smaller share of high-level rows from the LLM; with no "
              "LLM row it always does.")] = None,
+    llm_response_format: Annotated[str | None, typer.Option(
+        help="How to ask the LLM for JSON: auto (json_schema, else json_object, else none, decided by the first "
+             "request), json_schema, json_object or none.")] = None,
+    llm_refresh: Annotated[bool | None, typer.Option(
+        "--llm-refresh", help="Ask the LLM again even for prompts the answer cache holds.")] = None,
     llm_api_key_env: Annotated[str | None, typer.Option(
-        help="Environment variable holding the LLM API key (default: SAGEBENCH_LLM_API_KEY).")] = None,
+        help="Name of the environment variable holding the LLM API key (default: SAGEBENCH_LLM_API_KEY).")] = None,
+    force: Force = False,
 ) -> None:
     """Sample A* trajectories between objects and rooms and write them with low- and high-level instructions.
 
@@ -267,12 +284,15 @@ def gen_trajectories_cmd(
     import os
 
     from sagebench.errors import ConfigError, Interrupted
+    from sagebench.instructions.llm_client import api_key_from_env
+    from sagebench.run_folder import claim_run_dir
     from sagebench.stages.gen_trajectories import gen_trajectories, make_config
 
     llm = {k: v for k, v in {"base_url": llm_base_url, "model": llm_model, "cache_dir": llm_cache_dir,
                              "concurrency": llm_concurrency, "timeout_s": llm_timeout, "max_attempts": llm_attempts,
                              "temperature": llm_temperature, "max_tokens": llm_max_tokens,
-                             "min_share": llm_min_share}.items() if v is not None}
+                             "min_share": llm_min_share, "response_format": llm_response_format,
+                             "refresh": llm_refresh}.items() if v is not None}
     config = make_config(per_scene=per_scene, seed=seed, shard_mb=shard_mb, instructions=instructions,
                          min_geodesic_m=min_geodesic, max_geodesic_m=max_geodesic, goal_radius_m=goal_radius,
                          llm=llm or None)
@@ -280,12 +300,11 @@ def gen_trajectories_cmd(
     if llm_api_key_env is not None:
         if config.instructions != "llm":
             raise ConfigError("used only with --instructions llm", field="--llm-api-key-env")
-        if llm_api_key_env not in os.environ:
-            raise ConfigError(f"the environment variable {llm_api_key_env} is not set", field="--llm-api-key-env")
-        api_key = os.environ[llm_api_key_env]
+        api_key = api_key_from_env(llm_api_key_env, os.environ)
     try:
-        for result in gen_trajectories(run_dir, config, scene_id=scene, api_key=api_key):
-            typer.echo(result.summary())
+        with claim_run_dir(run_dir, "gen-trajectories", force=force):
+            for result in gen_trajectories(run_dir, config, scene_id=scene, api_key=api_key):
+                typer.echo(result.summary())
     except KeyboardInterrupt:  # click would print "Aborted!" and exit 1
         raise Interrupted("interrupted: the scene in progress was not written") from None
 
@@ -367,6 +386,7 @@ def export_usd_cmd(
     layout: Annotated[str | None, typer.Option(
         autocompletion=values_of("sagebench.stages.export_usd:ExportConfig", "--layout"), help="sagebench, or sage: also sage/<id>.usda in SAGE-3D's template form with its collision payload "
              "sage/<id>_collision.usd (needs --gaussians nurec).")] = None,
+    force: Force = False,
 ) -> None:
     """Decompose colliders and write each scene's USD stage and MuJoCo model.
 
@@ -379,6 +399,7 @@ def export_usd_cmd(
     sage/<id>.usda and sage/<id>_collision.usd. Each finished piece goes to the cache at once, so an
     interrupted export resumes there.
     """
+    from sagebench.run_folder import claim_run_dir
     from sagebench.stages.export_usd import export_usd, make_config
 
     config = make_config(colliders=colliders, max_parts=max_parts, piece_limit=piece_limit,
@@ -386,8 +407,9 @@ def export_usd_cmd(
                          coacd_max_hulls=coacd_max_hulls, coacd_max_faces=coacd_max_faces,
                          coacd_preprocess=coacd_preprocess, workers=workers, usdz=usdz, gaussians=gaussians,
                          layout=layout)
-    for result in export_usd(run_dir, scene_id=scene, config=config, cache_dir=cache_dir):
-        typer.echo(result.line())
+    with claim_run_dir(run_dir, "export-usd", force=force):
+        for result in export_usd(run_dir, scene_id=scene, config=config, cache_dir=cache_dir):
+            typer.echo(result.line())
 
 
 @app.command("validate", cls=_defaults_from("sagebench.stages.validate:ValidateConfig"))
@@ -402,6 +424,7 @@ def validate_cmd(
     ] = None,
     workers: Annotated[int | None, typer.Option(help="Threads stepping the MuJoCo replays.")] = None,
     renderer: Annotated[str | None, typer.Option(help=RENDERER_HELP + " Instance-id frames come from the CPU.")] = None,
+    force: Force = False,
 ) -> None:
     """Replay every trajectory in MuJoCo, score it and spot-check appearance against physics.
 
@@ -414,19 +437,21 @@ def validate_cmd(
 
     Exit status 1 when any trajectory fails or a frame's depths disagree, listing the failures.
     """
+    from sagebench.run_folder import claim_run_dir
     from sagebench.stages.validate import make_config, validate_run
 
     config = make_config(frames_per_scene=frames_per_scene, depth_tolerance=depth_tolerance, workers=workers,
                          renderer=renderer)
     failed = False
-    for result in validate_run(run_dir, config, scene_id=scene):
-        typer.echo(result.summary())
-        for trajectory_id, reasons in result.failures:
-            typer.echo(f"  FAIL {result.scene_id} {trajectory_id}: {', '.join(reasons)}")
-        for frame in result.frames:
-            if frame.problem:
-                typer.echo(f"  FAIL {result.scene_id} {frame.file}: {frame.problem}")
-        failed |= not result.passed
+    with claim_run_dir(run_dir, "validate", force=force):
+        for result in validate_run(run_dir, config, scene_id=scene):
+            typer.echo(result.summary())
+            for trajectory_id, reasons in result.failures:
+                typer.echo(f"  FAIL {result.scene_id} {trajectory_id}: {', '.join(reasons)}")
+            for frame in result.frames:
+                if frame.problem:
+                    typer.echo(f"  FAIL {result.scene_id} {frame.file}: {frame.problem}")
+            failed |= not result.passed
     if failed:
         raise typer.Exit(code=1)
 
@@ -496,12 +521,14 @@ def run_cmd(
     workers: Annotated[int | None, typer.Option(help="Scene-stage tasks at once (default: the config's, else 1).")] = None,
     executor: Annotated[str | None, typer.Option(help="local or ray (default: the config's, else local).")] = None,
     ray_address: Annotated[str | None, typer.Option("--ray-address", help="Ray cluster; none starts a local Ray.")] = None,
+    force: Force = False,
 ) -> None:
     """Run build-scene, gen-trajectories, export-usd and validate over many scenes.
 
     Reads CONFIG and every scene directory it names. Writes the run directory `out`: scenes/, episodes/,
     validation/, manifest.json, and hidden .stamps/ that let a re-run skip every stage whose inputs and
-    settings are unchanged. Exit status 1 when some scene failed (the others still complete).
+    settings are unchanged. Exit status 1 when some scene failed (the others still complete). `out` must be new,
+    empty or a sagebench run (unless --force), and is locked while it is written.
     """
     from sagebench.pipeline.config import load_run_config
     from sagebench.pipeline.run import run_pipeline
@@ -510,7 +537,7 @@ def run_cmd(
 
     cfg = load_run_config(config, workers=workers, executor=executor, ray_address=ray_address)
     try:
-        summary = run_pipeline(cfg, config)
+        summary = run_pipeline(cfg, config, force=force)
     except KeyboardInterrupt:  # click would print "Aborted!"; the workers end quietly (pipeline/executors.py)
         raise Interrupted("interrupted: finished stages are kept; run again to go on from them") from None
     for line in summary.lines():
@@ -699,12 +726,29 @@ def rollout_cmd(
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Console entry point: the one place where errors become exit status 2."""
+    """The CLI: the one place where errors become one line and exit status 2 (130 for Ctrl-C).
+
+    Besides SagebenchError, an OSError no stage turned into one (a permission, a full disk) and Ctrl-C at any
+    moment end in one line too; every write is atomic, so neither leaves a partial output."""
     try:
-        app(args=hoist_global_flags(sys.argv[1:] if argv is None else list(argv)), prog_name="sagebench")
-    except SagebenchError as err:
+        with interrupts_noted():
+            app(args=hoist_global_flags(sys.argv[1:] if argv is None else list(argv)), prog_name="sagebench")
+    except SystemExit as done:  # typer turns Ctrl-C in a command into a silent exit 130
+        silent = done.code == 130 and isinstance(getattr(done.__context__, "__cause__", None), KeyboardInterrupt)
+        swallowed = done.code in (0, None) and interrupted()  # a library caught the Ctrl-C and the command went on
+        if (silent or swallowed) and not SETTINGS.debug:
+            _fail(Interrupted(INTERRUPTED))
+        raise
+    except (SagebenchError, OSError, KeyboardInterrupt) as err:
         if SETTINGS.debug:
             raise
-        print(f"error: {err}", file=sys.stderr)
-        sys.exit(err.exit_code)
+        _fail(err if isinstance(err, SagebenchError) else Interrupted(INTERRUPTED) if isinstance(err, KeyboardInterrupt)
+              else OutputError(err.strerror or str(err), path=err.filename))
 
+
+INTERRUPTED = "interrupted: the work in progress was not written"
+
+
+def _fail(err: SagebenchError) -> None:
+    print(f"error: {err}", file=sys.stderr)
+    sys.exit(err.exit_code)

@@ -9,6 +9,7 @@ mkdtemp's 0700 would otherwise survive the rename).
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import os
 import re
@@ -20,6 +21,7 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 from sagebench.errors import OutputError
+from sagebench.ui import check_interrupted
 
 TEMP_TAG = "sagebench-"
 _TEMPORARY = re.compile(r"\..+\.sagebench-[0-9a-z_]{8}\.(tmp|old)")
@@ -71,11 +73,44 @@ def staged_file(path: Path) -> Iterator[BinaryIO]:
                 yield fh
                 fh.flush()
                 os.fsync(fh.fileno())
+            check_interrupted()
             os.replace(tmp, path)
         except BaseException:
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(tmp)
             raise
+
+
+def copy_file(src: Path, path: Path) -> None:
+    """Copy `src` to `path` as write_bytes writes (temporary sibling, fsync, rename), a chunk at a time."""
+    with _writing(path):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{TEMP_TAG}", suffix=".tmp", dir=path.parent)
+        try:
+            with os.fdopen(fd, "wb") as fh, open(src, "rb") as source:
+                os.fchmod(fh.fileno(), 0o666 & ~current_umask())
+                shutil.copyfileobj(source, fh, 1 << 20)
+                fh.flush()
+                os.fsync(fh.fileno())
+            check_interrupted()
+            os.replace(tmp, path)
+        except BaseException:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(tmp)
+            raise
+
+
+def hash_file(path: Path, h: Any = None) -> Any:
+    """`h` (a new sha256 when None) updated with the file's bytes, read a chunk at a time (never whole)."""
+    h = hashlib.sha256() if h is None else h
+    with Path(path).open("rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h
+
+
+def sha256_file(path: Path) -> str:
+    return hash_file(path).hexdigest()
 
 
 def write_text(path: Path, text: str) -> None:
@@ -92,9 +127,10 @@ def write_json(path: Path, obj: Any) -> None:
 
 
 @contextlib.contextmanager
-def staged_dir(final: Path) -> Iterator[Path]:
+def staged_dir(final: Path, *, keep_hidden: bool = True) -> Iterator[Path]:
     """Yield an empty temporary directory beside `final` (mode 0777 less the umask); on success it replaces
-    `final` whole.
+    `final` whole, but for the user's hidden entries there (dotfiles that are not sagebench's temporaries), which
+    are moved into the new directory unless not `keep_hidden`: sagebench never deletes a file of the user's.
 
     On any error the temporary directory is removed and `final` is left as it was.
     """
@@ -104,6 +140,7 @@ def staged_dir(final: Path) -> Iterator[Path]:
     try:
         os.chmod(tmp, 0o777 & ~current_umask())
         yield tmp
+        check_interrupted()
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -111,6 +148,10 @@ def staged_dir(final: Path) -> Iterator[Path]:
         old = final.with_name(f".{final.name}.{TEMP_TAG}{secrets.token_hex(4)}.old")
         os.replace(final, old)
         os.replace(tmp, final)
+        if keep_hidden and old.is_dir() and not old.is_symlink():
+            for e in os.scandir(old):
+                if e.name.startswith(".") and not is_temporary(e.name) and not os.path.lexists(final / e.name):
+                    os.replace(e.path, final / e.name)
         _remove(old)
     else:
         os.replace(tmp, final)

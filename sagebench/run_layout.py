@@ -26,8 +26,11 @@ REPORTS = "reports"
 BASELINES = "baselines"  # the demo's baseline predictions and scores
 STAMPS = ".stamps"  # RUN/.stamps/<scene_id>/<stage>.json
 MANIFEST = "manifest.json"
-LOCK = ".sagebench.lock"  # held (flock) by the `sagebench run` writing this directory; left in place after it
+LOCK = ".sagebench.lock"  # held (flock) by the command writing this directory (run_lock.py); left in place after it
 DATASET_CARD = "README.md"  # written by `run` with the manifest: Hugging Face configs, columns, how to load
+DEMO_INPUT = "input"  # `demo`: its scene, input/demo_apartment_<seed>/
+DEMO_CONFIG = "run.toml"  # `demo`: the run config of that scene, beginning with DEMO_CONFIG_HEADER
+DEMO_CONFIG_HEADER = "# The demo run: `sagebench run` reads this file"
 
 # RUN/scenes/<scene_id>/ (build-scene, then export-usd)
 SCENE_FILE = "scene.json"  # the normalised scene; with the meshes it names, a loadable scene directory
@@ -93,7 +96,8 @@ CONTRACT: dict[str, StageFiles] = {
         writes=(Place("scene", COLLIDERS), Place("scene", USD_GEOMETRY), Place("scene", USD), Place("scene", USDZ),
                 Place("scene", NUREC), Place("scene", SAGE), Place("scene", MJCF))),
     "validate": StageFiles(
-        reads=(*REPLAY_MODEL, Place("scene", GAUSSIANS), Place("scene", TOPDOWN), Place("episodes")),
+        reads=(*REPLAY_MODEL, Place("scene", USD), Place("scene", USD_GEOMETRY), Place("scene", GAUSSIANS),
+               Place("scene", TOPDOWN), Place("episodes")),
         writes=(Place("validation"), Place("reports"))),
     "evaluate": StageFiles(reads=(Place("episodes"), Place("scene", TOPDOWN), *REPLAY_MODEL)),  # the model only to replay poses
     "baseline": StageFiles(reads=(Place("episodes"), Place("scene", TOPDOWN), *REPLAY_MODEL)),  # rollout, no images
@@ -103,6 +107,21 @@ CONTRACT: dict[str, StageFiles] = {
 }
 
 OUTPUT_ROOTS = tuple(sorted({_RUN_ROOTS[p.root] for s in CONTRACT.values() for p in s.writes}))
+
+# What each command that writes into a run directory writes there, by top-level name (run_folder.py: under
+# --force the user's files may share the folder, never these names).
+_STAGE_COMMANDS = {"build_scene": "build-scene", "gen_trajectories": "gen-trajectories", "export_usd": "export-usd",
+                   "validate": "validate"}
+COMMAND_WRITES: dict[str, tuple[str, ...]] = {
+    command: tuple(sorted({_RUN_ROOTS[p.root] for p in CONTRACT[stage].writes})) for stage, command in _STAGE_COMMANDS.items()}
+COMMAND_WRITES["run"] = (*OUTPUT_ROOTS, STAMPS, MANIFEST, DATASET_CARD)
+COMMAND_WRITES["demo"] = (*COMMAND_WRITES["run"], BASELINES, DEMO_INPUT, DEMO_CONFIG)
+
+# The names directly inside one scene's directory of each output tree (besides the normalised scene's meshes and
+# hidden entries); fnmatch patterns.
+SCENE_NAMES = tuple(sorted({p.rel for s in CONTRACT.values() for p in s.writes if p.root == "scene" and p.rel != "."}))
+TREE_NAMES = {SCENES: SCENE_NAMES, EPISODES: (SHARDS,), PREVIEWS: (PREVIEW,), VALIDATION: (VALIDATION_SHARD,),
+              REPORTS: (REPORT, FRAMES)}
 
 
 # what makes a scene one of the run's, for `run_scenes`: (directory under RUN, the file inside it, the stage writing it)
@@ -205,3 +224,7 @@ def require(places: Iterable[Place], run_dir: Path, scene_id: str) -> None:
         if not path.exists():
             raise DataError(f"missing; run `sagebench {producer(place).replace('_', '-')}` on this run first",
                             path=path)
+        if path.is_dir() != (place.rel in (".", COLLIDERS)):
+            raise DataError(f"is a {'directory' if path.is_dir() else 'file'} where sagebench writes a "
+                            f"{'file' if path.is_dir() else 'directory'}; run `sagebench "
+                            f"{producer(place).replace('_', '-')}` on this run again", path=path)

@@ -9,6 +9,7 @@ PROGRESS_EVERY_S seconds, so a stage that runs for a while still says where it i
 from __future__ import annotations
 
 import contextlib
+import signal
 import sys
 import threading
 import time
@@ -29,6 +30,48 @@ class Settings:
 
 SETTINGS = Settings()
 PROGRESS_EVERY_S = 5.0  # off a terminal, a long stage prints where it is at most this often
+_INTERRUPTED = threading.Event()
+
+
+@contextmanager
+def interrupts_noted() -> Iterator[None]:
+    """Ctrl-C raises KeyboardInterrupt as always, and is also noted, so that `check_interrupted` raises it again
+    where a library swallowed it (trimesh imports its optional parts under `except BaseException`). Installed
+    only over Python's own handler (a job started with SIGINT ignored keeps ignoring it)."""
+    _INTERRUPTED.clear()
+    if threading.current_thread() is not threading.main_thread() or \
+            signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield
+        return
+
+    def note(signum, frame):  # noqa: ANN001 - signal's handler signature
+        _INTERRUPTED.set()
+        raise KeyboardInterrupt
+
+    previous = sys.unraisablehook
+
+    def quiet(unraisable) -> None:  # noqa: ANN001 - sys.unraisablehook's signature
+        if not isinstance(unraisable.exc_value, KeyboardInterrupt):  # Ctrl-C raised in a callback: noted already
+            previous(unraisable)
+
+    signal.signal(signal.SIGINT, note)
+    sys.unraisablehook = quiet
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        sys.unraisablehook = previous
+
+
+def interrupted() -> bool:
+    return _INTERRUPTED.is_set()
+
+
+def check_interrupted() -> None:
+    """KeyboardInterrupt if Ctrl-C was pressed under `interrupts_noted`, even when the first one was swallowed;
+    every atomic write calls it before it renames an output into place."""
+    if interrupted():
+        raise KeyboardInterrupt
 
 
 def track(items: Iterable[T], description: str, total: int | None = None) -> Iterator[T]:

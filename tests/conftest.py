@@ -97,11 +97,12 @@ def demo_eval_run(demo_built_run, tmp_path_factory) -> Path:
 
 @pytest.fixture
 def fake_llm():
-    """Start fake OpenAI-compatible servers on 127.0.0.1 (start(respond) -> server); all closed after the test."""
+    """Start fake OpenAI-compatible servers on 127.0.0.1 (start(respond, props=None) -> server; `props` is what GET
+    /props answers, as a llama.cpp server reports its slots); all closed after the test."""
     servers: list[FakeLLM] = []
 
-    def start(respond):
-        servers.append(FakeLLM(respond))
+    def start(respond, props=None):
+        servers.append(FakeLLM(respond, props))
         return servers[-1]
 
     yield start

@@ -36,7 +36,7 @@ def completion(content: object) -> dict:
 
 
 class FakeLLM:
-    def __init__(self, respond):
+    def __init__(self, respond, props: dict | None = None):
         self.respond = respond
         self.bodies: list[dict] = []
         self.headers: list[dict[str, str]] = []
@@ -48,6 +48,13 @@ class FakeLLM:
         fake = self
 
         class Handler(BaseHTTPRequestHandler):
+            def do_GET(self):  # noqa: N802 - a llama.cpp server's GET /props, when `props` is given
+                data = json.dumps(props).encode() if props is not None and self.path == "/props" else b"{}"
+                self.send_response(200 if props is not None and self.path == "/props" else 404)
+                self.send_header("Content-Length", str(len(data)))
+                self.end_headers()
+                self.wfile.write(data)
+
             def do_POST(self):  # noqa: N802 (http.server's name)
                 length = int(self.headers["Content-Length"])
                 raw = self.rfile.read(length)

@@ -474,7 +474,7 @@ def tiny_run(tiny_scene, tmp_path_factory) -> Path:
     build_scene(tiny_scene, run, make_config(object_density=20.0, structure_density=5.0))
     gen_trajectories(run, GenTrajectoriesConfig(per_scene=4, seed=0, min_geodesic_m=1.0))
     export_usd(run, cache_dir=tmp_path_factory.mktemp("tiny_coacd"))
-    run_baseline(run, run / "oracle.jsonl", baseline_config(agent_name="oracle"))
+    run_baseline(run, run / "baselines" / "oracle.jsonl", baseline_config(agent_name="oracle"))
     return run
 
 
@@ -533,7 +533,7 @@ def _set_key(doc: dict, keys: tuple, value: Any) -> None:
 
 GEN = ["gen-trajectories", "{run}", "--per-scene", "2", "--min-geodesic", "1"]
 RENDER = ["render", "{run}", "--scene", "tiny", "--pose", "2,2,0", "--out", "{run}/view.png"]
-EVAL = ["evaluate", "--run", "{run}", "--predictions", "{run}/pred.jsonl"]
+EVAL = ["evaluate", "--run", "{run}", "--predictions", "{run}/baselines/pred.jsonl"]  # inside the run's layout
 BASELINE = ["baseline", "--agent", "oracle", "--run", "{run}", "--out", "{run}/b.jsonl"]
 VALIDATE = ["validate", "{run}"]
 
@@ -596,7 +596,7 @@ RUN_CASES: list[tuple[str, Callable[[Path], None], list[str], str]] = [
      "episodes/tiny: cannot read episode shards"),
     ("eval-out-dir", lambda run: (run / "res").mkdir(), [*EVAL, "--out", "{run}/res"], "res: cannot write: Is a directory"),
     ("build-out-file", lambda run: (run / "afile").write_text("x"), ["build-scene", "{scene}", "--out", "{run}/afile"],
-     "afile/scenes/tiny: cannot write: Not a directory"),
+     "afile: is a file, not a run directory: give a folder for the run"),
     ("synth-negative-seed", lambda run: None, ["synth-scene", "--out", "{run}/syn", "--seed", "-1"],
      "--seed: must be 0 or more (got -1)"),
     ("demo-negative-seed", lambda run: None, ["demo", "--out", "{run}/demo", "--seed", "-1"], "--seed: must be 0 or more"),
@@ -620,7 +620,7 @@ def _nan_in_run_ply(run: Path) -> bytes:
 
 
 def _pred_lines(run: Path) -> list[dict]:
-    return [json.loads(line) for line in (run / "oracle.jsonl").read_text().splitlines()]
+    return [json.loads(line) for line in (run / "baselines" / "oracle.jsonl").read_text().splitlines()]
 
 
 def _pred(edit: Callable[[list[dict]], Any]) -> Callable[[Path], None]:
@@ -628,7 +628,7 @@ def _pred(edit: Callable[[list[dict]], Any]) -> Callable[[Path], None]:
         rows = _pred_lines(run)
         out = edit(rows)
         text = out if isinstance(out, str) else "".join(json.dumps(r) + "\n" for r in rows)
-        (run / "pred.jsonl").write_text(text)
+        (run / "baselines" / "pred.jsonl").write_text(text)
     return apply
 
 
@@ -668,8 +668,8 @@ PREDICTION_CASES: list[tuple[str, Callable[[Path], None], str]] = [
     ("blank-lines", _pred(lambda rows: "\n\n  \n"), "pred.jsonl: no predictions (the file is empty)"),
     ("missing-rows", _pred(lambda rows: "".join(json.dumps(r) + "\n" for r in rows[1:])),
      "pred.jsonl: 1 of 12 episodes have no prediction"),
-    ("not-utf8", lambda run: (run / "pred.jsonl").write_bytes(b"\xff\xfe{}\n"), "pred.jsonl: cannot read"),
-    ("a-directory", lambda run: (run / "pred.jsonl").mkdir(), "pred.jsonl: cannot read"),
+    ("not-utf8", lambda run: (run / "baselines" / "pred.jsonl").write_bytes(b"\xff\xfe{}\n"), "pred.jsonl: cannot read"),
+    ("a-directory", lambda run: (run / "baselines" / "pred.jsonl").mkdir(), "pred.jsonl: cannot read"),
     ("deleted", lambda run: None, "pred.jsonl: does not exist"),
 ]
 
@@ -683,7 +683,7 @@ def test_damaged_run_outputs(damage, command, expect, tiny_run, tiny_scene, run_
     run = tmp_path / "run"
     shutil.copytree(tiny_run, run, symlinks=True)
     rows = [{k: v for k, v in r.items() if k not in ("collision_intensity", "intensity_source")} for r in _pred_lines(run)]
-    (run / "pred.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))  # evaluate replays them
+    (run / "baselines" / "pred.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))  # evaluate replays them
     damage(run)
     assert_refused(run_cli, _args(command, run, tiny_scene), tmp_path, expect)
 

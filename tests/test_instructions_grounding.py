@@ -191,3 +191,33 @@ def test_a_door_is_told_apart_by_the_rooms_it_joins(demo):
         "the door between the kitchen and the bathroom"]
     assert g.problems("Go to the door between the bedroom and the bathroom.", goal_id=door) == [
         "there is no door between the bedroom and the bathroom in this scene"]
+
+
+@pytest.mark.parametrize("kind, text, grounded", [
+    ("Relative_Relationship", "Go to the bedroom.", "Go to the room with the wardrobe."),
+    ("Area_Based", "Go to the wardrobe.", "Go into the bedroom and stop at the wardrobe."),
+    ("Add_Object", "Go to the wardrobe.", "Take a cup of tea to the wardrobe and leave it there."),
+])
+def test_the_text_must_be_of_its_instruction_type(demo, kind, text, grounded):
+    """A sentence that reaches the goal but is not of the type asked for is rejected with that reason: "Go to the
+    bedroom." is no Relative_Relationship instruction."""
+    ctx, g, ids, rooms, _ = demo
+    goal = {"goal_room": rooms["the bedroom"]} if text == "Go to the bedroom." else {"goal_id": ids["the wardrobe"]}
+    (problem,) = g.problems(text, kind=kind, **goal)
+    assert problem.startswith(f"it is not a {kind.replace('_', ' ')} instruction: it must ")
+    assert g.problems(grounded, kind=kind, **goal) == []
+
+
+def test_every_problem_message_has_a_reason():
+    from sagebench.instructions.grounding import TYPE_NEEDS, reason
+
+    messages = ["the answer is not JSON with an \"instruction\" string", "it contains an internal id or name",
+                "it contains coordinates", "it contains a number (two)", "it is 1 words long, not 4-30",
+                "it names things that are not in the scene map: piano", "there is no sofa in this scene",
+                "it voices no need that the sofa serves", "the need it voices (thirst) is not one that the bed serves",
+                "it does not say where to go: name the goal, the sofa",
+                "the door could be any of 7 places; say which one is meant (the door)",
+                "it sends the robot to the kitchen, but the goal is the bedroom",
+                *(f"it is not a {k.replace('_', ' ')} instruction: it must {v}" for k, v in TYPE_NEEDS.items())]
+    assert "other" not in [reason(m) for m in messages]
+    assert len({reason(m) for m in messages}) == 10

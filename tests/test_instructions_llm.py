@@ -29,15 +29,33 @@ BOUND_S = 20.0  # far above what any call here takes
 
 
 def goal_answer(prompt: str) -> Reply:
-    """A grounded answer: go to the goal by the unique name the prompt gives, voicing a need it serves when
-    the type asks for one (the need from scenarios.toml, found by the goal's category or room type in the map)."""
-    goal = re.search(r"^- goal: (.*?)(?:, in .*)?$", prompt, re.M).group(1)
-    say = ""
-    if "type Scenario Driven" in prompt:
-        kind = re.search(rf"^- {re.escape(goal)}(?:: | \(type: )([a-z ]+)", prompt, re.M).group(1).replace(" ", "_")
+    """A grounded answer of the type the prompt asks for, naming the goal as the prompt gives it: a need it serves
+    (Scenario_Driven, from scenarios.toml by the goal's category or room type in the map), something carried there
+    (Add_Object), its room (Area_Based), a relation the prompt's goal facts give (Relative_Relationship; the room
+    with an object of it for a room goal) or its attributes as the map lists them (Attribute_Based)."""
+    kind = re.search(r"^Write ONE instruction of type (.+?)\. ", prompt, re.M).group(1)
+    goal, room = re.search(r"^- goal: (.*?)(?:, in (.*))?$", prompt, re.M).groups()
+    facts = [f for f in re.search(r"^Facts about the goal: (.*)$", prompt, re.M).group(1).split("; ")
+             if f != "none" and not f.startswith("within its room")]
+    go = f"Please go to {goal} and wait there."
+    if kind == "Scenario Driven":
+        kind_of = re.search(rf"^- {re.escape(goal)}(?:: | \(type: )([a-z ]+)", prompt, re.M).group(1).replace(" ", "_")
         needs, _ = scenario_data()
-        say = next((n.say[0] + " " for n in needs if kind in n.categories or kind in n.rooms), "")
-    return answer(f"{say}Please go to {goal} and wait there.")
+        say = next((n.say[0] + " " for n in needs if kind_of in n.categories or kind_of in n.rooms), "")
+        return answer(say + go)
+    if kind == "Add Object":
+        return answer(f"Take it to {goal} and leave it there.")
+    if kind == "Area Based":
+        return answer(f"Go into {room} and stop at {goal}." if room else go)
+    if kind == "Relative Relationship":
+        if facts:
+            return answer(f"Please go to {facts[0]} and wait there.")
+        inside = re.search(rf"^- ([^:]+): [^;]+; [^;]+; in {re.escape(goal)}\b", prompt, re.M)
+        return answer(f"Go to the room with {inside.group(1)}." if inside else go)
+    line = re.search(rf"^- {re.escape(goal)}: ([a-z ]+); ([^;]+);", prompt, re.M)
+    adjectives = " ".join(v.split(" ", 1)[1] for v in line.group(2).split(", ") if " " in v) if line else ""
+    return answer(f"Please go to the {adjectives} {line.group(1)}{' in ' + room if room else ''} and wait there."
+                  if line and adjectives else go)
 
 
 def _config(tmp_path, url, **kw):
@@ -188,7 +206,7 @@ def test_cli_llm_mode_writes_llm_rows_and_a_second_run_sends_no_request(fake_llm
     high = [r for r in rows if r["instruction_level"] == "high"]
     assert len(high) == 8 and {r["instruction_source"] for r in high} == {"llm:fake"}
     assert {r["instruction_source"] for r in rows if r["instruction_level"] == "low"} == {"template"}
-    assert all("Please go to the " in r["instruction_text"] for r in high)
+    assert {r["instruction_text"] for r in high} <= {goal_answer(p).body["instruction"] for p in server.prompts}
     first, sent = _files(episodes), len(server.prompts)
     assert sent == 8 and server.most_in_flight <= 4
 
@@ -223,7 +241,8 @@ def test_a_server_dying_mid_run_keeps_the_answers_and_warns_once(fake_llm, run, 
 
     server = fake_llm(respond)
     config = make_config(per_scene=8, instructions="llm", llm={
-        "base_url": server.url, "model": "fake", "cache_dir": tmp_path / "cache", "concurrency": 1, "backoff_s": 0.01})
+        "base_url": server.url, "model": "fake", "cache_dir": tmp_path / "cache", "concurrency": 1, "backoff_s": 0.01,
+        "min_share": 0})
     (result,) = bounded(BOUND_S, gen_trajectories, run, config)
     assert "3 of 8 high-level rows from the model (38 %), 5 template" in result.summary()
     assert capsys.readouterr().err.count("stopped asking after 6 consecutive failed requests") == 1
@@ -273,7 +292,7 @@ def test_cli_llm_options_need_llm_mode_a_url_and_a_model_and_a_writable_cache(ru
 def test_ctrl_c_stops_promptly_and_writes_nothing(fake_llm, run, tmp_path):
     server = fake_llm(lambda b, n: Reply(mode="hang"))
     proc = subprocess.Popen([sys.executable, "-m", "sagebench", *map(str, _llm_args(run, server.url, tmp_path,
-                             "--llm-timeout", "60"))], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             "--llm-timeout", "60", "--llm-concurrency", "4", "--llm-response-format", "none"))], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONUNBUFFERED": "1"}, preexec_fn=as_from_a_terminal)
     try:
         bounded(BOUND_S * 3, lambda: [time.sleep(0.05) for _ in iter(lambda: len(server.bodies) >= 4, True)])
@@ -303,3 +322,39 @@ def test_run_config_sets_the_llm_settings_but_not_the_key_variable(tmp_path):
     path.write_text(base.replace('instructions = "llm"', 'instructions = "template"'))
     with pytest.raises(ConfigError, match=r"the llm table\) are used only with --instructions llm"):
         load_run_config(path)
+
+
+def test_two_runs_at_concurrency_4_against_a_server_refusing_response_format_are_byte_identical(
+        fake_llm, run_cli, demo_built_run, tmp_path):
+    """llama-cpp-python answers 500 to a json_schema response_format: the first request decides, once, that the
+    server takes none, so no trajectory's answer depends on which request happened to be in flight."""
+    server = fake_llm(lambda b, n: Reply(500, "grammar error") if "response_format" in b
+                      else goal_answer(b["messages"][0]["content"]))
+    shards = []
+    for k in range(2):
+        out = tmp_path / f"run{k}"
+        shutil.copytree(demo_built_run / "scenes", out / "scenes")
+        code, stdout, err = run_cli(*_llm_args(out, server.url, tmp_path / f"c{k}", "--llm-concurrency", "4"))
+        assert code == 0, err
+        assert "8 of 8 high-level rows from the model (100 %)" in stdout
+        shards.append(_files(out / "episodes"))
+    assert shards[0] == shards[1]
+    assert sum("response_format" in b for b in server.bodies) == 2 * 2  # json_schema, json_object: once per run
+
+
+def test_the_default_minimum_share_fails_a_mostly_template_scene_and_says_how_to_keep_it(fake_llm, run_cli, run,
+                                                                                          tmp_path):
+    def respond(body, n):  # answers that name a wrong goal for all but about a third of the trajectories
+        prompt = body["messages"][0]["content"]
+        good = "Your previous answer" not in prompt and zlib.crc32(prompt.encode()) % 3 == 0
+        return goal_answer(prompt) if good else answer("Go to the kitchen and wait there.")
+
+    server = fake_llm(respond)
+    code, _, err = run_cli(*_llm_args(run, server.url, tmp_path))
+    (line,) = err.splitlines()
+    assert code == 1 and "fewer high-level rows from the model than --llm-min-share 0.5" in line
+    assert line.endswith("nothing written (--llm-min-share 0 keeps the template rows instead)")
+    grouped = re.search(r"(\d+) answers rejected by the grounding check \(((?:\d+ [a-z ]+(?:, )?)+)\)", line)
+    counts = dict((why, int(n)) for n, why in re.findall(r"(\d+) ([a-z ]+)", grouped.group(2)))
+    assert sum(counts.values()) == int(grouped.group(1)) and "wrong goal" in counts, line  # grouped by reason
+    assert not (run / "episodes").exists()

@@ -58,14 +58,51 @@ def test_the_request_bounds_the_answer_and_asks_for_json_by_schema(fake_llm, tmp
     assert body["messages"] == [{"role": "user", "content": "x"}] and body["model"] == "fake"
 
 
-def test_a_server_refusing_response_format_is_asked_again_without_it(fake_llm, tmp_path):
-    server = fake_llm(lambda b, n: Reply(400, {"error": "response_format not supported"}) if "response_format" in b
+@pytest.mark.parametrize("status", [400, 422, 500, 501])
+def test_a_server_refusing_response_format_is_asked_again_without_it(fake_llm, tmp_path, status):
+    """Any 4xx/5xx to a response_format (llama-cpp-python answers 500 to json_schema) means "not supported": the
+    same prompt goes out the next way, and every later request is sent the way that worked."""
+    server = fake_llm(lambda b, n: Reply(status, {"error": "response_format not supported"}) if "response_format" in b
                       else answer("plain"))
     client = ChatClient(config(tmp_path, server.url))
     assert json.loads(client.complete("a")) == {"instruction": "plain"}
     assert json.loads(client.complete("b")) == {"instruction": "plain"}
-    assert ["response_format" in b for b in server.bodies] == [True, False, False]  # refused once, then left out
-    assert client.breaker.reason is None and client.stats["retries"] == 0
+    assert [b.get("response_format", {}).get("type") for b in server.bodies] == ["json_schema", "json_object", None, None]
+    assert [b["messages"][0]["content"] for b in server.bodies] == ["a", "a", "a", "b"]
+    assert client.response_format == "none" and client.breaker.reason is None and client.stats["retries"] == 0
+
+
+def test_json_object_is_used_when_only_the_schema_is_refused(fake_llm, tmp_path):
+    server = fake_llm(lambda b, n: Reply(500, "grammar error") if b.get("response_format", {}).get("type") == "json_schema"
+                      else answer("ok"))
+    client = ChatClient(config(tmp_path, server.url))
+    for prompt in "abc":
+        client.complete(prompt)
+    assert [b.get("response_format", {}).get("type") for b in server.bodies] == ["json_schema"] + ["json_object"] * 3
+    assert client.response_format == "json_object"
+
+
+@pytest.mark.parametrize("fmt, sent", [("json_schema", "json_schema"), ("json_object", "json_object"), ("none", None)])
+def test_a_named_response_format_is_sent_as_is_and_its_refusal_is_an_error(fake_llm, tmp_path, fmt, sent):
+    server = fake_llm(lambda b, n: Reply(400, "no") if b.get("response_format") else answer("ok"))
+    client = ChatClient(config(tmp_path, server.url, response_format=fmt))
+    if sent is None:
+        client.complete("a")
+    else:
+        with pytest.raises(LLMError, match="HTTP 400 no"):
+            client.complete("a")
+    assert [b.get("response_format", {}).get("type") for b in server.bodies] == [sent]
+
+
+def test_the_format_is_decided_once_before_other_threads_ask(fake_llm, tmp_path):
+    """At concurrency 4 against a server refusing response_format, every request but the deciding one goes out
+    the decided way: what is asked, and so what is answered, never depends on timing."""
+    server = fake_llm(lambda b, n: Reply(500, "no") if "response_format" in b else answer(b["messages"][0]["content"]))
+    client = ChatClient(config(tmp_path, server.url, concurrency=4))
+    threads = [threading.Thread(target=client.complete, args=(f"p{k}",)) for k in range(12)]
+    bounded(BOUND_S, lambda: [t.start() for t in threads] and [t.join() for t in threads])
+    with_format = [b["messages"][0]["content"] for b in server.bodies if "response_format" in b]
+    assert len(with_format) == 2 and len(set(with_format)) == 1 and len(server.bodies) == 14
 
 
 def test_null_content_is_an_error_and_is_not_cached(fake_llm, tmp_path):
@@ -108,7 +145,7 @@ def test_a_dripping_or_hanging_server_is_cut_at_the_whole_request_deadline(fake_
 def test_404_is_not_retried(fake_llm, tmp_path):
     server = fake_llm(lambda b, n: Reply(404, {"error": "model 'fake' not found"}))
     with pytest.raises(LLMError, match="HTTP 404 .*model 'fake' not found"):
-        bounded(BOUND_S, ChatClient(config(tmp_path, server.url)).complete, "x")
+        bounded(BOUND_S, ChatClient(config(tmp_path, server.url, response_format="none")).complete, "x")
     assert len(server.bodies) == 1
 
 
@@ -136,7 +173,7 @@ def test_429_with_an_http_date_is_retried_after_that_date(fake_llm, tmp_path):
 
 def test_5xx_until_the_attempts_run_out_raises_and_caches_nothing(fake_llm, tmp_path):
     server = fake_llm(lambda b, n: Reply(503, {"error": "down"}))
-    client = ChatClient(config(tmp_path, server.url, max_attempts=3))
+    client = ChatClient(config(tmp_path, server.url, max_attempts=3, response_format="none"))
     with pytest.raises(LLMError, match=r"HTTP 503 .* \(after 3 attempts\)"):
         bounded(BOUND_S, client.complete, "x")
     assert len(server.bodies) == 3 and not client.cache_path("x").exists()
@@ -144,7 +181,8 @@ def test_5xx_until_the_attempts_run_out_raises_and_caches_nothing(fake_llm, tmp_
 
 def test_the_breaker_stops_all_threads_after_n_consecutive_failures(fake_llm, tmp_path):
     server = fake_llm(lambda b, n: Reply(503, {"error": "down"}))
-    client = ChatClient(config(tmp_path, server.url, concurrency=4, breaker_failures=3, max_attempts=3))
+    client = ChatClient(config(tmp_path, server.url, concurrency=4, breaker_failures=3, max_attempts=3,
+                               response_format="none"))
     errors: list[Exception] = []
 
     def ask(k):
@@ -166,7 +204,7 @@ def test_the_breaker_stops_all_threads_after_n_consecutive_failures(fake_llm, tm
 
 def test_a_success_resets_the_breaker(fake_llm, tmp_path):
     server = fake_llm(lambda b, n: answer("ok") if n % 2 == 0 else Reply(404, {"error": "odd"}))
-    client = ChatClient(config(tmp_path, server.url, breaker_failures=2, max_attempts=1))
+    client = ChatClient(config(tmp_path, server.url, breaker_failures=2, max_attempts=1, response_format="none"))
     for k in range(6):
         try:
             client.complete(f"p{k}")
@@ -183,7 +221,7 @@ def test_at_most_concurrency_requests_are_in_flight(fake_llm, tmp_path):
         return answer("ok")
 
     server = fake_llm(respond)
-    client = ChatClient(config(tmp_path, server.url, concurrency=4, timeout_s=8))
+    client = ChatClient(config(tmp_path, server.url, concurrency=4, timeout_s=8, response_format="none"))
     threads = [threading.Thread(target=client.complete, args=(f"p{k}",)) for k in range(8)]
     bounded(BOUND_S, lambda: [t.start() for t in threads] and [t.join() for t in threads])
     assert len(server.bodies) == 8 and server.most_in_flight == 4 and not together.broken
@@ -209,3 +247,47 @@ def test_only_the_given_key_is_sent_as_the_bearer_token(fake_llm, tmp_path):
     assert server.headers[0]["Authorization"] == "Bearer sekrit" and "Authorization" not in server.headers[1]
     with pytest.raises(ValueError, match="api_key_env"):
         LLMConfig(api_key_env="AWS_SECRET_ACCESS_KEY")  # a config cannot pick the variable
+
+
+def test_a_prose_answer_is_not_cached_and_refresh_asks_again(fake_llm, tmp_path):
+    replies = iter(["Go to the sofa.", '{"instruction": "Go to the sofa."}', '{"instruction": "Go to the bed."}'])
+    server = fake_llm(lambda b, n: Reply(body=completion(next(replies))))
+    client = ChatClient(config(tmp_path, server.url))
+    keep = lambda answer: answer.startswith("{")  # noqa: E731 - what the instructor keeps: JSON answers
+    assert client.complete("p", keep=keep) == "Go to the sofa." and not client.cache_path("p").exists()
+    assert client.complete("p", keep=keep) == '{"instruction": "Go to the sofa."}'  # asked again, then cached
+    assert client.complete("p", keep=keep) == '{"instruction": "Go to the sofa."}' and len(server.bodies) == 2
+    fresh = ChatClient(config(tmp_path, server.url, refresh=True))
+    assert fresh.complete("p", keep=keep) == '{"instruction": "Go to the bed."}' and len(server.bodies) == 3
+    assert client.complete("p") == '{"instruction": "Go to the bed."}'  # the refreshed answer replaced the old
+
+
+@pytest.mark.parametrize("props, configured, url, want", [
+    (None, None, None, 1),  # a server on this machine that reports nothing: one request at a time
+    ({"total_slots": 3}, None, None, 3),  # a llama.cpp server's slots
+    ({"total_slots": 3}, 2, None, 2),  # the configured number wins
+    (None, None, "http://sagebench-test.invalid/v1", 4),  # elsewhere, nothing reported
+])
+def test_concurrency_defaults_to_the_servers_slots_or_one_locally(fake_llm, tmp_path, props, configured, url, want):
+    server = fake_llm(lambda b, n: answer("ok"), props=props)
+    client = ChatClient(config(tmp_path, url or server.url, concurrency=configured, timeout_s=2))
+    assert bounded(BOUND_S, client.discover_concurrency) == want == client.concurrency
+
+
+def test_a_one_at_a_time_local_server_is_not_asked_past_its_deadline(fake_llm, tmp_path):
+    """The deadline counts from when a request is sent, and a local server is sent one at a time: a server that
+    takes 0.3 s per request, one after another, answers all 6 within a 0.5 s deadline."""
+    busy = threading.Lock()
+
+    def respond(body, n):
+        with busy:
+            threading.Event().wait(0.3)
+            return answer("ok")
+
+    server = fake_llm(respond)
+    client = ChatClient(config(tmp_path, server.url, timeout_s=0.5, max_attempts=1))
+    client.discover_concurrency()
+    threads = [threading.Thread(target=client.complete, args=(f"p{k}",)) for k in range(6)]
+    bounded(BOUND_S, lambda: [t.start() for t in threads] and [t.join() for t in threads])
+    assert len(server.bodies) == 6 and all(client.cache_path(f"p{k}").exists() for k in range(6))
+    assert server.most_in_flight == 1

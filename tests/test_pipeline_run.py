@@ -280,8 +280,8 @@ def test_a_second_run_on_a_locked_directory_is_refused(workspace, run_cli):
         before = sorted(p.name for p in run.iterdir())
         code, out, err = run_cli("-q", "run", _config(workspace, "locked"))
         assert code == 2 and out == ""
-        assert err.splitlines() == [f"error: {run}: another `sagebench run` (pid {holder.pid}) is writing this run "
-                                    "directory; wait for it to end or set another `out`"]
+        assert err.splitlines() == [f"error: {run}: another sagebench command (pid {holder.pid}) is writing this run "
+                                    "directory; wait for it to end or choose another"]
         assert sorted(p.name for p in run.iterdir()) == before == [".sagebench.lock"]
     finally:
         holder.kill()
@@ -356,8 +356,8 @@ def test_two_real_runs_on_one_directory(workspace):
     first.wait()
     assert second.returncode == 2, second.stderr
     assert second.stderr.splitlines() == [
-        f"error: {workspace / 'raced'}: another `sagebench run` (pid {first.pid}) is writing this run directory; wait for it to "
-        "end or set another `out`"]
+        f"error: {workspace / 'raced'}: another sagebench command (pid {first.pid}) is writing this run directory; wait "
+        "for it to end or choose another"]
 
 
 @pytest.mark.parametrize("out, scenes, field, says", [

@@ -38,7 +38,7 @@ def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str,
     their counts follow `config.high_level_mix` wherever the goals allow.
 
     Each trajectory's wording depends only on (seed, trajectory id) and its chosen type, so in llm mode
-    trajectories are instructed on `config.llm.concurrency` threads and the rows still come out in order.
+    trajectories are instructed on the client's concurrency of threads and the rows still come out in order.
     """
     texts = [TrajectoryText(t.waypoints, names[t.start.key], names[t.goal.key], t.start.kind, t.goal.kind,
                             t.start.instance_id, t.goal.instance_id, t.start_room, t.goal_room, ctx,
@@ -56,7 +56,7 @@ def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str,
 
     items = list(zip(trajectories, texts, strict=True))
     if config.instructions == "llm":
-        pool = ThreadPoolExecutor(config.llm.concurrency)
+        pool = ThreadPoolExecutor(ctx.llm.client.concurrency if ctx is not None and ctx.llm is not None else 1)
         try:
             instructed = list(ui.track(pool.map(instruct, items), "instructions (llm)", len(items)))
         except BaseException:  # Ctrl-C: cut the requests in flight and leave without waiting for the queue

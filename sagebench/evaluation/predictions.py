@@ -21,6 +21,8 @@ from sagebench.errors import DataError, field_path, first_error
 from sagebench.fileio import write_text
 
 Pose = tuple[float, float, float, float]
+MAX_POSES = 10_000  # per episode: 20 times the simulator's 500-step default; metrics allocate poses x path points
+MAX_LINE_CHARS = 4_000_000  # a line of MAX_POSES poses at full float precision is about 1.5 MB
 
 
 class Prediction(BaseModel):
@@ -33,7 +35,7 @@ class Prediction(BaseModel):
 
     episode_id: str = Field(min_length=1, description="episode_id of a row of RUN/episodes/<scene_id>/.")
     poses: list[Pose] = Field(
-        min_length=1,
+        min_length=1, max_length=MAX_POSES,
         description="Agent poses [x, y, z, yaw] per step (world metres, radians CCW from +X), row 0 the start.")
     stopped: bool = Field(description="True when the agent ended the episode itself (STOP); SR requires it.")
     collision_intensity: list[Annotated[float, Field(ge=0, le=1)]] | None = Field(
@@ -56,7 +58,11 @@ class Prediction(BaseModel):
 
 
 def parse_line(text: str, path: Path, line: int) -> Prediction:
-    """One JSON Lines row; a bad row is a DataError naming `path:line` and the field."""
+    """One JSON Lines row; a bad row is a DataError naming `path:line` and the field. A line too long to hold at most
+    MAX_POSES poses is refused before it is parsed."""
+    if len(text) > MAX_LINE_CHARS:
+        raise DataError(f"the line is {len(text):,} characters, over {MAX_LINE_CHARS:,}: an episode has at most "
+                        f"{MAX_POSES:,} poses", path=f"{path}:{line}")
     try:
         return Prediction.model_validate_json(text)
     except ValidationError as err:

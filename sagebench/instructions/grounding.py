@@ -93,6 +93,8 @@ class Grounder:
         for phrase, _ in phrases:
             resolver.resolve(phrase)
         found.extend(dict.fromkeys(resolver.problems))
+        if kind is not None:
+            found.extend(type_problems(kind, toks, phrases))
         if goal_id is not None or goal_room is not None:
             found.extend(self._goal_problems(toks, phrases, resolver, goal_id, goal_room, kind))
         return found
@@ -173,6 +175,56 @@ class Grounder:
     def _rooms(self, instance_id: int) -> frozenset[str]:
         """The rooms the thing is in: a door's are the rooms it joins."""
         return self._rooms_of.get(instance_id, frozenset())
+
+
+CARRY_WORDS = frozenset({"put", "take", "bring", "carry", "leave", "deliver", "drop", "place", "set"})
+TYPE_NEEDS = {  # what a text of each type must do besides reaching the goal (Scenario_Driven's need: _goal_problems)
+    "Add_Object": "ask for something to be carried there",
+    "Relative_Relationship": "single the goal out by where it is against something else (next to, between, on the "
+                             "left or right of, closest to, the room with)",
+    "Attribute_Based": "single the goal out by its colour, material or state",
+    "Area_Based": "name the room it is in",
+}
+
+
+def type_problems(kind: str, toks: list[str], phrases: list[tuple[Phrase, str]]) -> list[str]:
+    """Why a text is not of the instruction type `kind` ([] when it is, or the type asks nothing checkable here)."""
+    every = [q for p, _ in phrases for q in _nested(p)]
+    fits = {
+        "Add_Object": lambda: bool(CARRY_WORDS & set(toks)),
+        "Relative_Relationship": lambda: any(q.relation is not None or q.contains is not None for q in every),
+        "Attribute_Based": lambda: any(q.attrs for q in every if q.mention.kind == "object"),
+        "Area_Based": lambda: any(q.mention.kind == "room" for q in every),
+    }.get(kind)
+    if fits is None or fits():
+        return []
+    return [f"it is not a {kind.replace('_', ' ')} instruction: it must {TYPE_NEEDS[kind]}"]
+
+
+def _nested(p: Phrase) -> list[Phrase]:
+    """`p` and every phrase inside it (its room, landmarks, contents)."""
+    inner = [*([p.room] if p.room else []), *p.landmarks, *([p.contains] if p.contains else [])]
+    return [p, *(q for i in inner for q in _nested(i))]
+
+
+# Each problem message above, by the reason a summary groups it under (first match wins).
+REASONS = (
+    ("not JSON", re.compile(r"^the answer is not JSON")),
+    ("internal id, coordinates or number", re.compile(r"^it contains ")),
+    ("length", re.compile(r"^it is \d+ words long")),
+    ("wrong instruction type", re.compile(r"^it is not an? [A-Z]")),
+    ("unknown words", re.compile(r"^it names things that are not in the scene map")),
+    ("names what is not there", re.compile(r"^there is no ")),
+    ("need", re.compile(r"^(it voices no need|the need it voices)")),
+    ("no destination", re.compile(r"^it does not say where to go")),
+    ("ambiguous goal", re.compile(r" could be any of \d+ places")),
+    ("wrong goal", re.compile(r"^it sends the robot to ")),
+)
+
+
+def reason(problem: str) -> str:
+    """The reason a problem message is grouped under in summaries ("other" for none of REASONS)."""
+    return next((name for name, pattern in REASONS if pattern.search(problem)), "other")
 
 
 def _scope_phrase(targets: list[tuple[Phrase, str]], dest: Phrase) -> Phrase | None:

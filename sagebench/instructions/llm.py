@@ -16,7 +16,7 @@ import numpy as np
 
 from sagebench.instructions import high_level as templates
 from sagebench.instructions.base import Instruction, SceneContext, TrajectoryText
-from sagebench.instructions.grounding import Grounder
+from sagebench.instructions.grounding import Grounder, reason
 from sagebench.instructions.llm_client import ChatClient, LLMConfig, LLMError, LLMUnavailable
 from sagebench.instructions.prompt import PromptTooLong, build_prompt, parse_answer, retry_prompt
 
@@ -50,6 +50,7 @@ class LLMInstructor:
         self.grounder = Grounder(ctx)
         self.source = f"llm:{client.config.model}"
         self.stats: Counter[str] = Counter()  # llm, fallback, rejected, request failed, not asked, over budget
+        self.rejections: Counter[str] = Counter()  # rejected answers by the reason of their first problem
         self.errors: list[str] = []
         self._lock = threading.Lock()
 
@@ -66,7 +67,7 @@ class LLMInstructor:
         ask = prompt
         for _ in range(self.client.config.answer_attempts):
             try:
-                content = self.client.complete(ask)
+                content = self.client.complete(ask, keep=lambda answer: parse_answer(answer) is not None)
             except LLMUnavailable:
                 self._note("not asked")
                 break
@@ -80,7 +81,7 @@ class LLMInstructor:
             if not problems:
                 self._note("llm")
                 return [Instruction("high", kind, sentence, self.source)]
-            self._note("rejected")
+            self._note("rejected", reason=reason(problems[0]))
             ask = retry_prompt(prompt, content, problems)
         return self._fallback(kind, fallback)
 
@@ -88,9 +89,11 @@ class LLMInstructor:
         self._note("fallback")
         return [Instruction("high", kind, sentence, "template")]
 
-    def _note(self, key: str, error: str | None = None) -> None:
+    def _note(self, key: str, error: str | None = None, *, reason: str | None = None) -> None:
         with self._lock:
             self.stats[key] += 1
+            if reason is not None:
+                self.rejections[reason] += 1
             if error is not None and len(self.errors) < 3:
                 self.errors.append(error)
 
@@ -100,7 +103,8 @@ class LLMInstructor:
 
     def summary(self) -> str:
         s, c = self.stats, self.client.stats
-        parts = [self.share().line(), f"{s['rejected']} answers rejected by the grounding check",
+        why = ", ".join(f"{n} {r}" for r, n in sorted(self.rejections.items(), key=lambda rn: (-rn[1], rn[0])))
+        parts = [self.share().line(), f"{s['rejected']} answers rejected by the grounding check" + (f" ({why})" if why else ""),
                  f"{c['requests']} requests, {c['cache_hits']} from cache"]
         if s["request failed"]:
             parts.append(f"{s['request failed']} failed requests, e.g. {self.errors[0]}")
@@ -121,6 +125,9 @@ def llm_high_level(text: TrajectoryText, rng: np.random.Generator) -> list[Instr
 
 def with_instructor(ctx: SceneContext, config: LLMConfig, *, api_key: str | None = None
                     ) -> tuple[SceneContext, LLMInstructor]:
-    """`ctx` carrying a fresh instructor (its own client, breaker and counters) for one scene."""
-    instructor = LLMInstructor(ChatClient(config, api_key=api_key), ctx)
+    """`ctx` carrying a fresh instructor (its own client, breaker and counters) for one scene; the client's
+    concurrency is settled here (ChatClient.discover_concurrency), before any thread asks."""
+    client = ChatClient(config, api_key=api_key)
+    client.discover_concurrency()
+    instructor = LLMInstructor(client, ctx)
     return replace(ctx, llm=instructor), instructor

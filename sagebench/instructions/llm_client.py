@@ -1,13 +1,20 @@
 """Chat-completions client for OpenAI-compatible servers: bounded in time, retried, cached, and able to give up.
 
 `ChatClient` speaks POST {base_url}/chat/completions with the standard library only (vLLM, a llama.cpp
-server, Ollama and OpenAI all serve that route). Every attempt has one deadline for the whole request
-(a watchdog cuts the socket, so a server that drips its body cannot stretch it); 429, 5xx, timeouts,
-dropped connections, non-HTTP replies and truncated bodies are retried with exponential backoff (a
-Retry-After in seconds or as an HTTP date is honoured). A circuit breaker counts consecutive failed
-attempts across all threads and, at `breaker_failures`, cuts the requests in flight and refuses new
-ones, so a dead, hanging or misconfigured server costs a bounded time. Answers are cached on disk
-under sha256 of the model and every generation setting; the server's URL is not in the key.
+server, Ollama and OpenAI all serve that route). Every attempt has one deadline for the whole request,
+counted from when it is sent (a watchdog cuts the socket, so a server that drips its body cannot stretch
+it); 429, 5xx, timeouts, dropped connections, non-HTTP replies and truncated bodies are retried with
+exponential backoff (a Retry-After in seconds or as an HTTP date is honoured). A circuit breaker counts
+consecutive failed attempts across all threads and, at `breaker_failures`, cuts the requests in flight
+and refuses new ones, so a dead, hanging or misconfigured server costs a bounded time. Answers are cached
+on disk under sha256 of the model and every generation setting; the server's URL is not in the key.
+
+With response_format "auto", the first request decides once, before any other is sent, which way of asking
+for JSON the server takes (json_schema, json_object, or none): any 4xx/5xx to one is taken as "not
+supported" and the same prompt is sent the next way; so what is asked never depends on timing.
+
+The API key never leaves the request's own origin: redirects are not followed, and the key (and any
+"Bearer ..." token) is cut from every server reply before it reaches a message, a log or the cache.
 """
 
 from __future__ import annotations
@@ -18,6 +25,8 @@ import hashlib
 import http.client
 import ipaddress
 import json
+import os
+import re
 import socket
 import threading
 import time
@@ -25,6 +34,7 @@ import urllib.error
 import urllib.parse
 import urllib.request
 from collections import Counter
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -32,6 +42,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from sagebench.errors import ConfigError
 from sagebench.fileio import dumps_json, write_text
 
 RETRY_STATUS = frozenset({408, 409, 425, 429, 500, 502, 503, 504})
@@ -40,6 +51,10 @@ API_KEY_ENV = "SAGEBENCH_LLM_API_KEY"  # the only variable read for the bearer t
 STOP = ("}",)  # the answer is one flat JSON object: nothing after its closing brace is wanted
 ANSWER_SCHEMA = {"type": "object", "properties": {"instruction": {"type": "string"}},
                  "required": ["instruction"], "additionalProperties": False}
+FORMATS = ("json_schema", "json_object", "none")  # what response_format "auto" tries, in this order
+REMOTE_CONCURRENCY = 4  # requests in flight to a server elsewhere that reports no slots
+_BEARER = re.compile(r"(?i)\b(bearer|api[-_ ]?key|authorization)([\s:=\"']+)(?!bearer\b)[^\s\"',;}]+")
+REDACTED = "[redacted]"
 
 
 class LLMConfig(BaseModel):
@@ -50,8 +65,10 @@ class LLMConfig(BaseModel):
     base_url: str | None = Field(default=None, description="OpenAI-compatible API root, e.g. http://localhost:8000/v1.")
     model: str | None = Field(default=None, description="Model name sent with each request.")
     cache_dir: Path | None = Field(default=None, description="Answer cache (default: the user cache directory).")
-    concurrency: int = Field(default=4, ge=1, le=64, description="Requests in flight at once.")
-    timeout_s: float = Field(default=60.0, gt=0, description="Deadline of one whole HTTP attempt (connect to last byte), s.")
+    concurrency: int | None = Field(default=None, ge=1, le=64, description=(
+        "Requests in flight at once (default: the slots the server reports, as a llama.cpp server does at /props, "
+        "else 1 for a server on this machine or the local network and 4 for another)."))
+    timeout_s: float = Field(default=60.0, gt=0, description="Deadline of one whole HTTP attempt (from sending it to its last byte), s.")
     max_attempts: int = Field(default=3, ge=1, description="HTTP attempts per request (429, 5xx, timeouts retried).")
     backoff_s: float = Field(default=1.0, ge=0, description="First retry delay, s; doubles per attempt.")
     breaker_failures: int = Field(default=6, ge=1,
@@ -59,13 +76,15 @@ class LLMConfig(BaseModel):
     answer_attempts: int = Field(default=2, ge=1, description="Answers asked for before the template is kept.")
     temperature: float = Field(default=0.0, ge=0, description="Sampling temperature sent with each request.")
     max_tokens: int = Field(default=200, ge=16, description="Longest answer the server may generate, tokens.")
-    response_format: Literal["json_schema", "none"] = Field(
-        default="json_schema", description="Ask for JSON by schema (dropped when the server answers 400), or not.")
+    response_format: Literal["auto", "json_schema", "json_object", "none"] = Field(
+        default="auto", description=("How to ask for JSON: auto (json_schema, else json_object, else none, decided by "
+                                     "the first request), or always one of those."))
     prompt_tokens: int = Field(default=3000, ge=500,
                                description="Prompt budget, tokens (estimated); a longer scene map is shortened.")
-    min_share: float = Field(default=0.0, ge=0, le=1,
+    min_share: float = Field(default=0.5, ge=0, le=1,
                              description="Fail when fewer high-level rows than this share come from the model "
                                          "(any share fails when none do).")
+    refresh: bool = Field(default=False, description="Ask again even for prompts the cache holds an answer to.")
 
     @field_validator("base_url")
     @classmethod
@@ -84,6 +103,40 @@ class LLMUnavailable(LLMError):
     """The breaker is open (or the client was cancelled): no request is sent any more."""
 
 
+def redact(text: str, secrets: tuple[str, ...] = ()) -> str:
+    """`text` without the secrets' values or any "Bearer <token>" / "api_key: <token>" it quotes."""
+    for secret in secrets:
+        if secret:
+            text = text.replace(secret, REDACTED)
+    return _BEARER.sub(lambda m: f"{m.group(1)}{m.group(2)}{REDACTED}", text)
+
+
+def public_url(url: str) -> str:
+    """`url` without a user:password@ part (a secret, when the URL carries one)."""
+    parts = urllib.parse.urlsplit(url)
+    if parts.username is None and parts.password is None:
+        return url
+    host = parts.hostname or ""
+    netloc = host if parts.port is None else f"{host}:{parts.port}"
+    return urllib.parse.urlunsplit(parts._replace(netloc=netloc))
+
+
+_ENV_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def api_key_from_env(name: str, environ: Mapping[str, str]) -> str:
+    """The key in the environment variable `name`. A ConfigError when `name` is not a variable's name (it looks
+    like the key itself, which the message then does not repeat) or the variable is not set."""
+    looks_like_key = not _ENV_NAME.fullmatch(name) or (
+        len(name) >= 20 and any(c.islower() for c in name) and any(c.isdigit() for c in name))
+    if looks_like_key:
+        raise ConfigError("takes the name of an environment variable holding the key (letters, digits and _), not the "
+                          "key itself; the value given is not shown", field="--llm-api-key-env")
+    if name not in environ:
+        raise ConfigError(f"the environment variable {name} is not set", field="--llm-api-key-env")
+    return environ[name]
+
+
 def default_cache_dir() -> Path:
     import platformdirs
 
@@ -94,8 +147,8 @@ def check_cache_dir(path: Path) -> str | None:
     """Why answers cannot be cached under `path` (None when a file can be created there)."""
     try:
         path.mkdir(parents=True, exist_ok=True)
-        probe = path / f".probe-{threading.get_ident()}"
-        probe.write_bytes(b"")
+        probe = path / f".probe-{os.getpid()}-{threading.get_ident()}"
+        os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o600))
         probe.unlink()
     except OSError as err:
         return f"cannot write the answer cache: {err.strerror or err}"
@@ -130,22 +183,28 @@ class Breaker:
 
 
 class _Watch:
-    """One attempt's deadline: at expiry (or on cancel) every socket it saw is shut down, waking blocked reads."""
+    """One attempt's deadline, counted from when its request goes out (its socket is connected; connecting is
+    bounded by the socket timeout): at expiry (or on cancel) every socket it saw is shut down, waking blocked
+    reads. Time spent waiting for a slot in this client is not counted."""
 
     def __init__(self, seconds: float):
-        self.deadline = time.monotonic() + seconds
+        self.seconds = seconds
+        self.deadline: float | None = None
         self.expired = False
         self._socks: list[socket.socket] = []
         self._lock = threading.Lock()
-        self._timer = threading.Timer(seconds, self.cut)
-        self._timer.daemon = True
-        self._timer.start()
+        self._timer: threading.Timer | None = None
 
     def attach(self, sock: socket.socket) -> None:
         with self._lock:
             self._socks.append(sock)
             if self.expired:
                 _shut(sock)
+            elif self._timer is None:
+                self.deadline = time.monotonic() + self.seconds
+                self._timer = threading.Timer(self.seconds, self.cut)
+                self._timer.daemon = True
+                self._timer.start()
 
     def cut(self) -> None:
         with self._lock:
@@ -154,11 +213,13 @@ class _Watch:
                 _shut(s)
 
     def stop(self) -> None:
-        self._timer.cancel()
+        with self._lock:
+            if self._timer is not None:
+                self._timer.cancel()
 
     def past(self) -> bool:
         """Cut, or past the deadline (a per-read timeout may fire just before the watchdog does)."""
-        return self.expired or time.monotonic() >= self.deadline
+        return self.expired or (self.deadline is not None and time.monotonic() >= self.deadline)
 
 
 def _shut(sock: socket.socket) -> None:
@@ -209,6 +270,14 @@ class _HTTPSHandler(urllib.request.HTTPSHandler):
 TRANSPORT_ERRORS = (urllib.error.URLError, OSError, http.client.HTTPException)  # BadStatusLine, IncompleteRead ...
 
 
+class _NoRedirect(urllib.request.HTTPRedirectHandler):
+    """Redirects are not followed (the request and its Authorization header would go wherever a reply says):
+    the 3xx comes back as an HTTPError naming where it pointed."""
+
+    def redirect_request(self, req, fp, code, msg, headers, newurl):  # noqa: ANN001, ANN201 - urllib's signature
+        return None
+
+
 class ChatClient:
     """Thread-safe chat-completions client with a disk cache; `stats` counts requests, hits, retries."""
 
@@ -218,15 +287,19 @@ class ChatClient:
         parsed = urllib.parse.urlparse(config.base_url)
         self.config = config
         self.url = config.base_url.rstrip("/") + "/chat/completions"
+        self.shown_url = public_url(self.url)  # what messages name
         self.cache_dir = Path(config.cache_dir) if config.cache_dir is not None else default_cache_dir()
         self.breaker = Breaker(config.breaker_failures)
         self.stats: Counter[str] = Counter()
-        self._slots = threading.BoundedSemaphore(config.concurrency)
+        self.concurrency = config.concurrency or 1  # `discover_concurrency` sets the server's when not configured
+        self._slots = threading.BoundedSemaphore(self.concurrency)
         self._lock = threading.Lock()
+        self._deciding = threading.Lock()  # held while the first request finds the response_format the server takes
         self._cancelled = threading.Event()
         self._watches: set[_Watch] = set()
-        self._schema = config.response_format == "json_schema"  # False once the server refused it
+        self._format: str | None = None if config.response_format == "auto" else config.response_format
         self._proxies = {} if _is_loopback(parsed.hostname or "") else None  # loopback never goes to a proxy
+        self._secrets = tuple(x for x in (api_key, parsed.password) if x)
         self._headers = {"Content-Type": "application/json", **({"Authorization": f"Bearer {api_key}"} if api_key else {})}
 
     def settings(self) -> dict[str, object]:
@@ -239,16 +312,35 @@ class ChatClient:
         key = hashlib.sha256(json.dumps([self.settings(), prompt], sort_keys=True).encode()).hexdigest()
         return self.cache_dir / key[:2] / f"{key}.json"
 
-    def complete(self, prompt: str) -> str:
-        """The model's reply to `prompt` (one user message), from the cache when it was asked before."""
+    @property
+    def response_format(self) -> str | None:
+        """The way JSON is asked for, once decided (None while "auto" has sent nothing)."""
+        return self._format
+
+    def complete(self, prompt: str, *, keep: Callable[[str], bool] | None = None) -> str:
+        """The model's reply to `prompt` (one user message), from the cache when it was asked before (unless
+        `refresh`). A reply is cached only when `keep(reply)` (default: always), so an answer of the wrong form
+        is asked again next time rather than forever read back."""
         path = self.cache_path(prompt)
-        cached = _read_cached(path)
+        cached = None if self.config.refresh else _read_cached(path)
         if cached is not None:
             self._count("cache_hits")
             return cached
         content = self._request(prompt)
-        write_text(path, dumps_json({**self.settings(), "prompt": prompt, "content": content}))
+        if keep is None or keep(content):
+            write_text(path, dumps_json({**self.settings(), "prompt": prompt, "content": content}))
         return content
+
+    def discover_concurrency(self) -> int:
+        """Set and return the requests in flight: the configured number, else the slots the server reports
+        (llama.cpp's GET /props `total_slots`), else 1 for a server on this machine or the local network (one
+        that answers one request at a time would keep the others queued past their deadline), else
+        REMOTE_CONCURRENCY."""
+        if self.config.concurrency is None:
+            host = urllib.parse.urlparse(self.url).hostname or ""
+            self.concurrency = self._reported_slots() or (1 if _is_local(host) else REMOTE_CONCURRENCY)
+            self._slots = threading.BoundedSemaphore(self.concurrency)
+        return self.concurrency
 
     def cancel(self) -> None:
         """Stop: cut the requests in flight and refuse new ones (Ctrl-C, or the breaker opening)."""
@@ -258,85 +350,137 @@ class ChatClient:
         for w in watches:
             w.cut()
 
-    def _body(self, prompt: str) -> bytes:
+    def _reported_slots(self) -> int | None:
+        root = self.url.removesuffix("/chat/completions").removesuffix("/v1")
+        watch = _Watch(min(self.config.timeout_s, 5.0))
+        try:
+            opener = self._opener(watch)
+            req = urllib.request.Request(root + "/props", headers=self._headers, method="GET")
+            with opener.open(req, timeout=watch.seconds) as resp:
+                slots = json.loads(resp.read(1 << 16)).get("total_slots")
+        except (*TRANSPORT_ERRORS, ValueError, AttributeError):
+            return None
+        finally:
+            watch.stop()
+        return min(max(slots, 1), 64) if isinstance(slots, int) and not isinstance(slots, bool) else None
+
+    def _opener(self, watch: _Watch) -> urllib.request.OpenerDirector:
+        return urllib.request.build_opener(urllib.request.ProxyHandler(self._proxies), _NoRedirect(),
+                                           _HTTPHandler(watch), _HTTPSHandler(watch))
+
+    def _body(self, prompt: str, fmt: str) -> bytes:
         body: dict[str, object] = {**self.settings(), "messages": [{"role": "user", "content": prompt}]}
         del body["response_format"]
-        if self._schema:
+        if fmt == "json_schema":
             body["response_format"] = {"type": "json_schema",
                                        "json_schema": {"name": "instruction", "strict": True, "schema": ANSWER_SCHEMA}}
+        elif fmt == "json_object":
+            body["response_format"] = {"type": "json_object"}
         return json.dumps(body).encode()
 
     def _request(self, prompt: str) -> str:
+        """The answer to `prompt`; while "auto" is undecided, the first caller tries each format in turn with this
+        prompt and the others wait for its decision."""
+        if self._format is None:
+            with self._deciding:
+                if self._format is None:
+                    return self._decide(prompt)
+        return self._ask(prompt, self._format)
+
+    def _decide(self, prompt: str) -> str:
+        for fmt in FORMATS[:-1]:
+            try:
+                content = self._ask(prompt, fmt, refusal_ends=True)
+            except _Refused:
+                self._count("formats_refused")
+                continue
+            self._format = fmt
+            return content
+        content = self._ask(prompt, FORMATS[-1])
+        self._format = FORMATS[-1]
+        return content
+
+    def _ask(self, prompt: str, fmt: str, *, refusal_ends: bool = False) -> str:
         cfg = self.config
+        body = self._body(prompt, fmt)
         last = "no attempt"
-        attempt = 0
-        while attempt < cfg.max_attempts:
+        for attempt in range(cfg.max_attempts):
             self._check_open()
             if attempt:
                 self._count("retries")
-            out = self._attempt(self._body(prompt))
+            out = self._attempt(body, refusal_ends)
             if out.content is not None:
                 return out.content
+            if out.refused:
+                raise _Refused(out.error)
             last = out.error
-            if out.refused_schema:
-                continue  # asked again without response_format; not an attempt of its own
-            attempt += 1
             if not out.retry:
-                raise LLMError(f"{self.url}: {last}")
-            if attempt < cfg.max_attempts:
-                self._cancelled.wait(max(cfg.backoff_s * 2 ** (attempt - 1), out.wait_s))
-        raise LLMError(f"{self.url}: {last} (after {cfg.max_attempts} attempts)")
+                raise LLMError(f"{self.shown_url}: {last}")
+            if attempt + 1 < cfg.max_attempts:
+                self._cancelled.wait(max(cfg.backoff_s * 2 ** attempt, out.wait_s))
+        raise LLMError(f"{self.shown_url}: {last} (after {cfg.max_attempts} attempts)")
 
-    def _attempt(self, body: bytes) -> _Outcome:
+    def _attempt(self, body: bytes, refusal_ends: bool) -> _Outcome:
         """One POST holding a slot; the breaker hears of it before the slot is let go, so at most
         `breaker_failures` failures plus the attempts already in flight are ever sent to a dead server."""
         with self._slots:
             self._check_open()
-            out = self._post(body)
+            out = self._post(body, refusal_ends)
             if out.content is not None:
                 self.breaker.success()
             elif out.failure and self.breaker.failure(out.error):
                 self.cancel()
             return out
 
-    def _post(self, body: bytes) -> _Outcome:
-        """POST once under one deadline (the watchdog starts when the request can go out)."""
+    def _post(self, body: bytes, refusal_ends: bool) -> _Outcome:
+        """POST once under one deadline (the watchdog starts when the request goes out). With `refusal_ends`, an
+        HTTP error other than 429 is a refusal of the response_format asked for, not a failure."""
         watch = _Watch(self.config.timeout_s)
         expired = _Outcome(error=f"no complete reply within {self.config.timeout_s:g} s", retry=True)
         with self._lock:
             self._watches.add(watch)
         try:
             self._count("requests")
-            opener = urllib.request.build_opener(urllib.request.ProxyHandler(self._proxies),
-                                                 _HTTPHandler(watch), _HTTPSHandler(watch))
             req = urllib.request.Request(self.url, data=body, headers=self._headers, method="POST")
             try:
-                with opener.open(req, timeout=self.config.timeout_s) as resp:
+                with self._opener(watch).open(req, timeout=self.config.timeout_s) as resp:
                     payload = resp.read()
             except urllib.error.HTTPError as err:
-                try:
-                    detail = err.read()[:200].decode("utf-8", "replace")
-                except TRANSPORT_ERRORS:  # cut while reading the error body
-                    detail = ""
-                error = _one_line(f"HTTP {err.code} {detail}")
-                if err.code == 400 and self._schema:
-                    self._schema = False  # the server does not take response_format: ask without it from now on
-                    return _Outcome(error=error, failure=False, refused_schema=True)
-                return _Outcome(error=error, retry=err.code in RETRY_STATUS, failure=err.code != 429,
-                                wait_s=retry_after_s(err.headers.get("Retry-After")))
+                return self._http_error(err, refusal_ends)
             except TRANSPORT_ERRORS as err:
                 if self._cancelled.is_set():
                     raise LLMUnavailable(self._why_stopped()) from None
                 if watch.past():
                     return expired
-                return _Outcome(error=_one_line(f"{type(err).__name__}: {getattr(err, 'reason', err)}"), retry=True)
+                return _Outcome(error=self._clean(f"{type(err).__name__}: {getattr(err, 'reason', err)}"), retry=True)
             if watch.expired:  # a body without Content-Length ends at the cut, looking complete
                 return expired
-            return _content(payload)
+            out = _content(payload)
+            return _Outcome(content=redact(out.content, self._secrets)) if out.content is not None else \
+                _Outcome(error=self._clean(out.error)[:300])
         finally:
             watch.stop()
             with self._lock:
                 self._watches.discard(watch)
+
+    def _http_error(self, err: urllib.error.HTTPError, refusal_ends: bool) -> _Outcome:
+        try:
+            detail = err.read(4096).decode("utf-8", "replace")
+        except TRANSPORT_ERRORS:  # cut while reading the error body
+            detail = ""
+        if 300 <= err.code < 400:
+            where = urllib.parse.urlsplit(err.headers.get("Location") or "")
+            return _Outcome(error=f"HTTP {err.code}: the server redirects to {where.scheme}://{where.netloc} (redirects "
+                                  "are not followed: set the base URL to where it points)")
+        error = self._clean(f"HTTP {err.code} {detail}")[:200]
+        if refusal_ends and err.code != 429:  # counted by the breaker: a server refusing everything is a dead one
+            return _Outcome(error=error, refused=True)
+        return _Outcome(error=error, retry=err.code in RETRY_STATUS, failure=err.code != 429,
+                        wait_s=retry_after_s(err.headers.get("Retry-After")))
+
+    def _clean(self, text: str) -> str:
+        """A server's words made fit for a message: one line, no secret."""
+        return _one_line(redact(public_url_in(text, self.url, self.shown_url), self._secrets))
 
     def _check_open(self) -> None:
         if self._cancelled.is_set():
@@ -350,6 +494,10 @@ class ChatClient:
             self.stats[key] += 1
 
 
+class _Refused(Exception):
+    """The server answered a request asking for one response_format with an HTTP error: try the next."""
+
+
 @dataclass(frozen=True)
 class _Outcome:
     """What one attempt got: the answer's text, or why not and what to do about it."""
@@ -357,9 +505,14 @@ class _Outcome:
     content: str | None = None
     error: str = ""
     retry: bool = False  # worth another attempt (429, 5xx, timeouts, dropped connections)
-    failure: bool = True  # counts towards the breaker (a 429 or a refused response_format does not)
+    failure: bool = True  # counts towards the breaker (a 429 does not)
     wait_s: float = 0.0  # the server's Retry-After
-    refused_schema: bool = False
+    refused: bool = False  # the response_format asked for was refused (while deciding it)
+
+
+def public_url_in(text: str, url: str, shown: str) -> str:
+    """`text` with the client's URL replaced by its public form (a URL's user:password never shows)."""
+    return text.replace(url, shown) if url != shown else text
 
 
 def _one_line(text: str) -> str:
@@ -372,7 +525,7 @@ def _content(payload: bytes) -> _Outcome:
     try:
         message = json.loads(payload)["choices"][0]["message"]
     except (ValueError, KeyError, IndexError, TypeError):
-        return _Outcome(error=f"not a chat-completions response: {payload[:200]!r}")
+        return _Outcome(error=f"not a chat-completions response: {payload[:4096]!r}")
     content = message.get("content") if isinstance(message, dict) else None
     if not isinstance(content, str):
         return _Outcome(error=f"the reply has no text (content {json.dumps(content)}; a reasoning or tool-call reply?)")
@@ -395,6 +548,17 @@ def _is_loopback(host: str) -> bool:
         return ipaddress.ip_address(host).is_loopback
     except ValueError:
         return False
+
+
+def _is_local(host: str) -> bool:
+    """On this machine or the local network (loopback, private, link-local, a .local name)."""
+    if _is_loopback(host) or host.endswith(".local"):
+        return True
+    try:
+        address = ipaddress.ip_address(host)
+    except ValueError:
+        return False
+    return address.is_private or address.is_link_local
 
 
 def retry_after_s(value: str | None, now: datetime | None = None) -> float:

@@ -49,6 +49,12 @@ def load_run_config(path: Path, **overrides: Any) -> RunConfig:
         raise ConfigError(f"cannot read: {err.strerror}", path=path) from None
     except tomllib.TOMLDecodeError as err:
         raise ConfigError(f"malformed TOML: {err}", path=path) from None
+    except RecursionError:
+        raise ConfigError("malformed TOML: nested too deeply", path=path) from None
+    except UnicodeDecodeError as err:
+        raise ConfigError(f"cannot read: not UTF-8 text ({err.reason})", path=path) from None
+    except ValueError as err:  # an integer of more than sys.get_int_max_str_digits() digits
+        raise ConfigError(f"malformed TOML: {str(err).split(';')[0]}", path=path) from None
     raw |= {k: v for k, v in overrides.items() if v is not None}
     base = Path(path).resolve().parent
     seed = raw.get("seed")

@@ -8,13 +8,14 @@ from pathlib import Path
 from sagebench.fileio import write_text
 from sagebench.pipeline.config import load_run_config
 from sagebench.pipeline.run import RunSummary, run_pipeline
-from sagebench.run_layout import BASELINES
+from sagebench.run_folder import claim_run_dir
+from sagebench.run_layout import BASELINES, DEMO_CONFIG, DEMO_CONFIG_HEADER, DEMO_INPUT
 from sagebench.scene.loader import load_scene
 from sagebench.scene.summary import summarise
 from sagebench.scene.synth import write_synth_scene
 from sagebench.ui import info
 
-RUN_CONFIG = """# The demo run: `sagebench run` reads this file (`make demo` writes it).
+RUN_CONFIG = DEMO_CONFIG_HEADER + """ (`make demo` writes it).
 scenes = ["input/demo_apartment_{seed}"]
 out = "."
 seed = {seed}
@@ -31,15 +32,20 @@ class DemoResult:
     scores: str  # the oracle baseline's evaluation table, empty when the run failed
 
 
-def run_demo(out: Path, *, seed: int = 0) -> DemoResult:
+def run_demo(out: Path, *, seed: int = 0, force: bool = False) -> DemoResult:
     """Write the demo scene and its run config into `out`, run every stage on it, then drive the oracle
-    baseline through every episode and score it (out/baselines/)."""
-    out = Path(out)
-    scene_dir = out / "input" / f"demo_apartment_{seed}"
+    baseline through every episode and score it (out/baselines/). `out` must be new, empty or an earlier
+    demo's, unless `force` (run_folder.claim_run_dir)."""
+    with claim_run_dir(Path(out), "demo", force=force):
+        return _demo(Path(out), seed)
+
+
+def _demo(out: Path, seed: int) -> DemoResult:
+    scene_dir = out / DEMO_INPUT / f"demo_apartment_{seed}"
     write_synth_scene(scene_dir, seed=seed)
     info(f"demo scene: {scene_dir}")
     info(summarise(load_scene(scene_dir)))
-    config_path = out / "run.toml"
+    config_path = out / DEMO_CONFIG
     write_text(config_path, RUN_CONFIG.format(seed=seed))
     summary = run_pipeline(load_run_config(config_path), config_path)
     if not summary.ok:

@@ -2,24 +2,15 @@
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from sagebench import __version__
-from sagebench.fileio import write_json
+from sagebench.fileio import sha256_file, write_json
 from sagebench.run_layout import MANIFEST, OUTPUT_ROOTS  # the trees stages write; inputs are hashed under `inputs`
 from sagebench.versions import output_versions
-
-
-def sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with path.open("rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def run_files(run_dir: Path, scene_ids: Iterable[str] | None = None) -> list[Path]:
@@ -37,6 +28,13 @@ def run_files(run_dir: Path, scene_ids: Iterable[str] | None = None) -> list[Pat
     return sorted(out, key=lambda p: p.relative_to(run_dir).as_posix())
 
 
+def parquet_rows(path: Path) -> int:
+    """Rows of a Parquet file, from its footer."""
+    import pyarrow.parquet as pq
+
+    return pq.ParquetFile(path).metadata.num_rows
+
+
 def hash_run(run_dir: Path, scene_ids: Iterable[str] | None = None) -> dict[str, str]:
     return {p.relative_to(run_dir).as_posix(): sha256_file(p) for p in run_files(run_dir, scene_ids)}
 
@@ -44,14 +42,16 @@ def hash_run(run_dir: Path, scene_ids: Iterable[str] | None = None) -> dict[str,
 def write_manifest(run_dir: Path, *, config: dict[str, Any], inputs: dict[str, str],
                    failed: dict[str, dict[str, str]] | None = None) -> dict[str, Any]:
     """Hash the run's scenes (those of `inputs`) and write manifest.json: versions (sagebench's, Python's and
-    the libraries' that shape outputs), config, input hashes per scene, file hashes, and per failed scene the
-    stage that failed it and why."""
+    the libraries' that shape outputs), config, input hashes per scene, file hashes, the row count of every
+    Parquet file, and per failed scene the stage that failed it and why."""
+    files = hash_run(run_dir, inputs)
     manifest = {
         "sagebench_version": __version__,
         "versions": output_versions(),
         "config": config,
         "inputs": dict(sorted(inputs.items())),
-        "files": hash_run(run_dir, inputs),
+        "files": files,
+        "rows": {rel: parquet_rows(run_dir / rel) for rel in files if rel.endswith(".parquet")},
         "failed": dict(sorted((failed or {}).items())),
     }
     write_json(run_dir / MANIFEST, manifest)
@@ -67,14 +67,15 @@ class FileDiff:
     extra: tuple[str, ...]
     cause: str = ""  # what probably made the files differ, when known
     failed: tuple[str, ...] = ()  # "SCENE at STAGE: why", the manifest's failed stages
+    broken: tuple[str, ...] = ()  # "PATH: why" for files whose content does not hold what the manifest says
 
     @property
     def ok(self) -> bool:
-        return not (self.changed or self.missing or self.extra or self.failed)
+        return not (self.changed or self.missing or self.extra or self.failed or self.broken)
 
     def lines(self) -> list[str]:
         lines = ([f"changed: {p}" for p in self.changed] + [f"missing: {p}" for p in self.missing]
-                 + [f"extra: {p}" for p in self.extra])
+                 + [f"extra: {p}" for p in self.extra] + [f"broken: {p}" for p in self.broken])
         return ([f"failed: {f}" for f in self.failed] + lines
                 + ([f"likely cause: {self.cause}"] if lines and self.cause else []))
 

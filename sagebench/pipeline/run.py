@@ -3,7 +3,7 @@ dataset card (README.md)."""
 
 from __future__ import annotations
 
-import os
+import contextlib
 import time
 from collections import defaultdict
 from dataclasses import dataclass, field
@@ -20,8 +20,10 @@ from sagebench.pipeline.schedule import RunScheduler
 from sagebench.pipeline.manifest import sha256_file, write_manifest
 from sagebench.fileio import remove_temporaries, write_text
 from sagebench.pipeline.tasks import STAGES, Outcome
-from sagebench.run_layout import BASELINES, DATASET_CARD, OUTPUT_ROOTS, SCENE_FILE, SHARDS, STAMPS, run_episodes_dir, stage_files
-from sagebench.run_lock import run_lock
+from sagebench.run_layout import (
+    BASELINES, CONTRACT, DATASET_CARD, OUTPUT_ROOTS, SCENE_FILE, SHARDS, STAMPS, after, root_dir, run_episodes_dir, stage_files,
+)
+from sagebench.run_folder import check_scenes_apart, claim_run_dir
 from sagebench.scene.loader import parse_spec
 
 
@@ -67,14 +69,15 @@ class RunSummary:
         return lines
 
 
-def run_pipeline(config: RunConfig, config_path: Path) -> RunSummary:
-    """Run build-scene, gen-trajectories, export-usd and validate over every scene of the config."""
+def run_pipeline(config: RunConfig, config_path: Path, *, force: bool = False) -> RunSummary:
+    """Run build-scene, gen-trajectories, export-usd and validate over every scene of the config.
+
+    `out` must be absent, empty or a sagebench run, unless `force` (run_folder.claim_run_dir)."""
     start = time.perf_counter()
     sources = _scene_ids(resolve_scenes(config, config_path), config_path)
     run_dir = Path(config.out)
-    _check_out(run_dir, sources, config_path)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    with run_lock(run_dir):
+    check_scenes_apart(run_dir, sources.values(), path=config_path, out_field="out", scenes_field="scenes")
+    with claim_run_dir(run_dir, "run", force=force):
         clean_temporaries(run_dir, sources.values())
         return _run_locked(config, config_path, sources, run_dir, start)
 
@@ -101,6 +104,9 @@ def _run_locked(config: RunConfig, config_path: Path, sources: dict[str, Path], 
         summary.pieces = scheduler.pieces
     finally:
         executor.close()
+    for sid, o in sorted(summary.failed.items()):
+        if o.status == "failed":
+            drop_stale_outputs(run_dir, sid, o.stage)
     summary.episodes = _count_episodes(run_dir, summary.scenes)
     summary.wall_seconds = time.perf_counter() - start
     write_manifest(run_dir, config=config.outputs_config(),
@@ -108,6 +114,40 @@ def _run_locked(config: RunConfig, config_path: Path, sources: dict[str, Path], 
                    failed={sid: {"stage": o.stage, "message": o.message} for sid, o in summary.failed.items()})
     write_text(run_dir / DATASET_CARD, card_text(run_dir))
     return summary
+
+
+def drop_stale_outputs(run_dir: Path, scene_id: str, failed: str) -> list[Path]:
+    """Remove what the stage `failed` and every stage after it wrote for the scene in earlier runs, and their
+    stamps: those files came from other inputs or settings, and the manifest must not list them as this run's
+    (a failed LLM gen-trajectories would otherwise leave the last run's template shards listed). Hidden
+    entries (the user's) stay. Returns the files removed."""
+    stale = [name for name in STAGES if name == failed or failed in _comes_after(name)]
+    doomed = [f for name in stale for f in stage_files(name, "writes", run_dir, scene_id)]
+    doomed += [f for name in stale if (f := run_dir / STAMPS / scene_id / f"{name}.json").is_file()]
+    for f in doomed:
+        f.unlink(missing_ok=True)
+    for name in stale:
+        for place in CONTRACT[name].writes:
+            top = root_dir(place.root, run_dir, scene_id) / place.rel
+            if top.is_dir():
+                for d in sorted((p for p in top.rglob("*") if p.is_dir()), key=lambda p: len(p.parts), reverse=True):
+                    with contextlib.suppress(OSError):
+                        d.rmdir()  # emptied directories only
+                with contextlib.suppress(OSError):
+                    top.rmdir()
+    return doomed
+
+
+def _comes_after(stage: str) -> set[str]:
+    """Every stage `stage` waits for, directly or through another."""
+    out: set[str] = set()
+    todo = list(after(stage))
+    while todo:
+        name = todo.pop()
+        if name not in out:
+            out.add(name)
+            todo.extend(after(name))
+    return out
 
 
 def _scene_ids(dirs: list[Path], config_path: Path) -> dict[str, Path]:
@@ -134,22 +174,6 @@ def clean_temporaries(run_dir: Path, scene_dirs) -> list[Path]:
     so that no live process owns them."""
     trees = [run_dir / d for d in (*OUTPUT_ROOTS, STAMPS, BASELINES)]
     return remove_temporaries(trees, entries_of=[run_dir], keep_out=scene_dirs)
-
-
-def _check_out(run_dir: Path, sources: dict[str, Path], config_path: Path) -> None:
-    """`out` may not lie inside an input scene (its outputs would change the scene's inputs every run), and
-    no input scene may lie where the run writes (a stage would replace it)."""
-    out = Path(os.path.abspath(run_dir))
-    written = [out / d for d in (*OUTPUT_ROOTS, STAMPS)]
-    for sid in sorted(sources):
-        scene = Path(os.path.abspath(sources[sid]))
-        if out == scene or scene in out.parents:
-            raise ConfigError(f"the run directory {run_dir} is inside the input scene {sources[sid]}; "
-                              "put `out` outside every scene directory", path=config_path, field="out")
-        if any(w == scene or w in scene.parents for w in written):
-            raise ConfigError(f"the input scene {sources[sid]} is inside {run_dir}'s output folders "
-                              f"({', '.join(d + '/' for d in (*OUTPUT_ROOTS, STAMPS))}); move it elsewhere",
-                              path=config_path, field="scenes")
 
 
 def _inputs_hash(run_dir: Path, scene_id: str, source: Path) -> str:

@@ -7,9 +7,11 @@ import tempfile
 from dataclasses import replace
 from pathlib import Path
 
-from sagebench.errors import DataError
-from sagebench.pipeline.manifest import FileDiff, compare, hash_run
-from sagebench.run_layout import MANIFEST
+from sagebench.errors import DataError, SagebenchError
+from sagebench.pipeline.manifest import FileDiff, compare, hash_run, parquet_rows
+from sagebench.run_layout import MANIFEST, SCENE_FILE, SCENES, USD
+from sagebench.scene.loader import parse_spec
+from sagebench.validation.usd_stage import check_stage
 from sagebench.versions import likely_cause, output_versions
 
 
@@ -19,20 +21,50 @@ def read_manifest(run_dir: Path) -> dict:
         manifest = json.loads(path.read_text())
     except FileNotFoundError:
         raise DataError("no manifest.json: this is not the directory of a `sagebench run`", path=run_dir) from None
-    except (OSError, json.JSONDecodeError) as err:
-        raise DataError(f"unreadable manifest: {err}", path=path) from None
+    except (OSError, ValueError, RecursionError) as err:  # ValueError: bad JSON, UTF-8, a 5,000-digit number
+        raise DataError(f"unreadable manifest: {str(err).split(';')[0] or type(err).__name__}", path=path) from None
     if not isinstance(manifest, dict) or not isinstance(manifest.get("files"), dict):
         raise DataError("the manifest has no 'files' table", path=path)
     return manifest
 
 
 def verify_run(run_dir: Path) -> FileDiff:
-    """Compare every file of the run's scenes with the manifest's hashes; a stage the manifest records as
-    failed fails the run too."""
+    """Compare every file of the run's scenes with the manifest's hashes, and check their content: every Parquet
+    file holds the rows the manifest records, every scene's USD stage opens with a prim per object. A stage the
+    manifest records as failed fails the run too."""
     manifest = read_manifest(run_dir)
     scenes = manifest.get("inputs") if isinstance(manifest.get("inputs"), dict) else None
     diff = compare(manifest["files"], hash_run(Path(run_dir), scenes))
-    return replace(diff, failed=failed_stages(manifest))
+    return replace(diff, failed=failed_stages(manifest), broken=content_problems(Path(run_dir), manifest))
+
+
+def content_problems(run_dir: Path, manifest: dict) -> tuple[str, ...]:
+    """"PATH: why" for each listed Parquet file whose rows differ from the manifest's, and each listed scene whose
+    scene.usda does not open with its objects."""
+    out = []
+    rows = manifest.get("rows") if isinstance(manifest.get("rows"), dict) else {}
+    for rel, want in sorted(rows.items()):
+        if (run_dir / rel).is_file():
+            try:
+                got = parquet_rows(run_dir / rel)
+            except (OSError, ValueError) as err:  # pyarrow's ArrowInvalid is a ValueError
+                out.append(f"{rel}: not a readable Parquet file ({_first_line(err)})")
+                continue
+            if got != want:
+                out.append(f"{rel}: {got} rows, the manifest records {want}")
+    for rel in sorted(k for k in manifest["files"] if k.endswith(f"/{USD}") and k.startswith(f"{SCENES}/")):
+        scene_dir = (run_dir / rel).parent
+        try:
+            spec_path = scene_dir / SCENE_FILE
+            spec = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)
+            check_stage(scene_dir, {o.instance_id: o.category for o in spec.objects})
+        except (SagebenchError, OSError) as err:
+            out.append(f"{rel}: {_first_line(err)}")
+    return tuple(out)
+
+
+def _first_line(err: BaseException) -> str:
+    return (str(err).strip().splitlines() or [type(err).__name__])[0]
 
 
 def failed_stages(manifest: dict) -> tuple[str, ...]:

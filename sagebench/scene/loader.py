@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -15,6 +16,8 @@ from pydantic import ValidationError
 
 from sagebench.errors import MeshError, SceneError, first_error
 from sagebench.run_layout import SCENE_FILE  # an artist's scene directory and a run's scenes/<id>/ alike
+from sagebench.fileio import hash_file
+from sagebench.scene.mesh_budget import MAX_MESH_FACES, budget_problem, faces_problem
 from sagebench.scene.checks import check_hinge, check_inside_rooms, check_rooms, check_world_bounds
 from sagebench.scene.model import UNIT_SCALE, Door, Room, SceneObject, SceneSpec, Transform
 
@@ -57,6 +60,8 @@ def parse_spec(text: str, where: Path | str) -> SceneSpec:
         raise SceneError(f"malformed JSON at line {err.lineno}, column {err.colno}: {err.msg}", path=where) from None
     except RecursionError:
         raise SceneError("JSON nested too deeply", path=where) from None
+    except ValueError as err:  # an integer of more than sys.get_int_max_str_digits() digits
+        raise SceneError(f"malformed JSON: {str(err).split(';')[0]}", path=where) from None
     try:
         return SceneSpec.model_validate(raw)
     except ValidationError as err:
@@ -92,8 +97,10 @@ def load_scene(scene_dir: Path | str) -> LoadedScene:
         field = f"objects[{i}].mesh"
         mesh_path = resolve_mesh_path(scene_dir, obj.mesh, spec_path, field)
         if mesh_path not in cache:
+            check_budget(mesh_path, spec_path, field)
             for name in mesh_files(scene_dir, obj.mesh, spec_path, field):  # a .gltf's buffers checked first
-                hasher.update(name.encode() + b"\0" + (scene_dir / name).read_bytes())
+                hasher.update(name.encode() + b"\0")
+                _hash_file(scene_dir / name, hasher, spec_path, field)
             cache[mesh_path] = read_mesh(mesh_path, spec_path, field)
         to_world = frame @ obj.transform.as_matrix()
         world = cache[mesh_path].copy()
@@ -129,12 +136,12 @@ def write_normalised_scene(scene: LoadedScene, dest: Path) -> None:
     `dest` is then a scene directory of its own: load_scene(dest) gives the same world meshes, so every
     later stage reads `scenes/<scene_id>/` of a run and never the artist's directory.
     """
-    from sagebench.fileio import dumps_json, write_bytes
+    from sagebench.fileio import copy_file, dumps_json, write_bytes
 
     names = {n for o in scene.spec.objects for n in mesh_files(scene.source_dir, o.mesh, scene.source_dir / SCENE_FILE,
                                                                "objects.mesh")}
     for name in sorted(names):
-        write_bytes(dest / name, (scene.source_dir / name).read_bytes())
+        copy_file(scene.source_dir / name, dest / name)
     write_bytes(dest / SCENE_FILE, dumps_json(scene.spec.model_dump(mode="json", exclude_defaults=True)).encode())
 
 
@@ -145,9 +152,30 @@ def resolve_mesh_path(scene_dir: Path, mesh: str, spec_path: Path, field: str) -
     path = scene_dir / rel
     if not path.resolve().is_relative_to(scene_dir.resolve()):
         raise MeshError(f"mesh path {mesh!r} is a link that leaves the scene directory", path=spec_path, field=field)
-    if not path.is_file():
+    try:
+        is_file = stat.S_ISREG(path.stat().st_mode)
+    except (FileNotFoundError, NotADirectoryError):
+        is_file = False
+    except OSError as err:  # a directory on the way that may not be searched
+        raise MeshError(f"cannot read mesh file {mesh!r}: {err.strerror or err}", path=spec_path, field=field) from None
+    if not is_file:
         raise MeshError(f"mesh file {mesh!r} does not exist", path=spec_path, field=field)
     return path
+
+
+def check_budget(path: Path, spec_path: Path, field: str) -> None:
+    """A MeshError when the mesh file is over the size or face budget (mesh_budget.py), told by its size and
+    header before it is read."""
+    problem = budget_problem(path)
+    if problem is not None:
+        raise MeshError(f"mesh {path.name!r} {problem}", path=spec_path, field=field)
+
+
+def _hash_file(path: Path, hasher, spec_path: Path, field: str) -> None:
+    try:
+        hash_file(path, hasher)
+    except OSError as err:
+        raise MeshError(f"cannot read mesh file {path.name!r}: {err.strerror or err}", path=spec_path, field=field) from None
 
 
 def mesh_files(scene_dir: Path, mesh: str, spec_path: Path, field: str) -> list[str]:
@@ -176,12 +204,17 @@ def read_mesh(path: Path, spec_path: Path, field: str) -> trimesh.Trimesh:
     """One triangle mesh from a GLB/GLTF/OBJ/PLY file, in the file's own coordinates."""
     import trimesh
 
+    check_budget(path, spec_path, field)
     try:
         mesh = trimesh.load(path, force="mesh", process=False)
+    except OSError as err:
+        raise MeshError(f"cannot read mesh {path.name!r}: {err.strerror or err}", path=spec_path, field=field) from None
     except Exception as err:  # trimesh raises many types for a bad file
         raise MeshError(f"cannot read mesh {path.name!r}: {err}", path=spec_path, field=field) from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0 or len(mesh.vertices) == 0:
         raise MeshError(f"mesh {path.name!r} has no triangles", path=spec_path, field=field)
+    if len(mesh.faces) > MAX_MESH_FACES:
+        raise MeshError(f"mesh {path.name!r} {faces_problem(len(mesh.faces))}", path=spec_path, field=field)
     if not np.isfinite(mesh.vertices).all():
         raise MeshError(f"mesh {path.name!r} has non-finite vertex coordinates", path=spec_path, field=field)
     if not np.ptp(mesh.vertices, axis=0).any():

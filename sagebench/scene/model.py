@@ -18,6 +18,9 @@ UNIT_SCALE: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 MIN_DETERMINANT = 1e-12  # |det| of a transform's 3x3 part below this flattens a mesh (a 1e-4 scale on each axis)
 Vec3 = tuple[float, float, float]
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False, strict=True)]  # strict: "1.5" (a string) is refused
+# Names and words become USD prim names, MJCF attributes and instruction text: no control character (NUL, newline)
+Text = Annotated[str, Field(pattern=r"^[^\x00-\x1f\x7f]*$")]
+Name = Annotated[str, Field(min_length=1, pattern=r"^[^\x00-\x1f\x7f]+$")]
 INT32_MAX = 2**31 - 1  # instance ids are stored as int32 in maps, PLYs and episode rows
 SCENE_ID_MAX = 128  # scene ids name directories and files
 
@@ -107,8 +110,8 @@ class Door(_Model):
 
 
 class Room(_Model):
-    id: Annotated[str, Field(min_length=1)]
-    type: Annotated[str, Field(min_length=1, description="kitchen, living_room, bedroom, bathroom, ...")]
+    id: Name
+    type: Annotated[Name, Field(description="kitchen, living_room, bedroom, bathroom, ...")]
     polygon: list[tuple[FiniteFloat, ...]] = Field(
         description="Floor outline: [x, y] points when up_axis is Z, else [x, y, z] points in scene units."
     )
@@ -126,12 +129,12 @@ class Room(_Model):
 class SceneObject(_Model):
     instance_id: Annotated[int, Field(ge=1, le=INT32_MAX, strict=True,
                                       description="Unique per scene; 0 is reserved for background.")]
-    category: Annotated[str, Field(min_length=1)]
+    category: Name
     kind: Kind = "object"
     mesh: Annotated[str, Field(min_length=1, pattern=r"^[^\x00]*$", description="Path relative to the scene directory.")]
     transform: Transform = Transform()
-    room_id: str | None = None
-    attributes: dict[str, str] = Field(default_factory=dict, description="colour, material, state, ...")
+    room_id: Name | None = None
+    attributes: dict[Name, Text] = Field(default_factory=dict, description="colour, material, state, ...")
     door: Door | None = None
 
     @model_validator(mode="after")

@@ -186,7 +186,7 @@ def write_synth_scene(out: Path, *, seed: int = 0, furniture: Path | None = None
     if not force:
         check_replaceable(Path(out))
     spec, files = synth_spec_and_meshes(seed, None if furniture is None else Catalogue(furniture))
-    with staged_dir(Path(out)) as tmp:
+    with staged_dir(Path(out), keep_hidden=not force) as tmp:  # --force replaces OUT whatever it holds
         for name, data in files.items():
             write_bytes(tmp / name, data)
         write_bytes(tmp / SCENE_FILE, dumps_json(spec.model_dump(mode="json", exclude_defaults=True)).encode())

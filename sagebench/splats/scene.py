@@ -7,6 +7,7 @@ Gaussian carries its object's instance id. Optional contribution pruning over vi
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Iterator
 
 import numpy as np
@@ -34,9 +35,12 @@ def trained_gaussians(scene: LoadedScene) -> Gaussians | None:
 
     A file that is a link leaving the scene directory, unreadable, malformed, non-finite or empty is a DataError.
     """
-    path = next((scene.source_dir / name for name in TRAINED_FILES if (scene.source_dir / name).is_file()), None)
+    present = [scene.source_dir / name for name in TRAINED_FILES if os.path.lexists(scene.source_dir / name)]
+    path = present[0] if present else None
     if path is None:
         return None
+    if path.is_dir() or not path.exists():  # a directory or a dangling link is a mistake, not "no trained Gaussians"
+        raise DataError("is not a PLY file (a directory or a broken link)", path=path)
     if not path.resolve().is_relative_to(scene.source_dir.resolve()):
         raise DataError("a link that leaves the scene directory", path=path)
     g = read_ply(path)

@@ -54,7 +54,8 @@ OPTIONS = {"--per-scene": "per_scene", "--seed": "seed", "--shard-mb": "shard_mb
            "--llm-base-url": "llm.base_url", "--llm-model": "llm.model", "--llm-cache-dir": "llm.cache_dir",
            "--llm-concurrency": "llm.concurrency", "--llm-timeout": "llm.timeout_s", "--llm-attempts": "llm.max_attempts",
            "--llm-temperature": "llm.temperature", "--llm-max-tokens": "llm.max_tokens",
-           "--llm-min-share": "llm.min_share"}
+           "--llm-min-share": "llm.min_share", "--llm-response-format": "llm.response_format",
+           "--llm-refresh": "llm.refresh"}
 
 
 @dataclass(frozen=True)
@@ -112,7 +113,7 @@ def generate_scene(scene_dir: Path, run_dir: Path, config: GenTrajectoriesConfig
         ctx = replace(ctx, sight=scene_sight(smap, grid, occupancy))
     targets, names = scene_targets(spec, smap, ctx)
     result = sample_trajectories(grid, targets, spec.scene_id, config)
-    _warn_if_short(spec.scene_id, result, config, n_targets=len(targets))
+    _warn_if_short(spec.scene_id, result, config, n_targets=len(targets), scene_dir=scene_dir)
     instructor = None
     if config.instructions == "llm":
         from sagebench.instructions.llm import with_instructor
@@ -125,7 +126,8 @@ def generate_scene(scene_dir: Path, run_dir: Path, config: GenTrajectoriesConfig
         if not share.enough:
             why = "no high-level row came from the model" if share.llm == 0 else \
                 f"fewer high-level rows from the model than --llm-min-share {config.llm.min_share:g}"
-            raise ServiceError(f"--instructions llm: {why} ({instructor.summary()}); nothing written", path=scene_dir)
+            raise ServiceError(f"--instructions llm: {why} ({instructor.summary()}); nothing written (--llm-min-share 0 "
+                               "keeps the template rows instead)", path=scene_dir)
         if instructor.stats["fallback"]:
             ui.warn(f"{spec.scene_id}: {instructor.summary()}")
     png = render_paths(grid.navigable, occupancy, [t.waypoints for t in result.trajectories[:config.preview_paths]],
@@ -155,12 +157,18 @@ def read_scene_inputs(scene_dir: Path) -> tuple[SceneSpec, SemanticMap, GridMap,
     return spec, smap, grid, grids.occupancy
 
 
-def _warn_if_short(scene_id: str, result: SamplingResult, config: GenTrajectoriesConfig, *, n_targets: int) -> None:
+def _warn_if_short(scene_id: str, result: SamplingResult, config: GenTrajectoriesConfig, *, n_targets: int,
+                   scene_dir: Path) -> None:
+    """Warn when fewer trajectories than asked for were found, saying why; none at all is a DataError (nothing to
+    write: a scene without a trajectory is a failed scene, not an empty success)."""
     got = len(result.trajectories)
     if got >= config.per_scene:
         return
     why = ", ".join(f"{n} {reason}" for reason, n in result.rejected.items()) or "no rejections"
     unreachable = f"; {len(result.unreachable_targets)} targets have no navigable cell within " \
                   f"{config.approach_max_m} m" if result.unreachable_targets else ""
-    ui.warn(f"{scene_id}: {got} of {config.per_scene} trajectories: all {result.pairs_tried} ordered pairs of "
-            f"{n_targets} uniquely named targets tried ({why}){unreachable}")
+    found = (f"{got} of {config.per_scene} trajectories: all {result.pairs_tried} ordered pairs of {n_targets} uniquely "
+             f"named targets tried ({why}){unreachable}")
+    if got == 0:
+        raise DataError(f"no trajectory, nothing written: {found}", path=scene_dir)
+    ui.warn(f"{scene_id}: {found}")

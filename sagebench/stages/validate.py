@@ -24,14 +24,17 @@ from sagebench.topdown.grid_file import read_topdown_grids
 from sagebench.replay.physics import replay_batch
 from sagebench.replay.scene_model import open_replay_model
 from sagebench.run_layout import (
-    CONTRACT, FRAMES, GAUSSIANS, REPORT, TOPDOWN, VALIDATION_SHARD, require, run_episodes_dir, run_reports_dir,
-    run_scene_dir, run_scenes, run_validation_dir,
+    CONTRACT, EPISODES, FRAMES, GAUSSIANS, REPORT, SCENE_FILE, SCENES, TOPDOWN, VALIDATION_SHARD, require,
+    run_episodes_dir, run_reports_dir, run_scene_dir, run_scenes, run_validation_dir,
 )
+from sagebench.scene.loader import parse_spec
 from sagebench.splats.ply import read_ply
 from sagebench.validation.checks import base_action_executable, judge
 from sagebench.validation.config import ValidateConfig
 from sagebench.validation.frames import FrameCheck, pick_frames, spot_checks
+from sagebench.validation.ledger import check_listed
 from sagebench.validation.report import report, table_bytes
+from sagebench.validation.usd_stage import check_stage
 
 # validate's options and the ValidateConfig fields they set (their defaults and error names come from here)
 OPTIONS = {"--frames-per-scene": "frames_per_scene", "--depth-tolerance": "depth_tolerance", "--workers": "workers",
@@ -67,13 +70,20 @@ class SceneValidation:
                 f"{worst:.3f} m) -> {self.out_dir}")
 
 
-def validate_run(run_dir: Path, config: ValidateConfig = ValidateConfig(), *, scene_id: str | None = None
-                 ) -> list[SceneValidation]:
-    """Validate every scene of the run (or `scene_id`); inputs are checked for all scenes before any write."""
+def validate_run(run_dir: Path, config: ValidateConfig = ValidateConfig(), *, scene_id: str | None = None,
+                 against_manifest: bool = True) -> list[SceneValidation]:
+    """Validate every scene of the run (or `scene_id`); inputs are checked for all scenes before any write: present,
+    the USD stage whole, and (`against_manifest`, when the run has a manifest.json) every file the manifest lists
+    for the scene unchanged. `sagebench run` validates before it writes its manifest, so it passes False."""
     run_dir = Path(run_dir)
     ids = run_scenes(run_dir, scene_id, having="episodes")
     for sid in ids:
         require(CONTRACT["validate"].reads, run_dir, sid)
+        if against_manifest:
+            check_listed(run_dir, [f"{EPISODES}/{sid}/", f"{SCENES}/{sid}/"])
+        spec_path = run_scene_dir(run_dir, sid) / SCENE_FILE
+        spec = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)
+        check_stage(run_scene_dir(run_dir, sid), {o.instance_id: o.category for o in spec.objects})
     return [validate_scene(run_dir, sid, config) for sid in ids]
 
 

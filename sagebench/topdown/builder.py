@@ -69,9 +69,12 @@ def compute_topdown(scene: LoadedScene, config: BuildSceneConfig) -> Topdown:
 
     tris, part, owner = _stack([parts[o.instance_id] for o in blockers])
     occupied = band_occupancy(tris, part, grid, z_lo, z_hi) | ~polygon_mask(plan, grid)
+    navigable = inflate(occupied, config.agent.radius, res)
+    if not navigable.any():
+        raise ConfigError(f"an agent of radius {config.agent.radius:g} m fits nowhere on the floor: no navigable cell "
+                          "(a smaller agent radius, or a scene with free floor)", field="agent.radius")
     polys, src = clip_to_band(tris, z_lo, z_hi)
-    navigable, passages = open_passages(inflate(occupied, config.agent.radius, res), occupied, polys, plan, grid,
-                                        config.agent.radius)
+    navigable, passages = open_passages(navigable, occupied, polys, plan, grid, config.agent.radius)
     blocking_ids = {blockers[i].instance_id for i in np.unique(owner[src])}
 
     categories = ["background", *sorted({o.category for o in objects})]

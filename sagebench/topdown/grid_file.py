@@ -44,6 +44,14 @@ def read_topdown_grids(npz_path: Path) -> TopdownGrids:
     if nav.ndim != 2 or occ.shape != nav.shape:
         raise DataError(f"navigable {nav.shape} and occupancy {occ.shape} must be the same [H, W] shape",
                         path=npz_path, field="navigable")
+    for key, grid, allowed in (("navigable", nav, (0, 1, PASSAGE)), ("occupancy", occ, (0, 1))):
+        problem = _off_values(grid, allowed)
+        if problem is not None:
+            raise DataError(f"{key} must hold {'/'.join(map(str, allowed))} only: {problem}; run build-scene again",
+                            path=npz_path, field=key)
+    if not nav.any():
+        raise DataError("no navigable cell: run build-scene again (with a smaller agent radius if it says so)",
+                        path=npz_path, field="navigable")
     origin = np.asarray(arrays["origin"], dtype=np.float64).ravel()
     resolution = float(np.asarray(arrays["resolution"]).ravel()[0])
     if origin.shape != (2,) or not np.isfinite(origin).all() or not 0 < resolution < np.inf:
@@ -74,6 +82,17 @@ def topdown_bytes(td: Topdown) -> bytes:
         "origin": np.asarray(td.grid.origin, dtype=np.float64),
         "category_names": np.asarray(td.categories, dtype=np.str_),
     })
+
+
+def _off_values(grid: np.ndarray, allowed: tuple[int, ...]) -> str | None:
+    """What makes a [H, W] map hold other than the `allowed` cell values (non-numbers, NaN, other values); None
+    when it holds only those."""
+    if grid.dtype.kind not in "biuf":
+        return f"dtype {grid.dtype}"
+    if grid.dtype.kind == "f" and not np.isfinite(grid).all():
+        return f"{int((~np.isfinite(grid)).sum()):,} non-finite cells"
+    other = int((~np.isin(grid, allowed)).sum())
+    return f"{other:,} cells hold other values" if other else None
 
 
 def _npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:

@@ -106,6 +106,9 @@ def inflate(occupancy: np.ndarray, radius: float, resolution: float) -> np.ndarr
     blocked = occupancy != 0
     if not blocked.any():
         return ~blocked
+    widest = float(ndimage.distance_transform_edt(~blocked).max()) * resolution  # a free centre to a blocked centre
+    if widest < radius - 1e-9:  # every free cell is that close to a blocked square: none left, and no disc to build
+        return np.zeros_like(blocked)
     reach = int(np.ceil(radius / resolution + 0.5))
     dr, dc = np.mgrid[-reach : reach + 1, -reach : reach + 1]
     disk = _square_distance(dr, dc) * resolution < radius - 1e-9

@@ -1,0 +1,299 @@
+"""The run folder's claim (run_folder.py, run_lock.py) under attack: a lock that is a link, a hard link, a FIFO,
+a directory or another user's file; a user's folder; a second writer; unwritable places. Every writer is
+refused in one line (exit 2) and the whole tree is hashed before and after: nothing of the user's changes.
+
+Permission cases run with the capabilities that let root ignore file modes dropped (setpriv), since CI runs
+as root. Counted with the other attacks in test_fuzz_safety.py.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from test_fuzz_inputs import snapshot, tiny_run, tiny_scene  # noqa: F401 - fixtures
+from test_fuzz_safety import _toml, refused
+
+def _writers(scene: Path, out: Path, config: Path) -> dict[str, list]:
+    """Every command that writes into a run directory, aimed at `out`."""
+    return {
+        "run": ["run", config],
+        "run-force": ["run", config, "--force"],
+        "build-scene": ["build-scene", scene, "--out", out],
+        "build-scene-force": ["build-scene", scene, "--out", out, "--force"],
+        "gen-trajectories": ["gen-trajectories", out, "--per-scene", "2"],
+        "gen-trajectories-force": ["gen-trajectories", out, "--per-scene", "2", "--force"],
+        "export-usd": ["export-usd", out, "--colliders", "fast"],
+        "export-usd-force": ["export-usd", out, "--colliders", "fast", "--force"],
+        "validate": ["validate", out, "--frames-per-scene", "0"],
+        "validate-force": ["validate", out, "--frames-per-scene", "0", "--force"],
+        "demo": ["demo", "--out", out],
+        "demo-force": ["demo", "--out", out, "--force"],
+    }
+
+
+WRITERS = list(_writers(Path(), Path(), Path()))
+
+
+# ---------------------------------------------------------------- the lock never follows a link
+
+
+def _link_lock(out: Path, target: Path) -> None:
+    (out / ".sagebench.lock").symlink_to(target)
+
+
+def _hard_lock(out: Path, target: Path) -> None:
+    os.link(target, out / ".sagebench.lock")
+
+
+def _fifo_lock(out: Path, target: Path) -> None:
+    os.mkfifo(out / ".sagebench.lock")
+
+
+def _dir_lock(out: Path, target: Path) -> None:
+    (out / ".sagebench.lock").mkdir()
+
+
+def _foreign_lock(out: Path, target: Path) -> None:
+    (out / ".sagebench.lock").write_text("")
+    os.chown(out / ".sagebench.lock", 65534, 65534)
+
+
+LOCKS = {"symlink": (_link_lock, "(a link)"), "hard-link": (_hard_lock, "(hard-linked elsewhere (2 links))"),
+         "fifo": (_fifo_lock, "(not a regular file)"), "directory": (_dir_lock, "(not a regular file)"),
+         "other-user": (_foreign_lock, "(owned by uid 65534, not by you")}
+
+
+@pytest.mark.parametrize("writer", WRITERS)
+@pytest.mark.parametrize("lock", list(LOCKS))
+def test_a_lock_that_is_not_sagebench_s_is_refused_and_its_target_kept(lock, writer, tiny_run, tiny_scene, run_cli,
+                                                                       tmp_path):
+    if lock == "other-user" and os.geteuid() != 0:
+        pytest.skip("chown to another user needs root")
+    out = tmp_path / "run"
+    shutil.copytree(tiny_run, out, symlinks=True)
+    target = tmp_path / "precious.txt"
+    target.write_text("the user's file, whatever a lock does\n")
+    plant, says = LOCKS[lock]
+    plant(out, target)
+    args = _writers(tiny_scene, out, _toml(tmp_path / "run.toml", tiny_scene, out))[writer]
+    line = refused(run_cli, args, tmp_path, f".sagebench.lock: not sagebench's lock file {says}")
+    assert "nothing was written" in line
+    assert target.read_text() == "the user's file, whatever a lock does\n"
+
+
+# ---------------------------------------------------------------- a user's folder is never written over
+
+
+def _users_folder(out: Path) -> None:
+    """The issue's folder: a README, a manifest and a file in a scenes/<id>/ of the user's."""
+    (out / "scenes" / "demo_apartment_0").mkdir(parents=True)
+    (out / "README.md").write_text("# my notes\n")
+    (out / "manifest.json").write_text('{"mine": true}\n')
+    (out / "scenes" / "demo_apartment_0" / "important.txt").write_text("do not delete\n")
+    (out / "notes.txt").write_text("mine\n")
+
+
+@pytest.mark.parametrize("writer", WRITERS)
+def test_a_users_folder_comes_out_byte_identical(writer, tiny_scene, run_cli, tmp_path):
+    out = tmp_path / "mine"
+    _users_folder(out)
+    args = _writers(tiny_scene, out, _toml(tmp_path / "run.toml", tiny_scene, out))[writer]
+    clashes = writer.split("-force")[0] in ("run", "build-scene", "export-usd", "demo")  # they write scenes/
+    expect = ("even with --force it never replaces" if clashes else "") if writer.endswith("-force") else \
+        "holds files that are not a sagebench run's (README.md, manifest.json, notes.txt and 1 more)"
+    refused(run_cli, args, tmp_path, expect)  # without a clash, the stage's own refusal: no scene to work on
+
+
+def test_force_writes_the_run_beside_the_users_files_and_never_changes_them(tiny_scene, run_cli, tmp_path):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine\n")
+    (out / ".hidden").write_text("mine too\n")
+    (out / "data").mkdir()
+    (out / "data" / "x.csv").write_text("1,2\n")
+    before = snapshot(out)
+    config = _toml(tmp_path / "run.toml", tiny_scene, out)
+    refused(run_cli, ["run", config], tmp_path, "holds files that are not a sagebench run's (data/, notes.txt)")
+    code, _, err = run_cli("-q", "run", config, "--force")
+    assert code == 0, err
+    after = snapshot(out)
+    assert {k: after[k] for k in before} == before
+    assert (out / "manifest.json").is_file() and (out / "scenes" / "tiny" / "topdown.npz").is_file()
+    code, _, err = run_cli("-q", "run", config, "--force")  # again: every stage skipped, the user's files kept
+    assert code == 0, err
+    assert {k: snapshot(out)[k] for k in before} == before
+
+
+def test_an_artist_scene_under_out_scenes_is_not_a_run(tiny_scene, run_cli, tmp_path):
+    """scenes/<id>/ with files no stage writes (a user's scene with its notes) is the user's, even with --force."""
+    out = tmp_path / "project"
+    shutil.copytree(tiny_scene, out / "scenes" / "tiny")
+    (out / "scenes" / "tiny" / "notes.md").write_text("mine\n")
+    refused(run_cli, ["build-scene", tiny_scene, "--out", out, "--force"], tmp_path,
+            "scenes/tiny/notes.md is not a sagebench run's and lies where `build-scene` writes")
+
+
+def test_an_input_scene_inside_the_output_folders_is_refused(tiny_scene, run_cli, tmp_path):
+    out = tmp_path / "run"
+    scene = out / "scenes" / "tiny"
+    shutil.copytree(tiny_scene, scene)
+    refused(run_cli, ["build-scene", scene, "--out", out], tmp_path,
+            f"SCENE_DIR: the input scene {scene} is inside {out}'s output folders")
+
+
+def test_the_users_hidden_files_survive_a_rebuild(tiny_run, tiny_scene, run_cli, tmp_path):
+    out = tmp_path / "run"
+    shutil.copytree(tiny_run, out)
+    mine = [out / "scenes" / "tiny" / ".my-notes", out / "episodes" / "tiny" / ".keep"]
+    for p in mine:
+        p.write_text("mine\n")
+    assert run_cli("build-scene", tiny_scene, "--out", out, "--object-density", "20")[0] == 0
+    assert run_cli("gen-trajectories", out, "--per-scene", "2", "--min-geodesic", "1")[0] == 0
+    assert all(p.read_text() == "mine\n" for p in mine)
+
+
+@pytest.mark.parametrize("make, expect", [
+    (lambda p: p.write_text("x"), "is a file, not a run directory"),
+    (lambda p: p.symlink_to(p.parent / "nowhere"), "is a file, not a run directory"),
+])
+def test_an_out_that_is_a_file_is_one_line(make, expect, tiny_scene, run_cli, tmp_path):
+    out = tmp_path / "out"
+    make(out)
+    refused(run_cli, ["run", _toml(tmp_path / "run.toml", tiny_scene, out)], tmp_path, f"{out}: {expect}")
+    refused(run_cli, ["build-scene", tiny_scene, "--out", out], tmp_path, f"{out}: {expect}")
+
+
+# ---------------------------------------------------------------- one writer at a time, whatever the command
+
+
+def _hold_lock(run: Path) -> subprocess.Popen:
+    proc = subprocess.Popen([sys.executable, "-c", "import sys, time\nfrom pathlib import Path\n"
+                             "from sagebench.run_lock import run_lock\nwith run_lock(Path(sys.argv[1])):\n"
+                             "    print('locked', flush=True)\n    time.sleep(600)\n", str(run)],
+                            stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline() == "locked\n"
+    return proc
+
+
+def test_every_writer_is_refused_while_another_holds_the_run(tiny_run, tiny_scene, run_cli, tmp_path):
+    out = tmp_path / "run"
+    shutil.copytree(tiny_run, out)
+    holder = _hold_lock(out)
+    try:
+        for name, args in _writers(tiny_scene, out, _toml(tmp_path / "run.toml", tiny_scene, out)).items():
+            line = refused(run_cli, args, tmp_path, f"another sagebench command (pid {holder.pid}) is writing this "
+                                                    "run directory; wait for it to end or choose another")
+            assert line.startswith(f"error: {out}: "), (name, line)
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_a_failed_command_leaves_no_lock_and_no_folder_it_made(tiny_scene, run_cli, tmp_path):
+    scene = tmp_path / "scene"
+    shutil.copytree(tiny_scene, scene)
+    (scene / "scene.json").write_text("{")
+    refused(run_cli, ["build-scene", scene, "--out", tmp_path / "a" / "b" / "run"], tmp_path, "malformed JSON")
+    assert not (tmp_path / "a").exists()
+
+
+def test_the_lock_is_reentrant_in_one_process_and_exclusive_across(tmp_path):
+    from sagebench.run_lock import RunLockedError, run_lock
+
+    with run_lock(tmp_path) as path, run_lock(tmp_path):
+        assert path.read_text() == f"{os.getpid()}\n"
+        proc = subprocess.run([sys.executable, "-c", "import sys\nfrom pathlib import Path\n"
+                               "from sagebench.run_lock import run_lock\nwith run_lock(Path(sys.argv[1])): pass\n",
+                               str(tmp_path)], capture_output=True, text=True)
+        assert proc.returncode == 1 and "RunLockedError" in proc.stderr
+    with run_lock(tmp_path):
+        pass
+    with pytest.raises(RuntimeError), run_lock(tmp_path):
+        raise RuntimeError("the lock file this call found stays")
+    assert (tmp_path / ".sagebench.lock").is_file()
+    assert RunLockedError.__mro__[1].__name__ == "SagebenchError"
+
+
+# ---------------------------------------------------------------- permissions, with root's overrides dropped
+
+
+def _as_user(args: list, **kw) -> subprocess.CompletedProcess:
+    """Run `sagebench ARGS` in a process that file modes bind: as root, without CAP_DAC_OVERRIDE and
+    CAP_DAC_READ_SEARCH (setpriv), as CI runs the suite as root; as is, otherwise."""
+    cmd = [sys.executable, "-m", "sagebench", *map(str, args)]
+    if os.geteuid() == 0:
+        cmd = ["setpriv", "--bounding-set=-dac_override,-dac_read_search", "--", *cmd]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=300, **kw)
+
+
+@pytest.fixture(scope="module")
+def modes_bind(tmp_path_factory) -> None:
+    if os.geteuid() != 0:
+        return
+    probe = tmp_path_factory.mktemp("probe") / "f"
+    probe.write_text("x")
+    probe.chmod(0)
+    if shutil.which("setpriv") is None:
+        pytest.skip("running as root without setpriv: file modes cannot be made to bind")
+    ran = subprocess.run(["setpriv", "--bounding-set=-dac_override,-dac_read_search", "--", "cat", str(probe)],
+                         capture_output=True)
+    if ran.returncode == 0 or b"Permission denied" not in ran.stderr:
+        pytest.skip(f"setpriv could not drop root's file-mode overrides here ({ran.stderr.decode().strip()})")
+
+
+def _one_line(proc: subprocess.CompletedProcess, expect: str) -> None:
+    lines = proc.stderr.splitlines()
+    assert (proc.returncode, proc.stdout, len(lines)) == (2, "", 1), proc.stderr
+    assert expect in lines[0] and "Traceback" not in proc.stderr, lines[0]
+
+
+def test_a_read_only_parent_of_out_is_one_line(modes_bind, tiny_scene, tmp_path):
+    parent = tmp_path / "ro"
+    parent.mkdir()
+    parent.chmod(0o555)
+    config = _toml(tmp_path / "run.toml", tiny_scene, parent / "run")
+    try:
+        before = snapshot(tmp_path)
+        _one_line(_as_user(["build-scene", tiny_scene, "--out", parent / "run"]), f"{parent / 'run'}: cannot create: "
+                                                                                   "Permission denied")
+        _one_line(_as_user(["run", config]), f"{parent / 'run'}: cannot create: Permission denied")
+        assert snapshot(tmp_path) == before
+    finally:
+        parent.chmod(0o755)
+
+
+def test_a_read_only_out_is_one_line(modes_bind, tiny_run, tmp_path):
+    out = tmp_path / "run"
+    shutil.copytree(tiny_run, out)
+    for d in (out, *[p for p in out.rglob("*") if p.is_dir()]):
+        d.chmod(0o555)
+    try:
+        before = snapshot(tmp_path)
+        _one_line(_as_user(["gen-trajectories", out, "--per-scene", "2"]), f"{out}/.sagebench.lock: cannot create the "
+                                                                          "run lock: Permission denied")
+        assert snapshot(tmp_path) == before
+    finally:
+        for d in (out, *[p for p in out.rglob("*") if p.is_dir()]):
+            d.chmod(0o755)
+
+
+@pytest.mark.parametrize("what", ["mesh", "meshes-dir", "scene-json"])
+def test_an_unreadable_input_is_one_line(what, modes_bind, tiny_scene, tmp_path):
+    scene = tmp_path / "scene"
+    shutil.copytree(tiny_scene, scene)
+    target = {"mesh": scene / "meshes" / "table.glb", "meshes-dir": scene / "meshes",
+              "scene-json": scene / "scene.json"}[what]
+    target.chmod(0)
+    try:
+        for command in (["check-scene", scene], ["build-scene", scene, "--out", tmp_path / "run"]):
+            proc = _as_user(command)
+            _one_line(proc, "Permission denied" if what != "meshes-dir" else "scene.json: objects[0].mesh")
+        assert not (tmp_path / "run").exists()
+    finally:
+        target.chmod(stat.S_IRWXU | stat.S_IRGRP | stat.S_IXGRP | stat.S_IROTH | stat.S_IXOTH)
