@@ -286,8 +286,8 @@ def test_a_one_at_a_time_local_server_is_not_asked_past_its_deadline(fake_llm, t
 
     server = fake_llm(respond)
     client = ChatClient(config(tmp_path, server.url, timeout_s=0.5, max_attempts=1))
-    client.discover_concurrency()
+    assert client.discover_concurrency() == 1
     threads = [threading.Thread(target=client.complete, args=(f"p{k}",)) for k in range(6)]
     bounded(BOUND_S, lambda: [t.start() for t in threads] and [t.join() for t in threads])
+    # 4 at once (the old default) would leave the 4th queued 0.9 s at the server, past its deadline
     assert len(server.bodies) == 6 and all(client.cache_path(f"p{k}").exists() for k in range(6))
-    assert server.most_in_flight == 1
