@@ -83,21 +83,8 @@ def staged_file(path: Path) -> Iterator[BinaryIO]:
 
 def copy_file(src: Path, path: Path) -> None:
     """Copy `src` to `path` as write_bytes writes (temporary sibling, fsync, rename), a chunk at a time."""
-    with _writing(path):
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{TEMP_TAG}", suffix=".tmp", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as fh, open(src, "rb") as source:
-                os.fchmod(fh.fileno(), 0o666 & ~current_umask())
-                shutil.copyfileobj(source, fh, 1 << 20)
-                fh.flush()
-                os.fsync(fh.fileno())
-            check_interrupted()
-            os.replace(tmp, path)
-        except BaseException:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(tmp)
-            raise
+    with staged_file(path) as fh, open(src, "rb") as source:
+        shutil.copyfileobj(source, fh, 1 << 20)
 
 
 def hash_file(path: Path, h: Any = None) -> Any:

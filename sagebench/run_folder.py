@@ -17,6 +17,7 @@ import fnmatch
 import json
 import os
 import stat
+import threading
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
@@ -28,6 +29,8 @@ from sagebench.run_layout import (
 from sagebench.run_lock import run_lock
 
 SHOWN = 3  # foreign paths named in a refusal
+_claimed: set[tuple[int, int]] = set()  # (st_dev, st_ino) of the run directories this process has claimed
+_claimed_guard = threading.Lock()
 
 
 @contextlib.contextmanager
@@ -35,21 +38,40 @@ def claim_run_dir(run_dir: Path, command: str, *, force: bool = False) -> Iterat
     """Create RUN_DIR if needed, take its lock and check what it holds, for the body of `command` (a key of
     run_layout.COMMAND_WRITES). An OutputError (one line) when it is a file, cannot be created, holds the
     user's files (without `force`, or where `command` writes) or is locked by another writer. If the body
-    raises, the lock file and the directories the claim created are removed again."""
+    raises, the lock file and the directories the claim created are removed again. A claim nested in another of
+    the same directory in this process (`demo` starts a `run`) holds nothing more."""
     run_dir = Path(run_dir)
     if os.path.lexists(run_dir) and not run_dir.is_dir():
         raise OutputError("is a file, not a run directory: give a folder for the run", path=run_dir)
+    if _identity(run_dir) in _claimed:
+        yield run_dir
+        return
     created = _make_dirs(run_dir)
+    key = _identity(run_dir)
     try:
         with run_lock(run_dir):
             if not created:
                 check_run_dir(run_dir, command, force=force)
-            yield run_dir
+            with _claimed_guard:
+                _claimed.add(key)
+            try:
+                yield run_dir
+            finally:
+                with _claimed_guard:
+                    _claimed.discard(key)
     except BaseException:
         for d in reversed(created):
             with contextlib.suppress(OSError):
                 d.rmdir()  # only if the failed command left it empty
         raise
+
+
+def _identity(path: Path) -> tuple[int, int] | None:
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
 
 
 def check_run_dir(run_dir: Path, command: str, *, force: bool = False) -> None:

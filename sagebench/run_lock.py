@@ -7,8 +7,7 @@ name then no longer leads to the inode it locked). A command that fails removes 
 
 The file is opened relative to the run directory without following a link (O_NOFOLLOW), and must be a
 regular file of the user running sagebench with no other hard link: a link or a hard link planted there
-would otherwise have the pid written over whatever it points to. Within one process the lock is
-re-entrant (`demo` holds it around the `run` it starts).
+would otherwise have the pid written over whatever it points to.
 """
 
 from __future__ import annotations
@@ -17,7 +16,6 @@ import contextlib
 import fcntl
 import os
 import stat
-import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -25,8 +23,6 @@ from sagebench.errors import OutputError, SagebenchError
 from sagebench.run_layout import LOCK
 
 _NOFOLLOW = os.O_RDWR | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC  # O_NONBLOCK: a FIFO must not block the open
-_held: dict[tuple[int, int], int] = {}  # (st_dev, st_ino) of a run directory this process holds -> depth
-_held_guard = threading.Lock()
 
 
 class RunLockedError(SagebenchError):
@@ -41,21 +37,7 @@ def run_lock(run_dir: Path) -> Iterator[Path]:
     path = Path(run_dir) / LOCK
     dir_fd = _open_dir(Path(run_dir))
     try:
-        st = os.fstat(dir_fd)
-        key = (st.st_dev, st.st_ino)
-        with _held_guard:
-            depth = _held.get(key, 0)
-            if depth:
-                _held[key] = depth + 1
-        if depth:
-            try:
-                yield path
-            finally:
-                _release(key)
-            return
         fd, created = _take(dir_fd, path, run_dir)
-        with _held_guard:
-            _held[key] = 1
         try:
             os.ftruncate(fd, 0)
             os.pwrite(fd, f"{os.getpid()}\n".encode("ascii"), 0)
@@ -66,17 +48,9 @@ def run_lock(run_dir: Path) -> Iterator[Path]:
                     os.unlink(LOCK, dir_fd=dir_fd)
             raise
         finally:
-            _release(key)
             os.close(fd)
     finally:
         os.close(dir_fd)
-
-
-def _release(key: tuple[int, int]) -> None:
-    with _held_guard:
-        _held[key] -= 1
-        if not _held[key]:
-            del _held[key]
 
 
 def _open_dir(run_dir: Path) -> int:

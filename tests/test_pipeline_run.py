@@ -334,8 +334,8 @@ def test_the_refusal_names_the_holders_pid_over_a_longer_stale_one(workspace):
         with pytest.raises(RunLockedError) as err:
             with run_lock(run):
                 pass
-        assert str(err.value) == (f"{run}: another `sagebench run` (pid {holder.pid}) is writing this run directory; "
-                                  "wait for it to end or set another `out`")
+        assert str(err.value) == (f"{run}: another sagebench command (pid {holder.pid}) is writing this run "
+                                  "directory; wait for it to end or choose another")
         assert (run / ".sagebench.lock").read_text() == f"{holder.pid}\n"
     finally:
         holder.kill()

@@ -203,11 +203,16 @@ def test_a_failed_command_leaves_no_lock_and_no_folder_it_made(tiny_scene, run_c
     assert not (tmp_path / "a").exists()
 
 
-def test_the_lock_is_reentrant_in_one_process_and_exclusive_across(tmp_path):
+def test_a_claim_nests_in_one_process_and_the_lock_excludes_every_other_holder(tmp_path):
+    """demo claims its folder and starts a run that claims it again; the lock itself is never re-entrant (a second
+    holder in the same process, as export-training's, is refused too)."""
+    from sagebench.run_folder import claim_run_dir
     from sagebench.run_lock import RunLockedError, run_lock
 
-    with run_lock(tmp_path) as path, run_lock(tmp_path):
-        assert path.read_text() == f"{os.getpid()}\n"
+    with claim_run_dir(tmp_path, "demo"), claim_run_dir(tmp_path, "run"):
+        assert (tmp_path / ".sagebench.lock").read_text() == f"{os.getpid()}\n"
+        with pytest.raises(RunLockedError), run_lock(tmp_path):
+            pass
         proc = subprocess.run([sys.executable, "-c", "import sys\nfrom pathlib import Path\n"
                                "from sagebench.run_lock import run_lock\nwith run_lock(Path(sys.argv[1])): pass\n",
                                str(tmp_path)], capture_output=True, text=True)
@@ -217,7 +222,6 @@ def test_the_lock_is_reentrant_in_one_process_and_exclusive_across(tmp_path):
     with pytest.raises(RuntimeError), run_lock(tmp_path):
         raise RuntimeError("the lock file this call found stays")
     assert (tmp_path / ".sagebench.lock").is_file()
-    assert RunLockedError.__mro__[1].__name__ == "SagebenchError"
 
 
 # ---------------------------------------------------------------- permissions, with root's overrides dropped
