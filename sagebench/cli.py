@@ -471,12 +471,14 @@ def export_vlnce_cmd(
     OUT/<split>/<split>_gt.json.gz (the oracle's teacher path: what VLN-CE's NDTW and recollect trainer
     read), OUT/vocab.txt, OUT/vlnce_opts.txt (the VLN-CE config options for this data, printed too: paths,
     splits, vocabulary size, success distance) and OUT/scenes/<id>/<id>.glb (the scene's visual meshes,
-    Y up) for habitat-sim.
+    Y up) for habitat-sim. OUT must be new, empty or an earlier export-vlnce output, outside RUN_DIR.
     """
-    from sagebench.stages.export_vlnce import export_vlnce
+    from sagebench.run_folder import claim_export_dir
+    from sagebench.stages.export_vlnce import OPTS_FILE, export_vlnce
 
-    for line in export_vlnce(run_dir, out, split=split).lines():
-        typer.echo(line)
+    with claim_export_dir(out, run_dir, "export-vlnce", OPTS_FILE):
+        for line in export_vlnce(run_dir, out, split=split).lines():
+            typer.echo(line)
 
 
 @app.command("export-training", cls=_defaults_from("sagebench.stages.export_training:TrainingExportConfig"))

@@ -18,7 +18,7 @@ import json
 import os
 import stat
 import threading
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 from sagebench.errors import ConfigError, OutputError, SagebenchError
@@ -40,22 +40,47 @@ def claim_run_dir(run_dir: Path, command: str, *, force: bool = False) -> Iterat
     user's files (without `force`, or where `command` writes) or is locked by another writer. If the body
     raises, the lock file and the directories the claim created are removed again. A claim nested in another of
     the same directory in this process (`demo` starts a `run`) holds nothing more."""
-    run_dir = Path(run_dir)
-    if os.path.lexists(run_dir) and not run_dir.is_dir():
-        raise OutputError("is a file, not a run directory: give a folder for the run", path=run_dir)
-    if _identity(run_dir) in _claimed:
-        yield run_dir
+    with _claim(Path(run_dir), "is a file, not a run directory: give a folder for the run",
+                lambda d: check_run_dir(d, command, force=force)) as claimed:
+        yield claimed
+
+
+@contextlib.contextmanager
+def claim_export_dir(out: Path, run_dir: Path, command: str, marker: str) -> Iterator[Path]:
+    """OUT of a command that exports a run into a folder of its own (export-vlnce, export-training), claimed as
+    `claim_run_dir` claims a run: created if needed, locked for the body, left as found if the body raises. A
+    ConfigError (--out) when OUT is the run or lies inside it (what the run's lock and manifest do not cover
+    must not be written there), or holds anything but an earlier output of `command` (`marker` in it)."""
+    out = Path(out)
+    real_out, real_run = Path(os.path.realpath(out)), Path(os.path.realpath(run_dir))
+    if real_out.is_relative_to(real_run):
+        raise ConfigError(f"{out} lies inside the run {run_dir}: give a folder outside it", field="--out")
+
+    def check(d: Path) -> None:
+        if not os.path.lexists(d / marker) and any(e.name != LOCK for e in _entries(d)):
+            raise ConfigError(f"{d} is not empty and holds no {command} output; use a new --out", field="--out")
+
+    with _claim(out, "is a file, not a folder: give a folder for the export", check) as claimed:
+        yield claimed
+
+
+@contextlib.contextmanager
+def _claim(folder: Path, is_a_file: str, check: Callable[[Path], None]) -> Iterator[Path]:
+    if os.path.lexists(folder) and not folder.is_dir():
+        raise OutputError(is_a_file, path=folder)
+    if _identity(folder) in _claimed:
+        yield folder
         return
-    created = _make_dirs(run_dir)
-    key = _identity(run_dir)
+    created = _make_dirs(folder)
+    key = _identity(folder)
     try:
-        with run_lock(run_dir):
+        with run_lock(folder):
             if not created:
-                check_run_dir(run_dir, command, force=force)
+                check(folder)
             with _claimed_guard:
                 _claimed.add(key)
             try:
-                yield run_dir
+                yield folder
             finally:
                 with _claimed_guard:
                     _claimed.discard(key)

@@ -362,7 +362,7 @@ FOLDER_CASES = ["force-beside-users-files", "artist-scene-under-out", "input-ins
                 "read-only-parent", "read-only-out", "mesh-mode-000", "meshes-dir-mode-000", "scene-json-mode-000"]
 CASES = [*FOLDER_CASES, *(f"key-{how}" for how in ("401-echo", "redirect", "crash", "echo-in-answer")), "key-as-variable-name",
          "failed-llm-run-stale-shards", *(f"validate-{c}" for c in VALIDATE_CASES), "verify-rows-and-usd",
-         "navigable-nan", "navigable-zero", "navigable-2", "agent-radius-50",
+         "navigable-nan", "navigable-zero", "navigable-3", "agent-radius-50",
          *(f"scene-{c}" for c in SCENE_TRACEBACKS), *(f"toml-{c}" for c in TOML_TRACEBACKS),
          "predictions-1e6-poses", "predictions-10001-poses", "semantic-map-a-directory",
          *(f"ctrl-c-{d}" for d in (0.0, 0.2, 0.5, 1.0, 1.8))]
@@ -371,10 +371,12 @@ CASES = [*FOLDER_CASES, *(f"key-{how}" for how in ("401-echo", "redirect", "cras
 def test_the_reliability_suite_adds_its_cases_to_the_damaged_inputs():
     """This file's attacks, each a distinct case, on top of test_fuzz_inputs' 250 or more damaged inputs."""
     from test_fuzz_inputs import GLTF_CASES, MESH_CASES, PLY_CASES, PREDICTION_CASES, RUN_CASES, SCENE_CASES, TOML_CASES
-    from test_run_folder import LOCKS, WRITERS
+    from test_run_folder import EXPORT_OUTS, EXPORTERS, LOCKS, WRITERS
 
     cases = [*(f"lock-{lock}-{writer}" for lock in LOCKS for writer in WRITERS),
-             *(f"users-folder-{writer}" for writer in WRITERS), *CASES]  # test_run_folder.py's and this file's
+             *(f"users-folder-{writer}" for writer in WRITERS),
+             *(f"{exporter}-into-{where}" for exporter in EXPORTERS for where in EXPORT_OUTS),
+             *CASES]  # test_run_folder.py's and this file's
     assert len(set(cases)) == len(cases) >= 120
     before = len(SCENE_CASES) + len(PLY_CASES) + len(MESH_CASES) + len(GLTF_CASES) + len(RUN_CASES) + \
         len(PREDICTION_CASES) + len(TOML_CASES)

@@ -169,6 +169,56 @@ def test_an_out_that_is_a_file_is_one_line(make, expect, tiny_scene, run_cli, tm
     refused(run_cli, ["build-scene", tiny_scene, "--out", out], tmp_path, f"{out}: {expect}")
 
 
+# ---------------------------------------------------------------- exports go to a folder of their own
+
+
+def _exporter(name: str, run: Path, out: Path) -> list:
+    return {"export-vlnce": ["export-vlnce", run, "--out", out],
+            "export-training": ["export-training", run, "--out", out, "--renderer", "cpu", "--width", "16",
+                                "--height", "16"]}[name]
+
+
+EXPORTERS = ["export-vlnce", "export-training"]
+EXPORT_OUTS = {  # where OUT is (the run copied to tmp_path/run) -> what the one line says
+    "the-run": (lambda tmp: tmp / "run", "lies inside the run"),
+    "inside-the-run": (lambda tmp: tmp / "run" / "exports" / "x", "lies inside the run"),
+    "a-link-into-the-run": (lambda tmp: (tmp / "link").symlink_to(tmp / "run" / "scenes") or tmp / "link" / "x",
+                            "lies inside the run"),
+    "a-users-folder": (lambda tmp: _users_folder(tmp / "mine") or tmp / "mine",
+                       "is not empty and holds no {exporter} output; use a new --out"),
+    "locked": (lambda tmp: (tmp / "exp").mkdir() or tmp / "exp",
+               "is writing this run directory; wait for it to end or choose another"),
+}
+
+
+@pytest.mark.parametrize("where", list(EXPORT_OUTS))
+@pytest.mark.parametrize("exporter", EXPORTERS)
+def test_an_export_never_writes_into_the_run_a_users_folder_or_a_locked_one(exporter, where, tiny_run, run_cli,
+                                                                            tmp_path):
+    """export-vlnce wrote vocab.txt, <split>/ and scenes/<id>/<id>.glb over whatever OUT held (the run itself
+    included, where its lock and manifest do not cover them); now OUT is claimed as a run folder is."""
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run)
+    make, expect = EXPORT_OUTS[where]
+    out = make(tmp_path)
+    holder = _hold_lock(out) if where == "locked" else None
+    try:
+        refused(run_cli, _exporter(exporter, run, out), tmp_path, expect.format(exporter=exporter))
+    finally:
+        if holder is not None:
+            holder.kill()
+            holder.wait()
+
+
+def test_an_export_vlnce_goes_again_into_its_own_output(tiny_run, run_cli, tmp_path):
+    out = tmp_path / "vlnce"
+    assert run_cli("export-vlnce", tiny_run, "--out", out)[0] == 0
+    first = snapshot(out)
+    code, _, err = run_cli("export-vlnce", tiny_run, "--out", out)
+    assert code == 0, err
+    assert snapshot(out) == first
+
+
 # ---------------------------------------------------------------- one writer at a time, whatever the command
 
 

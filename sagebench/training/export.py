@@ -33,9 +33,9 @@ from sagebench.navsim.actions import Action, ActionConfig
 from sagebench.navsim.simulator import EnvConfig, Simulator
 from sagebench.render.backends import RendererChoice, choose_backend
 from sagebench.run_layout import (
-    COLLIDERS, COLLIDERS_INDEX, GAUSSIANS, LOCK, MJCF, SHARDS, TOPDOWN, run_episodes_dir, run_scene_dir,
+    COLLIDERS, COLLIDERS_INDEX, GAUSSIANS, MJCF, SHARDS, TOPDOWN, run_episodes_dir, run_scene_dir,
 )
-from sagebench.run_lock import run_lock
+from sagebench.run_folder import claim_export_dir
 from sagebench.training.actions import path_actions
 from sagebench.training.navila import write_navila
 from sagebench.training.shards import chunks, depth_png, open_shard, rgb_png, sample_json, sample_key, shard_samples
@@ -108,10 +108,8 @@ def export_training(run_dir: Path, out: Path, config: TrainingExportConfig = Tra
     settings = {"format": FORMAT, "sagebench": __version__, "renderer": backend,
                 "config": config.model_dump(mode="json", exclude=NOT_IN_SHARDS),
                 "inputs": _input_hashes(run_dir, sorted({sim.episodes[e].scene_id for e in ids}))}
-    if out.is_dir() and not (out / SETTINGS_FILE).is_file() and any(p.name != LOCK for p in out.iterdir()):
-        raise ConfigError(f"{out} is not empty and holds no export-training output; use a new --out", field="--out")
-    out.mkdir(parents=True, exist_ok=True)
-    with run_lock(out):  # one export per OUT: a second would remove the first's shard in progress
+    # one export per OUT (a second would remove the first's shard in progress), never inside the run
+    with claim_export_dir(out, run_dir, "export-training", SETTINGS_FILE):
         return _export_locked(sim, ids, out, settings, config, on_progress, start, backend)
 
 
