@@ -221,9 +221,9 @@ def test_cli_llm_mode_writes_llm_rows_and_a_second_run_sends_no_request(fake_llm
                          ids=["404", "non-JSON", "content null", "hang", "non-HTTP"])
 def test_cli_exits_1_and_writes_nothing_when_no_answer_comes(fake_llm, run_cli, run, tmp_path, reply):
     server = fake_llm(lambda b, n: reply)
-    code, out, err = bounded(BOUND_S, run_cli, *_llm_args(run, server.url, tmp_path, "--llm-timeout", "0.5"))
+    code, out, err = bounded(BOUND_S, run_cli, "-q", *_llm_args(run, server.url, tmp_path, "--llm-timeout", "0.5"))
     assert code == 1 and not (run / "episodes").exists()
-    (line,) = err.strip().splitlines()
+    (line,) = err.strip().splitlines()  # -q: no progress line (printed every 5 s off a terminal) beside the error
     assert line.startswith(f"error: {run / 'scenes' / 'demo_apartment_0'}: --instructions llm: no high-level row "
                            "came from the model (0 of 8 high-level rows from the model (0 %), 8 template;")
     assert "stopped asking after 6 consecutive failed requests" in line and len(server.bodies) <= 6 + 4 - 1

@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pydantic import ValidationError
@@ -34,6 +35,9 @@ from sagebench.scene.loader import parse_spec
 from sagebench.scene.model import SceneSpec
 from sagebench.topdown.grid_file import read_topdown_grids
 from sagebench.topdown.semantic_map import SemanticMap
+
+if TYPE_CHECKING:
+    from sagebench.instructions.llm import LLMInstructor
 
 
 def make_config(**fields: object) -> GenTrajectoriesConfig:
@@ -122,14 +126,7 @@ def generate_scene(scene_dir: Path, run_dir: Path, config: GenTrajectoriesConfig
     blocked = BlockedMap(occupancy != 0, grid.resolution, grid.origin)
     made = episode_rows(spec.scene_id, result.trajectories, names, config, ctx, blocked)
     if instructor is not None:
-        share = instructor.share()
-        if not share.enough:
-            why = "no high-level row came from the model" if share.llm == 0 else \
-                f"fewer high-level rows from the model than --llm-min-share {config.llm.min_share:g}"
-            raise ServiceError(f"--instructions llm: {why} ({instructor.summary()}); nothing written (--llm-min-share 0 "
-                               "keeps the template rows instead)", path=scene_dir)
-        if instructor.stats["fallback"]:
-            ui.warn(f"{spec.scene_id}: {instructor.summary()}")
+        _check_share(instructor, config, spec.scene_id, scene_dir)
     png = render_paths(grid.navigable, occupancy, [t.waypoints for t in result.trajectories[:config.preview_paths]],
                        grid.resolution, grid.origin)
     out_dir = run_episodes_dir(run_dir, spec.scene_id)
@@ -155,6 +152,19 @@ def read_scene_inputs(scene_dir: Path) -> tuple[SceneSpec, SemanticMap, GridMap,
     grids = read_topdown_grids(npz_path)
     grid = GridMap(grids.navigable, grids.resolution, grids.origin, float(spec.floor_height), grids.anchors)
     return spec, smap, grid, grids.occupancy
+
+
+def _check_share(instructor: LLMInstructor, config: GenTrajectoriesConfig, scene_id: str, scene_dir: Path) -> None:
+    """A ServiceError (nothing written) when fewer high-level rows than `llm.min_share` came from the model; a
+    warning with the instructor's summary when some fell back to the template."""
+    share = instructor.share()
+    if not share.enough:
+        why = "no high-level row came from the model" if share.llm == 0 else \
+            f"fewer high-level rows from the model than --llm-min-share {config.llm.min_share:g}"
+        raise ServiceError(f"--instructions llm: {why} ({instructor.summary()}); nothing written (--llm-min-share 0 "
+                           "keeps the template rows instead)", path=scene_dir)
+    if instructor.stats["fallback"]:
+        ui.warn(f"{scene_id}: {instructor.summary()}")
 
 
 def _warn_if_short(scene_id: str, result: SamplingResult, config: GenTrajectoriesConfig, *, n_targets: int,
