@@ -137,11 +137,13 @@ def synth_scene(
 
 @app.command("check-scene")
 def check_scene(
-    scene_dir: Annotated[Path, typer.Argument(callback=existing, help="Artist scene directory (scene.json + meshes).")],
+    scene_dir: Annotated[Path, typer.Argument(
+        callback=existing, help="Artist scene directory (scene.json + meshes) or InteriorGS scene folder.")],
 ) -> None:
     """Check a scene directory as build-scene would (same checks, default settings) and print a summary.
 
-    Reads SCENE_DIR/scene.json, every mesh it names and its trained gaussians.ply if any. Writes nothing.
+    Reads SCENE_DIR/scene.json, every mesh it names and its trained gaussians.ply if any (an InteriorGS folder
+    is imported in memory first). Writes nothing.
     """
     from sagebench.scene.summary import summarise
     from sagebench.stages.build_scene import check_scene
@@ -194,9 +196,41 @@ def demo(
         raise typer.Exit(1)
 
 
+@app.command("import-interiorgs", cls=_defaults_from("sagebench.stages.import_interiorgs:InteriorGSConfig"))
+def import_interiorgs_cmd(
+    src: Annotated[Path, typer.Argument(help="InteriorGS scene folder (3dgs_compressed.ply, labels.json, structure.json, "
+                                             "occupancy.png, occupancy.json).")],
+    out: Annotated[Path, typer.Option("--out", help="Scene directory to create: absent, empty or an earlier import "
+                                                     "(replaced whole).")],
+    collision_usd: Annotated[Path | None, typer.Option(
+        "--collision-usd", help="SAGE-3D's collision USD for this scene: its meshes replace the surfaces made from "
+                                "Gaussians for the objects they match.")] = None,
+    voxel: Annotated[float | None, typer.Option(help="Voxel side of the object surfaces, m.")] = None,
+    min_opacity: Annotated[float | None, typer.Option(help="Summed opacity a voxel needs to be solid.")] = None,
+    max_parts: Annotated[int | None, typer.Option(help="Convex parts per object surface at most.")] = None,
+    force: Annotated[bool, typer.Option("--force", help="Replace OUT whatever it holds.")] = False,
+) -> None:
+    """Turn an InteriorGS scene folder (3D Gaussians and labels, no meshes) into a sagebench scene.
+
+    Reads SRC/3dgs_compressed.ply (SuperSplat's compressed layout; or 3dgs.ply in the INRIA layout),
+    labels.json, structure.json, occupancy.png and occupancy.json, and COLLISION_USD when given.
+
+    Writes OUT/scene.json, OUT/meshes/*.ply (walls with their openings, floor and ceiling slabs, and each
+    object's surface made from its own Gaussians), OUT/gaussians.ply (the Gaussians with instance ids),
+    OUT/interiorgs_import.json (shares of Gaussians per outcome, doors, the occupancy agreement) and
+    OUT/occupancy_check.png (occupancy.png against the imported geometry). build-scene and run also take
+    SRC directly.
+    """
+    from sagebench.stages.import_interiorgs import import_interiorgs_scene, make_config
+
+    config = make_config(voxel=voxel, min_opacity=min_opacity, max_parts=max_parts)
+    typer.echo(import_interiorgs_scene(src, out, config, collision_usd=collision_usd, force=force).summary())
+
+
 @app.command("build-scene", cls=_defaults_from("sagebench.stages.build_scene:BuildSceneConfig"))
 def build_scene_cmd(
-    scene_dir: Annotated[Path, typer.Argument(callback=existing, help="Artist scene directory (scene.json + meshes).")],
+    scene_dir: Annotated[Path, typer.Argument(
+        callback=existing, help="Artist scene directory (scene.json + meshes) or InteriorGS scene folder.")],
     out: Annotated[Path, typer.Option("--out", help="Run directory; writes OUT/scenes/<scene_id>/.")],
     resolution: Annotated[float | None, typer.Option(help="Grid cell side, m.")] = None,
     band_min: Annotated[float | None, typer.Option(help="Lowest blocking height above the floor, m.")] = None,
@@ -212,7 +246,8 @@ def build_scene_cmd(
 ) -> None:
     """Build the semantic top-down map, the height-band occupancy and the Gaussians of one scene.
 
-    Reads SCENE_DIR/scene.json and its meshes.
+    Reads SCENE_DIR/scene.json and its meshes, or an InteriorGS scene folder (imported as
+    import-interiorgs does, with default settings).
 
     Writes OUT/scenes/<scene_id>/: scene.json and meshes/ (normalised), topdown.npz,
     semantic_map.json, topdown.png and gaussians.ply (the scene's trained gaussians.ply with
@@ -515,6 +550,53 @@ def export_training_cmd(
     config = make_config(split=split, depth=depth, width=width, height=height, renderer=renderer,
                          episodes_per_shard=episodes_per_shard, batch=batch, workers=workers, navila=navila)
     typer.echo(run_export_training(run_dir, out, config).summary())
+
+
+
+@app.command("export-sage")
+def export_sage_cmd(
+    run_dir: Annotated[Path, typer.Argument(help="Run directory with episodes/<id>/ and scenes/<id>/.")],
+    out: Annotated[Path, typer.Option("--out", help="Directory for the GVLN files.")],
+    scene: Annotated[str | None, typer.Option("--scene", help="Only this scene id (default: every scene).")] = None,
+) -> None:
+    """Export the episodes as SAGE-3D's GVLN trajectory files (SAGE-Bench's episode format).
+
+    Positions and headings in SAGE-3D's 3D frame (the world turned by 180 degrees about Z), one sample per
+    trajectory, one instruction per episode row; SAGE-3D's episodes_adapter.py reads them.
+
+    Reads RUN_DIR/episodes/<id>/part-*.parquet and RUN_DIR/scenes/<id>/scene.json.
+
+    Writes OUT/<id>/trajectories_<id>.json per scene.
+    """
+    from sagebench.stages.export_sage import export_sage
+
+    for line in export_sage(run_dir, out, scene_id=scene).lines():
+        typer.echo(line)
+
+
+@app.command("import-sage-episodes", cls=_defaults_from("sagebench.stages.import_sage:SageImportConfig"))
+def import_sage_episodes_cmd(
+    file: Annotated[Path, typer.Argument(help="GVLN trajectory file (SAGE-Bench's episodes for one scene).")],
+    run: Annotated[Path, typer.Option("--run", help="Run directory holding the scene (scenes/<id>/ from build-scene).")],
+    scene: Annotated[str | None, typer.Option(
+        "--scene", help="Scene id in the run (default: the one named by the file's scene_name).")] = None,
+    goal_radius: Annotated[float | None, typer.Option(help="Success radius, m, where the file has none (SAGE-3D's).")] = None,
+    split: Annotated[str | None, typer.Option(help="Split of the rows where the file has none.")] = None,
+) -> None:
+    """Turn SAGE-Bench's GVLN episodes for a scene into sagebench episodes, to roll out and evaluate them.
+
+    Instruction types map to sagebench's (Attribute-based -> Attribute_Based, Area-based -> Area_Based, Default
+    -> Single_Goal); instructions of a type with no goal (Goal-less) are left out and counted.
+
+    Reads FILE and RUN/scenes/<id>/scene.json.
+
+    Writes RUN/episodes/<id>/part-<split>-NNNNN.parquet, replacing that scene's episodes.
+    """
+    from sagebench.stages.import_sage import import_sage_episodes, make_config
+
+    config = make_config(goal_radius=goal_radius, split=split)
+    for line in import_sage_episodes(file, run, config, scene_id=scene).lines():
+        typer.echo(line)
 
 
 @app.command("run")

@@ -56,6 +56,26 @@ def demo_built_run(demo_scene_dir, tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="session")
+def interiorgs_demo(demo_scene_dir, tmp_path_factory):
+    """The demo apartment as an InteriorGS scene folder (tests/interiorgs_fixture.py), with what the folder does not
+    say (each Gaussian's and label's instance, the mesh maps): (folder, Truth). Do not modify it."""
+    from interiorgs_fixture import write_interiorgs_folder
+
+    out = tmp_path_factory.mktemp("interiorgs") / "0001_839920"
+    return out, write_interiorgs_folder(demo_scene_dir, out)
+
+
+@pytest.fixture(scope="session")
+def interiorgs_imported(interiorgs_demo, tmp_path_factory) -> Path:
+    """`sagebench import-interiorgs` of the demo folder: the scene directory it wrote. Do not modify it."""
+    from sagebench.stages.import_interiorgs import import_interiorgs_scene
+
+    out = tmp_path_factory.mktemp("interiorgs_imported") / "scene"
+    import_interiorgs_scene(interiorgs_demo[0], out)
+    return out
+
+
+@pytest.fixture(scope="session")
 def room_mjcf() -> str:
     """MJCF of a 6 x 6 m test room for the replay tests: a wall slab at x = 3 (x 2.95..3.05, 2.5 m tall),
     a table x 1.1..1.9, y 0.1..0.9 (0.75 m), a floor slab body `floor_3` and the ground plane, all mesh

@@ -23,6 +23,8 @@ COMMANDS = {  # command -> (stage module, settings model[, its options table whe
     "evaluate": ("sagebench.stages.evaluate", "EvaluateConfig"),
     "baseline": ("sagebench.stages.rollout", "BaselineConfig", "BASELINE_OPTIONS"),
     "rollout": ("sagebench.stages.rollout", "RolloutConfig"),
+    "import-interiorgs": ("sagebench.stages.import_interiorgs", "InteriorGSConfig"),
+    "import-sage-episodes": ("sagebench.stages.import_sage", "SageImportConfig"),
 }
 
 

@@ -3,7 +3,6 @@ and the benchmark split of each trajectory."""
 
 from __future__ import annotations
 
-import hashlib
 import zlib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -14,6 +13,7 @@ import numpy as np
 from sagebench import ui
 from sagebench.astar.sampling import Trajectory
 from sagebench.episodes.config import GenTrajectoriesConfig
+from sagebench.episodes.ids import episode_id
 from sagebench.episodes.splits import assign_splits
 from sagebench.instructions import instructions_for
 from sagebench.instructions.balance import TypeBalance
@@ -88,18 +88,13 @@ def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str,
             "split": split_of[traj.trajectory_id],
         }
         if not instructions:
-            rows.append({**base, "episode_id": _episode_id(traj.trajectory_id, "none", "", 0),
+            rows.append({**base, "episode_id": episode_id(traj.trajectory_id, "none", "", 0),
                          "instruction_level": None, "instruction_type": None, "instruction_text": None,
                          "instruction_source": None})
         counts: dict[tuple[str, str], int] = {}
         for ins in instructions:
             k = counts[(ins.level, ins.type)] = counts.get((ins.level, ins.type), -1) + 1
-            rows.append({**base, "episode_id": _episode_id(traj.trajectory_id, ins.level, ins.type, k),
+            rows.append({**base, "episode_id": episode_id(traj.trajectory_id, ins.level, ins.type, k),
                          "instruction_level": ins.level, "instruction_type": ins.type,
                          "instruction_text": ins.text, "instruction_source": ins.source})
     return EpisodeRows(rows, balance)
-
-
-def _episode_id(trajectory_id: str, level: str, kind: str, index: int) -> str:
-    """Stable: the trajectory's id, the instruction's level and type, and its index among those of that type."""
-    return hashlib.sha256(f"{trajectory_id}|{level}|{kind}|{index}".encode()).hexdigest()[:16]

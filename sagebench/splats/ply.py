@@ -52,6 +52,11 @@ def read_ply(path: Path | str) -> Gaussians:
         return _checked(_decode_compressed(tables, path), path)
     if "vertex" not in names:
         raise DataError("no 'vertex' element", path=path)
+    vertex = tables["vertex"].dtype.names or ()
+    if not {"x", "y", "z"} & set(vertex) and not set(_PACKED) & set(vertex):
+        raise DataError(f"neither the INRIA 3DGS layout (x, y, z, f_dc_0, ...) nor the compressed SuperSplat layout "
+                        f"(a 'chunk' element and packed_position, ...): vertex has {', '.join(vertex[:6]) or 'no properties'}"
+                        f"{', ...' if len(vertex) > 6 else ''}", path=path)
     return _checked(_decode_inria(tables["vertex"], path), path)
 
 

@@ -1,4 +1,5 @@
-"""A scene's Gaussians: its trained gaussians.ply with nearest-surface instance ids, else mesh samples.
+"""A scene's Gaussians: its trained gaussians.ply with nearest-surface instance ids (or the ids it carries, as an
+imported InteriorGS scene's does), else mesh samples.
 
 Every object kind is kept (walls, floors and ceilings too: the agent's camera sees them) and every
 Gaussian carries its object's instance id. Optional contribution pruning over views from inside the rooms.
@@ -33,7 +34,8 @@ STRUCTURE_KINDS = frozenset({"wall", "floor", "ceiling"})
 def trained_gaussians(scene: LoadedScene) -> Gaussians | None:
     """The scene directory's trained Gaussians in world space (m, Z up), or None when it has none.
 
-    A file that is a link leaving the scene directory, unreadable, malformed, non-finite or empty is a DataError.
+    A file that is a link leaving the scene directory, unreadable, malformed, non-finite or empty is a DataError,
+    and so is one whose `instance_id`s name objects the scene does not have.
     """
     present = [scene.source_dir / name for name in TRAINED_FILES if os.path.lexists(scene.source_dir / name)]
     path = present[0] if present else None
@@ -46,6 +48,10 @@ def trained_gaussians(scene: LoadedScene) -> Gaussians | None:
     g = read_ply(path)
     if g.count == 0:
         raise DataError("holds no Gaussians", path=path, field="vertex")
+    unknown = np.setdiff1d(g.instance_id, [0, *(o.instance_id for o in scene.spec.objects)])
+    if len(unknown):
+        raise DataError(f"instance_id {int(unknown[0])} is no object of the scene ({len(unknown)} such ids)",
+                        path=path, field="instance_id")
     return _to_world(g, scene)
 
 
@@ -55,8 +61,11 @@ def scene_gaussians(scene: LoadedScene, config: SplatConfig = SplatConfig(), *, 
     """The scene's Gaussians in world space (m, Z up) with instance ids, and the pruning report if pruned.
 
     `trained` is trained_gaussians(scene), read by the caller when it checks the scene; None samples the meshes.
+    Trained Gaussians that carry instance ids keep them; others get the id of the nearest surface.
     """
-    if trained is not None:
+    if trained is not None and trained.instance_id.any():
+        g = trained
+    elif trained is not None:
         g = trained
         ids = assign_instances(g.means, scene.meshes, tolerance=config.assign_tolerance)
         g = Gaussians(g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh, ids)

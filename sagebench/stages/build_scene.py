@@ -84,7 +84,15 @@ class CheckedScene:
 
 
 def check_scene(scene_dir: Path, config: BuildSceneConfig | None = None) -> CheckedScene:
-    """Everything build-scene refuses, without building: `check-scene` and `build-scene` both call this."""
+    """Everything build-scene refuses, without building (`check-scene`). An InteriorGS folder is imported into a
+    temporary directory first, gone when this returns (the checked scene is in memory)."""
+    from sagebench.importers.interiorgs import opened_scene
+
+    with opened_scene(scene_dir, config or BuildSceneConfig()) as source:
+        return _check(source, config)
+
+
+def _check(scene_dir: Path, config: BuildSceneConfig | None = None) -> CheckedScene:
     scene = load_scene(scene_dir)  # a bad scene.json is refused before the map and splat code is even imported
     check_floor_known(scene.spec, [np.asarray(scene.meshes[o.instance_id].triangles) for o in scene.spec.objects
                                    if o.kind == "floor"], scene_dir / SCENE_FILE)
@@ -96,9 +104,13 @@ def check_scene(scene_dir: Path, config: BuildSceneConfig | None = None) -> Chec
 
 
 def build_scene(scene_dir: Path, run_dir: Path, config: BuildSceneConfig | None = None) -> BuildSceneResult:
-    """Check `scene_dir`, compute its top-down maps and Gaussians and write RUN/scenes/<scene_id>/ atomically."""
+    """Check `scene_dir` (a scene directory or an InteriorGS folder, imported first), compute its top-down maps and
+    Gaussians and write RUN/scenes/<scene_id>/ atomically."""
+    from sagebench.importers.interiorgs import opened_scene
+
     config = config or BuildSceneConfig()
-    return _build(check_scene(scene_dir, config), run_dir, config)
+    with opened_scene(scene_dir, config) as source:
+        return _build(_check(source, config), run_dir, config)
 
 
 def _build(checked: CheckedScene, run_dir: Path, config: BuildSceneConfig) -> BuildSceneResult:

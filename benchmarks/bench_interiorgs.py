@@ -1,0 +1,119 @@
+"""import-interiorgs: the time to import a 1,000,000-Gaussian scene, and how the object geometry method compares.
+
+Scenes: synth apartments written as InteriorGS folders by the test fixture writer (tests/interiorgs_fixture.py,
+which follows the dataset card and SAGE-3D's code). Timing rows: the whole import of a folder of about 1 M
+Gaussians (read, assign, surfaces, occupancy check, write), against reading its PLY alone, in the same run.
+Method rows (demo apartment, seed 0): the navigable map's IoU with the mesh-built one, the median and mean
+per-object IoU of the cells each object blocks in the agent's band, the IoU of the L-sofa's semantic footprint, and the
+convex parts; for the voxel-box hulls sagebench uses, one convex hull of each object's Gaussians, and the
+labelled box itself.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from interiorgs_fixture import band_footprint_ious, iou, on_grid, write_interiorgs_folder  # noqa: E402
+
+from sagebench.collider_export.convex import hull_part  # noqa: E402
+from sagebench.importers.interiorgs import import_interiorgs, write_imported  # noqa: E402
+from sagebench.importers.interiorgs_structure import box_mesh  # noqa: E402
+from sagebench.scene.loader import load_scene  # noqa: E402
+from sagebench.scene.synth import write_synth_scene  # noqa: E402
+from sagebench.splats.config import SplatConfig  # noqa: E402
+from sagebench.splats.ply import read_ply  # noqa: E402
+from sagebench.topdown.builder import compute_topdown
+from sagebench.topdown.config import BuildSceneConfig  # noqa: E402
+from sagebench.topdown.footprints import footprint_reference, mesh_parts  # noqa: E402
+
+TARGET = 1_000_000
+
+
+def _load() -> str:
+    return " ".join(f"{v:.1f}" for v in os.getloadavg())
+
+
+def run() -> list[dict]:
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        write_synth_scene(root / "scene", seed=0)
+        rows = _methods(root)
+        # densities scaled so that the folder holds about TARGET Gaussians (the demo's defaults give ~290 k)
+        factor = TARGET / 290_000 * 1.02
+        big = root / "0009_000001"
+        write_interiorgs_folder(root / "scene", big, splats=SplatConfig(object_density=900 * factor,
+                                                                        structure_density=300 * factor))
+        n = read_ply(big / "3dgs_compressed.ply").count
+        t0 = time.perf_counter()
+        read_ply(big / "3dgs_compressed.ply")
+        read_s = time.perf_counter() - t0
+        t0, c0 = time.perf_counter(), time.process_time()
+        write_imported(import_interiorgs(big), root / "imported_big")
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        rows.append({"case": f"import {n:,} Gaussians", "seconds": round(wall, 1), "cpu_s": round(cpu, 1),
+                     "reference": f"read PLY alone {read_s:.1f} s", "load": _load()})
+    return rows
+
+
+def _methods(root: Path) -> list[dict]:
+    folder = root / "0001_000000"
+    truth = write_interiorgs_folder(root / "scene", folder)
+    t0 = time.perf_counter()
+    imported = import_interiorgs(folder)
+    seconds = time.perf_counter() - t0
+    report = imported.report
+    label_of = {int(k): int(v["label"]) for k, v in report["instances"].items() if v["label"] is not None}
+    ids = imported.gaussians.instance_id
+    means = imported.gaussians.means.astype(np.float64)
+    objects = {o.instance_id: o for o in imported.spec.objects if o.instance_id in label_of}
+    out = []
+    for method in ("voxel-box hulls (sagebench)", "one hull per object", "labelled box"):
+        meshes = dict(imported.meshes)
+        for o in objects.values():
+            if method == "one hull per object":
+                part = hull_part(means[ids == o.instance_id])
+                mesh = trimesh.Trimesh(part.vertices, part.faces, process=False)
+            elif method == "labelled box":
+                from sagebench.importers.boxes import box_from_corners
+
+                labels = json.loads((folder / "labels.json").read_text())
+                lab = next(lb for lb in labels if int(lb["ins_id"]) == label_of[o.instance_id])
+                mesh = box_mesh(box_from_corners(np.array([[c["x"], c["y"], c["z"]] for c in lab["bounding_box"]])))
+            else:
+                continue
+            if o.door is not None:  # the mesh stands as the leaf does; scene.json holds it closed
+                from sagebench.scene.loader import door_pose
+
+                mesh.apply_transform(np.linalg.inv(door_pose(o.door)))
+            meshes[o.mesh] = mesh
+        scene_dir = root / f"method{len(out)}"
+        write_imported(dataclasses.replace(imported, meshes=meshes), scene_dir)
+        scene = load_scene(scene_dir)
+        td = compute_topdown(scene, BuildSceneConfig())
+        nav = iou(truth.topdown.navigable != 0, on_grid(td.navigable != 0, td.grid, truth.topdown.grid))
+        sofa = next(o for o in scene.spec.objects if o.category == "sofa")
+        mesh_sofa = truth.scene.meshes[label_of[sofa.instance_id]]
+        a, b = footprint_reference(*mesh_parts(mesh_sofa)), footprint_reference(*mesh_parts(scene.meshes[sofa.instance_id]))
+        parts = sum(int(mesh_parts(scene.meshes[i])[1].max()) + 1 for i in objects)
+        band = band_footprint_ious(truth, scene, label_of)
+        out.append({"case": method, "navigable_iou": round(nav, 4), "median_band_iou": round(float(np.median(band)), 3),
+                    "mean_band_iou": round(float(np.mean(band)), 3),
+                    "l_sofa_footprint_iou": round(a.intersection(b).area / a.union(b).area, 3),
+                    "object_parts": parts, "seconds": round(seconds, 1) if not out else "", "load": _load()})
+    return out
+
+
+if __name__ == "__main__":
+    for row in run():
+        print(row)

@@ -1,0 +1,261 @@
+"""sagebench episode rows <-> SAGE-3D's GVLN trajectory file, as `save_trajectory_file` writes it (after
+`trajectory_2d_to_3d.py`, whose 3D frame SAGE-Bench's simulator reads) and `episodes_adapter.py` reads it.
+
+    {"dataset_metadata": {"name": "GVLN"},
+     "scenes": [{"scene_id": 0, "scene_name": "<the scene key's part after its last '_'>", "samples": [
+        {"trajectory_id": "...",
+         "instructions": [{"instruction_type", "start", "end", "generated_instruction", "scene_id"}, ...],
+         "points": [{"point": "0", "position": [x, y, z], "rotation": [qx, qy, qz, qw], "action": [], ...}, ...]}]}]}
+
+One sample per trajectory, one instruction per episode row; the adapter makes episode "<trajectory_id>-<k>"
+of instruction k, starting at the first point's position and rotation, its goal the last point. `start` and
+`end` name objects as SAGE-3D's item ids do: "<category>_<k>", k counting the scene's objects of that category
+(doors and windows included) from 1 in instance-id order. Frames: sagebench.gvln.frame.
+
+What SAGE-3D's format has no field for (row ids, split, goal radius, instance ids, rooms, level, source, seed)
+goes under a "sagebench" key of the sample or instruction, which SAGE-3D's reader ignores; reading a file
+without it, rows get ids hashed from the scene and SAGE's trajectory id, rooms from the room polygons, instance
+ids from the item names.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any
+
+import numpy as np
+import shapely
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from sagebench.episodes.ids import episode_id
+from sagebench.errors import DataError, first_error
+from sagebench.gvln.frame import SAGE_Z, sage_rotation, to_sage_xy, wrap, yaw_from_sage_rotation
+from sagebench.scene.model import SceneSpec
+
+ITEM_KINDS = ("object", "door", "window")
+# sagebench's instruction types -> SAGE-3D's spelling (prompt_traj_to_instruction.json); the rest are the same
+TO_SAGE_TYPE = {"Attribute_Based": "Attribute-based", "Area_Based": "Area-based"}
+# SAGE-3D's types -> (level, type) in sagebench; "Default" is its fallback "Navigate from A to B." (a goal only)
+FROM_SAGE_TYPE = {
+    "Add_Object": ("high", "Add_Object"), "Scenario_Driven": ("high", "Scenario_Driven"),
+    "Relative_Relationship": ("high", "Relative_Relationship"), "Attribute-based": ("high", "Attribute_Based"),
+    "Attribute_Based": ("high", "Attribute_Based"), "Area-based": ("high", "Area_Based"),
+    "Area_Based": ("high", "Area_Based"), "Default": ("low", "Single_Goal"), "Single_Goal": ("low", "Single_Goal"),
+    "Base_Action": ("low", "Base_Action"),
+}
+# the camera fields SAGE-3D's trajectory generator gives every point (its training-data scripts read them)
+POINT_CAMERA = {"action": [], "camera_images": [], "focal_length": 7.0, "horizontal_aperture": 20.954999923706055,
+                "vertical_aperture": 20.954999923706055, "focus_distance": 0.0, "clipping_range": [1.0, 1000000.0]}
+SAGE_SOURCE = "sage-bench"  # instruction_source of rows read from a file without sagebench's own
+
+
+def scene_name(scene_id: str) -> str:
+    """SAGE-3D's `scene_name`: the scene key's part after its last '_' (save_trajectory_file's tail_id)."""
+    return scene_id.split("_")[-1]
+
+
+def item_names(spec: SceneSpec) -> dict[int, str]:
+    """instance id -> SAGE-3D item id "<category>_<k>" of every object, door and window."""
+    counts: Counter[str] = Counter()
+    out = {}
+    for obj in sorted(spec.objects, key=lambda o: o.instance_id):
+        if obj.kind in ITEM_KINDS:
+            counts[obj.category] += 1
+            out[obj.instance_id] = f"{obj.category}_{counts[obj.category]}"
+    return out
+
+
+def gvln_document(scene_id: str, rows: Sequence[dict[str, Any]], spec: SceneSpec) -> dict[str, Any]:
+    """The GVLN file of one scene's episode rows (in their order; a trajectory's rows grouped into one sample)."""
+    names = item_names(spec)
+    samples: dict[str, dict[str, Any]] = {}
+    for row in rows:
+        tid = row["trajectory_id"]
+        if tid not in samples:
+            samples[tid] = _sample(row, names, spec.floor_height)
+        if row["instruction_text"] is None:
+            continue
+        kind = row["instruction_type"]
+        samples[tid]["instructions"].append({
+            "instruction_type": TO_SAGE_TYPE.get(kind, kind) or "",
+            "start": names.get(row["start_instance_id"], row["start_room"] or ""),
+            "end": names.get(row["goal_instance_id"], row["goal_room"] or ""),
+            "generated_instruction": row["instruction_text"],
+            "scene_id": scene_id,
+            "sagebench": {"episode_id": row["episode_id"], "instruction_level": row["instruction_level"],
+                          "instruction_type": kind, "instruction_source": row["instruction_source"]},
+        })
+    return {"dataset_metadata": {"name": "GVLN"},
+            "scenes": [{"scene_id": 0, "scene_name": scene_name(scene_id), "samples": list(samples.values())}]}
+
+
+def _sample(row: dict[str, Any], names: dict[int, str], floor: float) -> dict[str, Any]:
+    path = np.asarray(row["reference_path"], dtype=np.float64).reshape(-1, 4)
+    xy = to_sage_xy(path[:, :2])
+    points = []
+    for j, (p, yaw) in enumerate(zip(xy, path[:, 3])):
+        last = j == len(path) - 1
+        points.append({"point": str(j), "position": [float(p[0]), float(p[1]), floor + SAGE_Z],
+                       "rotation": [0.0, 0.0, 0.0, 1.0] if last and len(path) > 1 else sage_rotation(float(yaw)),
+                       **POINT_CAMERA})
+    keep = ("trajectory_id", "goal_radius", "start_instance_id", "goal_instance_id", "start_room",
+            "goal_room", "split", "seed")
+    return {"trajectory_id": row["trajectory_id"], "instructions": [], "points": points,
+            "sagebench": {k: row.get(k) for k in keep}}
+
+
+# ---------------------------------------------------------------- reading
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
+
+class _Point(_Model):
+    position: list[Finite]
+    rotation: list[Finite]
+
+    @field_validator("position")
+    @classmethod
+    def _xyz(cls, v: list[float]) -> list[float]:
+        if len(v) != 3:
+            raise ValueError(f"{len(v)} numbers; a position is [x, y, z]")
+        return v
+
+    @field_validator("rotation")
+    @classmethod
+    def _xyzw(cls, v: list[float]) -> list[float]:
+        if len(v) != 4:
+            raise ValueError(f"{len(v)} numbers; a rotation is [qx, qy, qz, qw]")
+        return v
+
+
+class _Instruction(_Model):
+    instruction_type: str = ""
+    start: str = ""
+    end: str = ""
+    generated_instruction: str = ""
+    sagebench: dict[str, Any] | None = None
+
+
+class _Sample(_Model):
+    trajectory_id: str | int = "0"
+    instructions: list[_Instruction | str] = Field(default_factory=list)
+    points: Annotated[list[_Point], Field(min_length=1)]
+    sagebench: dict[str, Any] | None = None
+
+
+class _Scene(_Model):
+    scene_name: str = "scene"
+    samples: list[_Sample] = Field(default_factory=list)
+
+
+class _File(_Model):
+    scenes: Annotated[list[_Scene], Field(min_length=1)]
+
+
+@dataclass(frozen=True)
+class GvlnScene:
+    scene_name: str
+    samples: tuple[_Sample, ...]
+
+
+def read_gvln(path: Path) -> GvlnScene:
+    """The first scene of a GVLN file (the only one SAGE-3D's adapter reads), checked."""
+    import json
+
+    try:
+        raw = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as err:
+        raise DataError(f"cannot read: {getattr(err, 'strerror', None) or err}", path=path) from None
+    except json.JSONDecodeError as err:
+        raise DataError(f"malformed JSON at line {err.lineno}, column {err.colno}: {err.msg}", path=path) from None
+    try:
+        doc = _File.model_validate(raw)
+    except ValidationError as err:
+        loc, msg, _ = first_error(err)
+        raise DataError(msg, path=path, field=loc) from None
+    scene = doc.scenes[0]
+    for i, sample in enumerate(scene.samples):
+        for j, point in enumerate(sample.points[:-1]):
+            qx, _, qz, _ = point.rotation
+            if qx == 0.0 and qz != 0.0:
+                raise DataError(f"rotation {point.rotation} turns about z: a trajectory in SAGE-3D's 2D map frame, "
+                                "not yet moved into its 3D frame by trajectory_2d_to_3d.py", path=path,
+                                field=f"scenes[0].samples[{i}].points[{j}].rotation")
+    return GvlnScene(scene.scene_name, tuple(scene.samples))
+
+
+def rows_from_gvln(scene: GvlnScene, spec: SceneSpec, *, goal_radius: float, split: str
+                   ) -> tuple[list[dict[str, Any]], Counter[str]]:
+    """sagebench episode rows of the scene `spec` for every sample and instruction of `scene`, and the counts of
+    instructions left out by type (types with no goal sagebench can score, e.g. SAGE-3D's "Goal-less")."""
+    floor = spec.floor_height
+    by_name = {name: iid for iid, name in item_names(spec).items()}
+    rooms = [(r.id, shapely.Polygon(r.polygon)) for r in spec.rooms]
+    room_of_object = {o.instance_id: o.room_id for o in spec.objects}
+    skipped: Counter[str] = Counter()
+    rows = []
+    for sample in scene.samples:
+        extra = sample.sagebench or {}
+        path = _reference_path(sample, floor)
+        tid = extra.get("trajectory_id") or hashlib.sha256(
+            f"{spec.scene_id}|sage|{sample.trajectory_id}".encode()).hexdigest()[:16]
+        instructions = [i if isinstance(i, _Instruction) else _Instruction(generated_instruction=i)
+                        for i in sample.instructions]
+        first = instructions[0] if instructions else _Instruction()
+        start_id = extra["start_instance_id"] if "start_instance_id" in extra else by_name.get(first.start)
+        goal_id = extra["goal_instance_id"] if "goal_instance_id" in extra else by_name.get(first.end)
+        base = {
+            "trajectory_id": tid, "scene_id": spec.scene_id,
+            "start_instance_id": start_id, "goal_instance_id": goal_id,
+            "start_room": extra["start_room"] if "start_room" in extra else
+            (room_of_object.get(start_id) or _room_at(path[0], rooms)),
+            "goal_room": extra["goal_room"] if "goal_room" in extra else
+            (room_of_object.get(goal_id) or _room_at(path[-1], rooms)),
+            "start_position": path[0, :3].tolist(), "start_yaw": float(path[0, 3]),
+            "goal_position": path[-1, :3].tolist(), "goal_radius": float(extra.get("goal_radius") or goal_radius),
+            "reference_path": path.tolist(),
+            "geodesic_distance": float(np.linalg.norm(np.diff(path[:, :2], axis=0), axis=1).sum()),
+            "seed": int(extra.get("seed") or 0), "split": extra.get("split") or split,
+        }
+        if not instructions:
+            rows.append({**base, "episode_id": episode_id(tid, "none", "", 0), "instruction_level": None,
+                         "instruction_type": None, "instruction_text": None, "instruction_source": None})
+        counts: Counter[tuple[str, str]] = Counter()
+        for ins in instructions:
+            own = ins.sagebench or {}
+            if "instruction_type" in own:
+                level, kind = own["instruction_level"], own["instruction_type"]
+            elif ins.instruction_type in FROM_SAGE_TYPE:
+                level, kind = FROM_SAGE_TYPE[ins.instruction_type]
+            else:
+                skipped[ins.instruction_type or "(no type)"] += 1
+                continue
+            k = counts[(level, kind)]
+            counts[(level, kind)] += 1
+            rows.append({**base, "episode_id": own.get("episode_id") or episode_id(tid, level, kind, k),
+                         "instruction_level": level, "instruction_type": kind,
+                         "instruction_text": ins.generated_instruction,
+                         "instruction_source": own.get("instruction_source") or SAGE_SOURCE})
+    return rows, skipped
+
+
+def _reference_path(sample: _Sample, floor: float) -> np.ndarray:
+    """[M, 4] world waypoints [x, y, floor, yaw]: each point's own heading, the last one keeping the one before."""
+    pts = sample.points
+    xy = to_sage_xy(np.array([p.position[:2] for p in pts], dtype=np.float64))
+    yaws = [yaw_from_sage_rotation(p.rotation) for p in pts]
+    if len(pts) > 1:
+        yaws[-1] = yaws[-2]  # SAGE-3D resets the last point's rotation
+    return np.column_stack([xy, np.full(len(pts), floor), [wrap(y) for y in yaws]])
+
+
+def _room_at(point: np.ndarray, rooms: list[tuple[str, shapely.Polygon]]) -> str | None:
+    return next((rid for rid, poly in rooms if shapely.contains_xy(poly, float(point[0]), float(point[1]))), None)

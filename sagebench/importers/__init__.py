@@ -1,0 +1,1 @@
+"""Importers of other scene and episode formats (InteriorGS scenes, SAGE's GVLN episodes) into sagebench's own."""

@@ -1,0 +1,129 @@
+"""An object's surface from its own Gaussians: an opacity-weighted voxel solid, covered by boxes, each box the
+convex hull of the Gaussians inside it.
+
+Why this method (measured on the synth scenes' round trip, see docs/interiorgs.md): the paper's footprint is
+the convex hull of surface points per part, and what the agent bumps into is the object's extent in its
+height band. A convex hull of all of an object's Gaussians fills an L-sofa's inner corner and a desk's knee
+space; marching cubes over a density field gives a smooth but thick surface (half a voxel of bias on every
+side and thousands of triangles per object, all for CoACD to decompose again). Here the voxels only decide
+*which* Gaussians go together: the solid (voxels whose summed opacity passes `min_weight`, gaps of one voxel
+closed, the inside filled) is covered greedily by boxes in the object's own frame, at most `max_parts` of them
+(merged where the band footprint allows, as the voxel colliders do), and each box becomes the hull of the
+Gaussian points it holds and of the corners of its solid voxels that hold none (the inside), those corners
+kept within the range of the box's own points, so no part reaches past the Gaussians themselves (a 3 cm lamp
+base stays 3 cm thick, not a voxel's 4). Every part is a separate closed
+convex piece: the footprint's hull-per-part keeps concave outlines concave, and the collider export takes
+each piece as it is, without decomposing it.
+
+Voxel layers are laid so that one boundary is the band's lower edge: a part never mixes points from under the
+band with points in it, so a lamp's base under the band does not come out reaching into it.
+
+A Gaussian counts by its centre and, where it is wider than a voxel along an axis, by the two points one
+standard deviation along that axis (a large flat splat covers more than its centre).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+from scipy import ndimage
+
+from sagebench.collider_export.convex import hull_part
+from sagebench.collider_export.voxel import band_outside, greedy_boxes, layer_weights, merge_boxes
+from sagebench.render.gaussians import Gaussians
+
+_CORNER_INSET = 1e-3  # enclosed cells contribute their corners pulled this fraction of a voxel inwards, so that
+# two boxes' hulls never share a point (a shared edge would join them into one part, one hull, for the footprint)
+
+
+@dataclass(frozen=True)
+class SurfaceSettings:
+    """How an object's Gaussians become its surface (metres)."""
+
+    voxel: float = 0.04  # voxel side
+    min_weight: float = 0.5  # summed opacity a voxel needs to count as occupied
+    max_parts: int = 24  # convex parts per object at most
+    band: tuple[float, float] | None = None  # the agent's height band (world z), where merged parts must stay tight
+
+
+def gaussian_points(g: Gaussians, voxel: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The points [M, 3] (world m), weights [M] (opacity) and source Gaussian [M] (index into `g`) that stand for
+    the Gaussians: every centre, and centre +- one standard deviation along each axis wider than a voxel."""
+    alpha = 1.0 / (1.0 + np.exp(-g.opacity_logits.astype(np.float64)))
+    means = g.means.astype(np.float64)
+    sigma = np.exp(g.log_scales.astype(np.float64))  # [N, 3]
+    rows, axis = np.nonzero(sigma > voxel)
+    source = np.arange(g.count)
+    if not len(rows):
+        return means, alpha, source
+    rot = quat_matrices(g.quats_wxyz[rows])  # [K, 3, 3]
+    step = rot[np.arange(len(rows)), :, axis] * sigma[rows, axis][:, None]  # [K, 3]: column `axis` of R, scaled
+    extra = np.concatenate([means[rows] + step, means[rows] - step])
+    return (np.concatenate([means, extra]), np.concatenate([alpha, alpha[rows], alpha[rows]]),
+            np.concatenate([source, rows, rows]))
+
+
+def quat_matrices(q_wxyz: np.ndarray) -> np.ndarray:
+    """[N, 4] wxyz quaternions (any norm) -> [N, 3, 3] rotation matrices."""
+    q = np.asarray(q_wxyz, dtype=np.float64)
+    w, x, y, z = (q / np.linalg.norm(q, axis=1, keepdims=True)).T
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=-1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1),
+    ], axis=1)
+
+
+def object_surface(points: np.ndarray, weights: np.ndarray, centre: np.ndarray, axes: np.ndarray,
+                   half: np.ndarray, settings: SurfaceSettings = SurfaceSettings()) -> trimesh.Trimesh | None:
+    """The surface (world m) of the object whose Gaussian points [N, 3] and weights [N] lie in the box
+    (centre [3], axes [3, 3] rows, the most vertical last, half extents [3]); None when no voxel is occupied.
+
+    Points outside the box are pulled onto it first, so the surface never reaches past the annotated box.
+    """
+    pitch = settings.voxel
+    local = np.clip((np.asarray(points, dtype=np.float64) - centre) @ axes.T, -half, half)
+    lo = -half - pitch  # one empty voxel of margin all round, so closing and filling see the outside
+    if settings.band is not None and axes[2, 2] > 1 - 1e-6:  # layers meet at the band's lower edge: no part
+        lo[2] -= (centre[2] + lo[2] - settings.band[0]) % pitch  # mixes points from under and in the band
+    cell = np.floor((local - lo) / pitch).astype(np.int64)
+    shape = tuple(int(v) for v in np.floor((half - lo) / pitch).astype(np.int64) + 2)
+    flat = np.ravel_multi_index(cell.T, shape)
+    weight = np.bincount(flat, weights=np.asarray(weights, dtype=np.float64), minlength=int(np.prod(shape)))
+    occupied = (weight >= settings.min_weight).reshape(shape)
+    if not occupied.any():
+        return None
+    solid = ndimage.binary_fill_holes(ndimage.binary_closing(occupied, structure=np.ones((3, 3, 3), bool)) | occupied)
+    z_layers = centre[2] + (lo[2] + (np.arange(shape[2]) + 0.5) * pitch) * axes[2, 2]
+    wz = layer_weights(z_layers, settings.band)
+    boxes = greedy_boxes(solid)
+    if len(boxes) > settings.max_parts:
+        outside = None if settings.band is None else band_outside(solid, wz)
+        boxes = merge_boxes(boxes, settings.max_parts, wz, outside)
+    label = np.full(shape, -1, dtype=np.int64)
+    for b, (i0, j0, k0, i1, j1, k1) in enumerate(boxes):
+        label[i0:i1, j0:j1, k0:k1] = b
+    kept = solid.reshape(-1)[flat]  # points in voxels that the solid dropped (lone floaters) are left out
+    has_point = np.zeros(int(np.prod(shape)), dtype=bool)
+    has_point[flat[kept]] = True
+    enclosed = np.argwhere(solid & ~has_point.reshape(shape))  # [E, 3] solid voxels no point is in
+    unit = np.argwhere(np.ones((2, 2, 2), dtype=bool)) * (1 - 2 * _CORNER_INSET) + _CORNER_INSET  # [8, 3]
+    corners = lo + (enclosed[:, None, :] + unit[None]) * pitch  # [E, 8, 3]
+    pts = np.concatenate([local[kept], corners.reshape(-1, 3)])
+    owner = np.concatenate([label.reshape(-1)[flat[kept]], np.repeat(label[tuple(enclosed.T)], 8)])
+    npts = int(kept.sum())
+    everywhere = (local[kept].min(axis=0), local[kept].max(axis=0))
+    parts = []
+    for b in range(len(boxes)):
+        mine = owner == b
+        points_in_box = pts[:npts][mine[:npts]]
+        lo_b, hi_b = (points_in_box.min(axis=0), points_in_box.max(axis=0)) if len(points_in_box) else everywhere
+        group = np.concatenate([points_in_box, np.clip(pts[npts:][mine[npts:]], lo_b, hi_b)])
+        if len(group):
+            part = hull_part(group)
+            parts.append(trimesh.Trimesh(part.vertices @ axes + centre, part.faces, process=False))
+    if not parts:
+        return None
+    return trimesh.util.concatenate(parts)

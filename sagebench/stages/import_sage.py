@@ -1,0 +1,87 @@
+"""`import-sage-episodes`: SAGE-Bench's GVLN episodes for a scene of a run -> sagebench episode rows, so that SAGE-3D's
+own test episodes run and are scored in sagebench's closed loop (rollout, evaluate).
+
+Reads FILE (a GVLN trajectory file, sagebench.gvln.episodes) and RUN/scenes/<id>/scene.json of the scene it is
+for: the one whose id is its `scene_name` or ends with "_<scene_name>" (an imported InteriorGS scene
+`0001_839920` is SAGE-3D's `839920`), or --scene. Writes RUN/episodes/<id>/part-<split>-NNNNN.parquet, replacing
+that scene's episodes whole (a staged directory renamed into place).
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from sagebench.config import from_options
+from sagebench.episodes.shards import write_shards
+from sagebench.episodes.splits import Split
+from sagebench.errors import ConfigError, DataError
+from sagebench.fileio import staged_dir
+from sagebench.gvln.episodes import read_gvln, rows_from_gvln
+from sagebench.run_layout import CONTRACT, SCENE_FILE, SCENES, require, run_episodes_dir, run_scene_dir
+from sagebench.scene.loader import parse_spec
+
+SHARD_BYTES = 128 * 2**20
+OPTIONS = {"--goal-radius": "goal_radius", "--split": "split"}
+
+
+class SageImportConfig(BaseModel):
+    """What a GVLN file does not say about its episodes (defaults here, nowhere else)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    goal_radius: float = Field(default=0.5, gt=0, description="Success radius, m (episodes_adapter.py's default).")
+    split: Split = Field(default="test", description="Split of the rows.")
+
+
+def make_config(**fields: object) -> SageImportConfig:
+    return from_options(SageImportConfig, fields, OPTIONS)
+
+
+@dataclass(frozen=True)
+class SageImport:
+    scene_id: str
+    out_dir: Path
+    trajectories: int
+    rows: int
+    skipped: Counter
+
+    def lines(self) -> list[str]:
+        out = [f"import-sage-episodes {self.scene_id}: {self.trajectories} trajectories, {self.rows} episode rows "
+               f"-> {self.out_dir}"]
+        if self.skipped:
+            out.append("left out instructions of types with no goal to score: "
+                       + ", ".join(f"{k} {v}" for k, v in sorted(self.skipped.items())))
+        return out
+
+
+def import_sage_episodes(path: Path, run_dir: Path, config: SageImportConfig = SageImportConfig(), *,
+                         scene_id: str | None = None) -> SageImport:
+    """Read the GVLN file `path` and write its episodes into the run for their scene (`config` for what the
+    file does not say)."""
+    scene = read_gvln(path)
+    sid = scene_id or _scene_for(scene.scene_name, Path(run_dir), path)
+    require(CONTRACT["import_sage"].reads, run_dir, sid)
+    spec_path = run_scene_dir(run_dir, sid) / SCENE_FILE
+    spec = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)
+    rows, skipped = rows_from_gvln(scene, spec, goal_radius=config.goal_radius, split=config.split)
+    if not rows:
+        raise DataError("no episode to import (no sample, or every instruction of a type with no goal)", path=path)
+    out = run_episodes_dir(run_dir, sid)
+    with staged_dir(out) as tmp:
+        write_shards(rows, tmp, SHARD_BYTES)
+    return SageImport(sid, out, len({r["trajectory_id"] for r in rows}), len(rows), skipped)
+
+
+def _scene_for(name: str, run_dir: Path, path: Path) -> str:
+    """The run's scene whose id is `name` or ends with "_<name>"; exactly one, else a ConfigError."""
+    built = sorted(p.name for p in (run_dir / SCENES).glob("*") if (p / SCENE_FILE).is_file())
+    found = [s for s in built if s == name or s.endswith(f"_{name}")]
+    if len(found) != 1:
+        what = "no scene" if not found else f"scenes {', '.join(found)}"
+        raise ConfigError(f"the file is for scene {name!r}, and {run_dir / SCENES} has {what} of that name; "
+                          "name the scene with --scene", path=path, field="scene_name")
+    return found[0]

@@ -1,0 +1,175 @@
+"""`sagebench import-interiorgs` and InteriorGS folders given to build-scene and run: the round trip synth scene ->
+InteriorGS folder (tests/interiorgs_fixture.py, written from the dataset card and SAGE-3D's code) -> import ->
+every stage, measured against the mesh-built scene; bad input gets one line, exit 2 and nothing written."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from interiorgs_fixture import band_footprint_ious, in_box_share, iou, on_grid, write_interiorgs_folder
+from sagebench.scene.loader import load_scene
+from sagebench.splats.ply import read_ply
+from sagebench.topdown.raster import Grid
+
+
+def _label_of(scene_dir: Path) -> dict[int, int]:
+    """Imported instance id -> the mesh scene's (the fixture writes each label's ins_id as the mesh instance id)."""
+    report = json.loads((scene_dir / "interiorgs_import.json").read_text())
+    return {int(k): int(v["label"]) for k, v in report["instances"].items() if v["label"] is not None}
+
+
+def _navigable_iou(truth, run_scene: Path) -> float:
+    maps = np.load(run_scene / "topdown.npz")
+    grid = Grid(tuple(maps["origin"]), float(maps["resolution"]), maps["navigable"].shape)
+    td = truth.topdown
+    return iou(td.navigable != 0, on_grid(maps["navigable"] != 0, grid, td.grid))
+
+
+def test_demo_round_trip_matches_the_mesh_scene(interiorgs_demo, interiorgs_imported, tmp_path):
+    folder, truth = interiorgs_demo
+    imported = load_scene(interiorgs_imported)
+    mesh = truth.scene.spec
+    assert [(r.id, r.type) for r in imported.spec.rooms] == [(r.id, r.type) for r in mesh.rooms]
+    for a, b in zip(imported.spec.rooms, mesh.rooms):
+        assert np.allclose(a.polygon, b.polygon, atol=1e-6)
+    label_of = _label_of(interiorgs_imported)
+    kinds = {o.instance_id: (o.kind, o.door.state if o.door else None) for o in mesh.objects}
+    assert {kinds[label_of[o.instance_id]] for o in imported.spec.objects if o.instance_id in label_of} == {
+        v for v in kinds.values() if v[0] not in ("wall", "floor", "ceiling")}  # doors keep their states
+    assigned = read_ply(interiorgs_imported / "gaussians.ply").instance_id
+    assert in_box_share(truth, folder, assigned, label_of) >= 0.95
+    assert np.median(band_footprint_ious(truth, imported, label_of)) >= 0.80
+    # walls, floors and ceilings keep their Gaussians, also where an object's box reaches over them (under a sofa)
+    structure = ("wall", "floor", "ceiling")
+    was = np.isin(truth.gaussian_ids, [o.instance_id for o in mesh.objects if o.kind in structure])
+    now = np.isin(assigned, [o.instance_id for o in imported.spec.objects if o.kind in structure])
+    assert (now[was]).mean() > 0.99
+
+
+def test_build_scene_takes_the_folder_and_the_navigable_map_agrees(interiorgs_demo, run_cli, tmp_path):
+    folder, truth = interiorgs_demo
+    code, out, err = run_cli("build-scene", folder, "--out", tmp_path / "run")
+    assert code == 0, err
+    assert out.startswith(f"build-scene {folder.name}: ")
+    assert _navigable_iou(truth, tmp_path / "run" / "scenes" / folder.name) >= 0.90
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_other_seeds_round_trip(seed, tmp_path):
+    """Two more synth apartments, through the library (no run): the same bars as the demo's."""
+    from sagebench.importers.interiorgs import import_interiorgs, write_imported
+    from sagebench.scene.synth import write_synth_scene
+    from sagebench.stages.build_scene import build_scene
+
+    write_synth_scene(tmp_path / "scene", seed=seed)
+    folder = tmp_path / f"0002_00000{seed}"
+    truth = write_interiorgs_folder(tmp_path / "scene", folder)
+    write_imported(import_interiorgs(folder), tmp_path / "imported")
+    build_scene(tmp_path / "imported", tmp_path / "run")
+    imported = load_scene(tmp_path / "imported")
+    label_of = _label_of(tmp_path / "imported")
+    assert [(r.id, r.type) for r in imported.spec.rooms] == [(r.id, r.type) for r in truth.scene.spec.rooms]
+    assert _navigable_iou(truth, tmp_path / "run" / "scenes" / folder.name) >= 0.90
+    assert np.median(band_footprint_ious(truth, imported, label_of)) >= 0.80
+    assert in_box_share(truth, folder, read_ply(tmp_path / "imported" / "gaussians.ply").instance_id, label_of) >= 0.95
+
+
+def test_a_run_config_takes_the_folder_and_validates_every_trajectory(interiorgs_demo, run_cli, tmp_path):
+    folder, _ = interiorgs_demo
+    shutil.copytree(folder, tmp_path / "igs" / folder.name)
+    (tmp_path / "run.toml").write_text('scenes = ["igs/*"]\nout = "out"\nseed = 0\ncache_dir = "cache"\n'
+                                       "[gen_trajectories]\nper_scene = 8\n[validate]\nframes_per_scene = 1\n")
+    code, out, err = run_cli("-q", "run", tmp_path / "run.toml")
+    assert code == 0, out + err
+    report = json.loads((tmp_path / "out" / "validation" / folder.name / "report.json").read_text())
+    assert report["trajectories"] == 8 and report["passed"] == 8, report
+
+
+def test_collision_usd_meshes_replace_the_surfaces(interiorgs_demo, run_cli, tmp_path):
+    """SAGE-3D's collision file turned by 180 degrees about Z (as its USD template places it) is found in the
+    scene's own frame; each object then has the mesh of its own collision prim."""
+    from interiorgs_fixture import collision_usd
+
+    folder, truth = interiorgs_demo
+    collision_usd(truth.scene, tmp_path / "839920_collision.usd", turned=True)
+    code, out, err = run_cli("import-interiorgs", folder, "--out", tmp_path / "scene",
+                             "--collision-usd", tmp_path / "839920_collision.usd")
+    assert code == 0, err
+    report = json.loads((tmp_path / "scene" / "interiorgs_import.json").read_text())
+    objects = [o for o in truth.scene.spec.objects if o.kind not in ("wall", "floor", "ceiling")]
+    assert report["collision_meshes"]["turned_180_about_z"] is True
+    assert report["collision_meshes"]["objects"] == len(objects)
+    imported = load_scene(tmp_path / "scene")
+    for iid, tid in _label_of(tmp_path / "scene").items():
+        assert np.allclose(imported.meshes[iid].bounds, truth.scene.meshes[tid].bounds, atol=1e-6)
+
+
+def _broken(folder: Path, tmp_path: Path, name: str, edit) -> Path:
+    dst = tmp_path / "0001_broken"
+    shutil.copytree(folder, dst)
+    edit(dst / name) if name else edit(dst)
+    return dst
+
+
+def _labels_edit(fn):
+    def edit(path: Path) -> None:
+        labels = json.loads(path.read_text())
+        fn(labels)
+        path.write_text(json.dumps(labels))
+    return edit
+
+
+@pytest.mark.parametrize(("name", "edit", "message"), [
+    (None, lambda d: (d / "labels.json").unlink(),
+     "{d}: missing labels.json (an InteriorGS scene folder holds 3dgs_compressed.ply, labels.json, structure.json, "
+     "occupancy.png, occupancy.json)"),
+    ("3dgs_compressed.ply", lambda p: p.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 1\n"
+                                                    b"property float a\nproperty float b\nend_header\n" + bytes(8)),
+     "{d}/3dgs_compressed.ply: neither the INRIA 3DGS layout (x, y, z, f_dc_0, ...) nor the compressed SuperSplat "
+     "layout (a 'chunk' element and packed_position, ...): vertex has a, b"),
+    ("labels.json", _labels_edit(lambda labels: labels[3]["bounding_box"].pop()),
+     "{d}/labels.json: [3].bounding_box: 7 corners; an oriented box has 8"),
+    ("labels.json", _labels_edit(lambda labels: labels[3].__setitem__("bounding_box", [labels[3]["bounding_box"][0]] * 8)),
+     "{d}/labels.json: [3].bounding_box: zero volume: two corners are 0 m apart"),
+    ("structure.json", lambda p: p.write_text(json.dumps({**json.loads(p.read_text()), "rooms": []})),
+     "{d}/structure.json: rooms: no rooms: the floor plan needs at least one room profile"),
+    ("occupancy.json", lambda p: p.write_text(json.dumps({**json.loads(p.read_text()), "scale": 0.1})),
+     "{d}/occupancy.json: scale: min..max at scale 0.1 m/px spans 119.5 x 81.5 px but occupancy.png is 239 x 163 px"),
+])
+def test_bad_folders_get_one_line_and_nothing_is_written(interiorgs_demo, run_cli, tmp_path, name, edit, message):
+    folder = _broken(interiorgs_demo[0], tmp_path, name, edit)
+    code, out, err = run_cli("import-interiorgs", folder, "--out", tmp_path / "out")
+    assert (code, out) == (2, "")
+    assert err == f"error: {message.format(d=folder)}\n"
+    assert not (tmp_path / "out").exists()
+
+
+def test_labels_holding_no_gaussians_are_a_warning(interiorgs_demo, run_cli, tmp_path):
+    last = len(json.loads((interiorgs_demo[0] / "labels.json").read_text())) - 1  # furniture comes last
+
+    def far_away(labels: list) -> None:  # two boxes moved 100 m off: nothing of the scene is in them
+        for k in (last - 2, last):
+            for corner in labels[k]["bounding_box"]:
+                corner["x"] += 100.0
+
+    folder = _broken(interiorgs_demo[0], tmp_path, "labels.json", _labels_edit(far_away))
+    code, out, err = run_cli("import-interiorgs", folder, "--out", tmp_path / "out")
+    assert code == 0
+    assert f"warning: 2 labels hold no Gaussians and are left out: labels.json [{last - 2}], [{last}]\n" in err
+    report = json.loads((tmp_path / "out" / "interiorgs_import.json").read_text())
+    assert report["labels_without_gaussians"] == [last - 2, last]
+
+
+def test_out_holding_other_files_is_refused(interiorgs_demo, run_cli, tmp_path):
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "notes.txt").write_text("mine")
+    code, _, err = run_cli("import-interiorgs", interiorgs_demo[0], "--out", tmp_path / "out")
+    assert code == 2
+    assert err == (f"error: {tmp_path / 'out'}: --out: is not empty and not a scene written by `sagebench "
+                   "import-interiorgs`; choose another --out (or --force to replace it)\n")
+    assert (tmp_path / "out" / "notes.txt").read_text() == "mine"

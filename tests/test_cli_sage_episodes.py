@@ -1,0 +1,174 @@
+"""`sagebench export-sage` and `import-sage-episodes`: SAGE-3D's GVLN files both ways.
+
+SAGE-3D's reading is re-implemented here from the behaviour of its episodes_adapter.py (one episode per
+instruction, "<trajectory_id>-<k>", start = first point's position and rotation, goal = last point) and
+simple_env.set_start_pose (heading = 2 atan2(-qx, qw) - pi in its 3D frame), not copied and not imported.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sagebench.episodes.shards import read_episodes
+from sagebench.gvln.episodes import item_names
+from sagebench.scene.loader import load_scene
+
+SCENE = "demo_apartment_0"
+
+
+def sage_adapter(path: Path) -> list[dict]:
+    """SAGE-3D's episodes as its benchmark builds them from a GVLN file."""
+    data = json.loads(path.read_text())
+    scene = data["scenes"][0]
+    episodes = []
+    for sample in scene.get("samples", []):
+        points = sample["points"]
+        instructions = sample.get("instructions", [""])
+        if not instructions:
+            parsed = [(0, "", "", "", "")]
+        elif isinstance(instructions[0], str):
+            parsed = [(i, t, "", "", "") for i, t in enumerate(instructions)]
+        else:
+            parsed = [(i, d.get("generated_instruction", ""), d.get("instruction_type", ""), d.get("start", ""),
+                       d.get("end", "")) for i, d in enumerate(instructions) if isinstance(d, dict)]
+        for k, text, kind, start, end in parsed:
+            episodes.append({"episode_id": f"{sample.get('trajectory_id', '0')}-{k}", "instruction": text,
+                             "instruction_type": kind, "start_item": start, "end_item": end,
+                             "start_position": points[0]["position"], "start_rotation": points[0]["rotation"],
+                             "goal": points[-1]["position"], "scene_name": scene.get("scene_name", "scene")})
+    return episodes
+
+
+def sage_heading(rotation: list[float]) -> float:
+    """The heading SAGE-3D's simulator starts an episode with, in its 3D frame."""
+    qx, _, _, qw = rotation
+    return math.remainder(2 * math.atan2(-qx, qw) - math.pi, 2 * math.pi)
+
+
+def _angle(a: float, b: float) -> float:
+    return abs(math.remainder(a - b, 2 * math.pi))
+
+
+@pytest.fixture(scope="module")
+def exported(demo_eval_run, tmp_path_factory) -> Path:
+    from sagebench.cli import main
+
+    out = tmp_path_factory.mktemp("sage")
+    with pytest.raises(SystemExit) as exc:
+        main(["export-sage", str(demo_eval_run), "--out", str(out)])
+    assert exc.value.code in (0, None)
+    return out / SCENE / f"trajectories_{SCENE}.json"
+
+
+def test_sage_s_reader_sees_our_starts_goals_headings_and_instructions(demo_eval_run, exported):
+    rows = read_episodes(demo_eval_run / "episodes" / SCENE).to_pylist()
+    rows = [r for r in rows if r["instruction_text"] is not None]
+    spec = load_scene(demo_eval_run / "scenes" / SCENE).spec
+    names = item_names(spec)
+    episodes = sage_adapter(exported)
+    assert len(episodes) == len(rows) and {e["scene_name"] for e in episodes} == {"0"}
+    by_trajectory: dict[str, list[dict]] = {}
+    for r in rows:
+        by_trajectory.setdefault(r["trajectory_id"], []).append(r)
+    sage = {e["episode_id"]: e for e in episodes}
+    for tid, group in by_trajectory.items():
+        for k, row in enumerate(group):
+            e = sage[f"{tid}-{k}"]
+            assert e["start_position"][:2] == [-row["start_position"][0], -row["start_position"][1]]
+            assert e["goal"][:2] == [-row["goal_position"][0], -row["goal_position"][1]]
+            # the same heading, seen in SAGE's frame (turned by 180 degrees)
+            assert _angle(sage_heading(e["start_rotation"]), row["start_yaw"] + math.pi) < 1e-9
+            assert e["instruction"] == row["instruction_text"]
+            assert e["instruction_type"] == {"Attribute_Based": "Attribute-based", "Area_Based": "Area-based"}.get(
+                row["instruction_type"], row["instruction_type"])
+            assert (e["start_item"], e["end_item"]) == (names.get(row["start_instance_id"], row["start_room"]),
+                                                       names.get(row["goal_instance_id"], row["goal_room"]))
+
+
+def test_import_of_the_export_reproduces_the_episodes(demo_eval_run, exported, run_cli, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(demo_eval_run / "scenes", run / "scenes")
+    code, out, err = run_cli("import-sage-episodes", exported, "--run", run)
+    assert code == 0, err
+    assert out.startswith(f"import-sage-episodes {SCENE}: 8 trajectories, ")
+    before = read_episodes(demo_eval_run / "episodes" / SCENE).to_pylist()
+    after = read_episodes(run / "episodes" / SCENE).to_pylist()
+    assert len(after) == len(before)
+    key = lambda r: r["episode_id"]  # noqa: E731
+    for a, b in zip(sorted(before, key=key), sorted(after, key=key)):
+        for col in a:
+            if col in ("start_yaw", "reference_path", "geodesic_distance", "start_position", "goal_position"):
+                assert np.allclose(a[col], b[col], atol=1e-9), col
+            else:
+                assert a[col] == b[col], col
+
+
+def _plain_sage_file(path: Path, exported: Path) -> Path:
+    """The export as SAGE-3D itself writes it: no sagebench keys, its own trajectory ids and types, plus a
+    Default and a Goal-less instruction."""
+    doc = json.loads(exported.read_text())
+    for i, sample in enumerate(doc["scenes"][0]["samples"]):
+        sample.pop("sagebench")
+        sample["trajectory_id"] = str(i)
+        for ins in sample["instructions"]:
+            ins.pop("sagebench")
+        first = sample["instructions"][0]
+        sample["instructions"] += [dict(first, instruction_type="Default", generated_instruction="Go there."),
+                                   dict(first, instruction_type="Goal-less", generated_instruction="Look around.")]
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_sage_bench_s_own_episodes_run_in_the_closed_loop(demo_eval_run, exported, run_cli, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(demo_eval_run / "scenes", run / "scenes")
+    sage_file = _plain_sage_file(tmp_path / "trajectories_0001_0.json", exported)
+    code, out, err = run_cli("import-sage-episodes", sage_file, "--run", run, "--scene", SCENE)
+    assert code == 0, err
+    assert out.splitlines()[1] == "left out instructions of types with no goal to score: Goal-less 8"
+    rows = read_episodes(run / "episodes" / SCENE).to_pylist()
+    spec = load_scene(run / "scenes" / SCENE).spec
+    names = {v: k for k, v in item_names(spec).items()}
+    plain = json.loads(sage_file.read_text())["scenes"][0]["samples"]
+    assert {(r["instruction_level"], r["instruction_type"]) for r in rows if r["instruction_text"] == "Go there."} == {
+        ("low", "Single_Goal")}
+    assert {r["split"] for r in rows} == {"test"} and {r["goal_radius"] for r in rows} == {0.5}
+    assert {r["instruction_source"] for r in rows} == {"sage-bench"}
+    assert {r["start_instance_id"] for r in rows} == {names.get(s["instructions"][0]["start"]) for s in plain}
+    assert len({r["episode_id"] for r in rows}) == len(rows)
+    preds = tmp_path / "oracle.jsonl"
+    assert run_cli("rollout", "--run", run, "--policy", "oracle", "--obs", "none", "--out", preds)[0] == 0
+    code, out, err = run_cli("evaluate", "--run", run, "--predictions", preds, "--out", tmp_path / "scores.json")
+    assert code == 0, err
+    scores = json.loads((tmp_path / "scores.json").read_text())
+    assert scores["overall"]["episodes"] == len(rows) and scores["overall"]["sr"] == 1.0
+
+
+@pytest.mark.parametrize(("edit", "message"), [
+    (lambda d: d["scenes"][0]["samples"][0]["points"][0].__setitem__("rotation", [0.0, 0.0, 0.3, 0.95]),
+     "{f}: scenes[0].samples[0].points[0].rotation: rotation [0.0, 0.0, 0.3, 0.95] turns about z: a trajectory in "
+     "SAGE-3D's 2D map frame, not yet moved into its 3D frame by trajectory_2d_to_3d.py"),
+    (lambda d: d["scenes"][0]["samples"][1].__setitem__("points", []),
+     "{f}: scenes[0].samples[1].points: List should have at least 1 item after validation, not 0"),
+    (lambda d: d.__setitem__("scenes", []), "{f}: scenes: List should have at least 1 item after validation, not 0"),
+    (lambda d: d["scenes"][0].__setitem__("scene_name", "839920"),
+     "{f}: scene_name: the file is for scene '839920', and {run}/scenes has no scene of that name; name the scene "
+     "with --scene"),
+])
+def test_bad_files_get_one_line_and_nothing_is_written(exported, demo_eval_run, run_cli, tmp_path, edit, message):
+    run = tmp_path / "run"
+    shutil.copytree(demo_eval_run / "scenes", run / "scenes")
+    doc = json.loads(exported.read_text())
+    edit(doc)
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    code, out, err = run_cli("import-sage-episodes", bad, "--run", run)
+    assert (code, out) == (2, "")
+    assert err == f"error: {message.format(f=bad, run=run)}\n"
+    assert not (run / "episodes").exists()

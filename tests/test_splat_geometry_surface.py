@@ -1,0 +1,119 @@
+"""Surfaces from Gaussians: an L stays an L, a box stays its box, a thin base stays thin, floaters are dropped."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import shapely
+import trimesh
+
+from sagebench.collider_export.quality import lattice_points
+from sagebench.render.gaussians import Gaussians
+from sagebench.splat_geometry.surface import SurfaceSettings, gaussian_points, object_surface
+from sagebench.topdown.footprints import footprint_reference, mesh_parts
+from tests.meshes import prism
+
+L_OUTLINE = shapely.Polygon([(0, 0), (2.0, 0), (2.0, 0.8), (0.8, 0.8), (0.8, 2.0), (0, 2.0)])  # an L-sofa, 2 x 2 m
+
+
+def _points(mesh: trimesh.Trimesh, spacing: float = 0.02) -> np.ndarray:
+    return lattice_points(mesh.triangles, spacing)
+
+
+def _frame(points: np.ndarray, yaw: float = 0.0):
+    """The points' box turned by `yaw`: centre [3], axes [3, 3] (rows), half extents [3]."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    axes = np.array([[c, s, 0.0], [-s, c, 0.0], [0, 0, 1.0]])
+    local = points @ axes.T
+    lo, hi = local.min(axis=0), local.max(axis=0)
+    return (lo + hi) / 2 @ axes, axes, (hi - lo) / 2
+
+
+def _footprint(mesh: trimesh.Trimesh) -> shapely.Geometry:
+    return footprint_reference(*mesh_parts(mesh))
+
+
+@pytest.mark.parametrize("yaw", [0.0, 0.6])
+def test_an_l_shaped_object_keeps_its_inner_corner(yaw):
+    mesh = prism(L_OUTLINE, 0.8)
+    mesh.apply_transform(trimesh.transformations.rotation_matrix(yaw, [0, 0, 1]))
+    pts = _points(mesh)
+    surface = object_surface(pts, np.ones(len(pts)), *_frame(mesh.vertices, yaw))
+    got = _footprint(surface)
+    truth = shapely.affinity.rotate(L_OUTLINE, yaw, origin=(0, 0), use_radians=True)
+    assert got.intersection(truth).area / got.union(truth).area > 0.97
+    corner = shapely.affinity.rotate(shapely.Point(1.5, 1.5), yaw, origin=(0, 0), use_radians=True)
+    assert not got.buffer(0.1).contains(corner)  # the inner corner stays free (a hull would cover it)
+    assert surface.bounds[1][2] == pytest.approx(0.8, abs=0.005)  # no part reaches past the points
+
+
+def test_a_box_object_is_its_box_in_few_parts():
+    mesh = trimesh.creation.box(extents=(0.9, 0.5, 0.75))
+    mesh.apply_translation((3, 4, 0.375))
+    pts = _points(mesh)
+    surface = object_surface(pts, np.ones(len(pts)), *_frame(mesh.vertices))
+    assert np.allclose(surface.bounds, mesh.bounds, atol=1e-6)
+    assert surface.volume == pytest.approx(mesh.volume, rel=0.01)  # solid: the inside was filled
+    assert mesh_parts(surface)[1].max() + 1 <= 2
+
+
+@pytest.mark.parametrize(("spacing", "below"), [(0.02, 0.01), (0.033, 0.01), (0.033, 0.0)])
+def test_a_thin_base_stays_under_the_band(spacing, below):
+    """A floor lamp's 3 cm base, its box reaching `below` m under the floor: no part mixing base and pole reaches
+    into the band (5 cm up), so only the pole blocks there."""
+    base = trimesh.creation.cylinder(radius=0.15, height=0.03)
+    base.apply_translation((0, 0, 0.015))
+    pole = trimesh.creation.cylinder(radius=0.015, height=1.27)
+    pole.apply_translation((0, 0, 0.03 + 0.635))
+    pts = np.concatenate([_points(base, spacing), _points(pole, spacing)])
+    centre, axes, half = _frame(pts)
+    surface = object_surface(pts, np.ones(len(pts)), centre - [0, 0, below / 2], axes, half + [0, 0, below / 2],
+                             SurfaceSettings(band=(0.05, 1.2)))
+    tris, part = mesh_parts(surface)
+    wide = [p for p in np.unique(part) if np.ptp(tris[part == p][..., :2].reshape(-1, 2), axis=0).max() > 0.1]
+    assert wide and max(tris[part == p][..., 2].max() for p in wide) < 0.05
+
+
+@pytest.mark.parametrize("below", [0.0, 0.01, 0.02])
+def test_a_plate_keeps_its_thickness(below):
+    """Voxels filled inside a 3 cm plate (4 cm voxels) add no height: parts end at the plate's own points."""
+    plate = trimesh.creation.box(extents=(0.6, 0.4, 0.03))
+    plate.apply_translation((0, 0, 0.015))
+    pts = _points(plate, 0.06)  # sparser than the voxels: closing fills voxels that hold no point
+    centre, axes, half = _frame(pts)
+    surface = object_surface(pts, np.ones(len(pts)), centre - [0, 0, below / 2], axes, half + [0, 0, below / 2])
+    assert surface.bounds[:, 2] == pytest.approx([0.0, 0.03], abs=1e-6)
+
+
+def test_floaters_and_nothing():
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(-1, 1, (40, 3))  # scattered, one per voxel, below the summed opacity needed
+    weights = np.full(len(pts), 0.3)
+    box = (np.zeros(3), np.eye(3), np.ones(3))
+    assert object_surface(pts, weights, *box) is None
+    dense = np.concatenate([pts, _points(trimesh.creation.box(extents=(0.4, 0.4, 0.4)))])
+    surface = object_surface(dense, np.concatenate([weights, np.ones(len(dense) - len(pts))]), *box)
+    assert np.allclose(surface.bounds, [[-0.2] * 3, [0.2] * 3], atol=1e-6)  # the floaters are left out
+
+
+def test_parts_are_capped():
+    rng = np.random.default_rng(1)
+    blobs = np.concatenate([_points(trimesh.creation.box(extents=(0.1, 0.1, 0.1)).apply_translation(c))
+                            for c in rng.uniform(-1, 1, (40, 3))])
+    surface = object_surface(blobs, np.ones(len(blobs)), np.zeros(3), np.eye(3), np.full(3, 1.1),
+                             SurfaceSettings(max_parts=5))
+    assert mesh_parts(surface)[1].max() + 1 <= 5
+
+
+def test_wide_gaussians_stand_for_more_than_their_centre():
+    means = np.array([[0, 0, 0], [1, 0, 0]], np.float32)
+    log_scales = np.log(np.array([[0.2, 0.01, 0.01], [0.01, 0.01, 0.01]], np.float32))
+    turn = [math.cos(math.pi / 4), 0, 0, math.sin(math.pi / 4)]  # 90 degrees about z: local x along world y
+    g = Gaussians(means, np.array([turn, [1, 0, 0, 0]], np.float32), log_scales, np.zeros(2, np.float32),
+                  np.zeros((2, 1, 3), np.float32), np.zeros(2, np.int32))
+    points, weights, source = gaussian_points(g, voxel=0.04)
+    assert source.tolist() == [0, 1, 0, 0]
+    assert np.allclose(points[2:], [[0, 0.2, 0], [0, -0.2, 0]], atol=1e-6)
+    assert weights.tolist() == pytest.approx([0.5] * 4)
