@@ -8,6 +8,7 @@ import json
 import shutil
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -61,25 +62,27 @@ def test_build_scene_takes_the_folder_and_the_navigable_map_agrees(interiorgs_de
 
 @pytest.mark.parametrize("seed", [1, 2])
 def test_other_seeds_round_trip(seed, tmp_path):
-    """Two more synth apartments, through the library (no run): the same bars as the demo's."""
+    """Two more synth apartments, through the library (maps only, no run): the same bars as the demo's."""
     from sagebench.importers.interiorgs import import_interiorgs, write_imported
     from sagebench.scene.synth import write_synth_scene
-    from sagebench.stages.build_scene import build_scene
+    from sagebench.topdown.builder import compute_topdown
+    from sagebench.topdown.config import TopdownConfig
 
     write_synth_scene(tmp_path / "scene", seed=seed)
     folder = tmp_path / f"0002_00000{seed}"
     truth = write_interiorgs_folder(tmp_path / "scene", folder)
     write_imported(import_interiorgs(folder), tmp_path / "imported")
-    build_scene(tmp_path / "imported", tmp_path / "run")
     imported = load_scene(tmp_path / "imported")
     label_of = _label_of(tmp_path / "imported")
     assert [(r.id, r.type) for r in imported.spec.rooms] == [(r.id, r.type) for r in truth.scene.spec.rooms]
-    assert _navigable_iou(truth, tmp_path / "run" / "scenes" / folder.name) >= 0.90
+    td = compute_topdown(imported, TopdownConfig())
+    assert iou(truth.topdown.navigable != 0, on_grid(td.navigable != 0, td.grid, truth.topdown.grid)) >= 0.90
     assert np.median(band_footprint_ious(truth, imported, label_of)) >= 0.80
     assert in_box_share(truth, folder, read_ply(tmp_path / "imported" / "gaussians.ply").instance_id, label_of) >= 0.95
 
 
-def test_a_run_config_takes_the_folder_and_validates_every_trajectory(interiorgs_demo, run_cli, tmp_path):
+def test_a_run_config_takes_the_folder_and_validates_every_trajectory(interiorgs_demo, interiorgs_imported, run_cli,
+                                                                      tmp_path):
     folder, _ = interiorgs_demo
     shutil.copytree(folder, tmp_path / "igs" / folder.name)
     (tmp_path / "run.toml").write_text('scenes = ["igs/*"]\nout = "out"\nseed = 0\ncache_dir = "cache"\n'
@@ -88,6 +91,10 @@ def test_a_run_config_takes_the_folder_and_validates_every_trajectory(interiorgs
     assert code == 0, out + err
     report = json.loads((tmp_path / "out" / "validation" / folder.name / "report.json").read_text())
     assert report["trajectories"] == 8 and report["passed"] == 8, report
+    # the run imported the folder on its own: the same meshes and Gaussians, byte for byte, as import-interiorgs
+    built = tmp_path / "out" / "scenes" / folder.name
+    for path in [*sorted((interiorgs_imported / "meshes").iterdir()), interiorgs_imported / "gaussians.ply"]:
+        assert (built / path.relative_to(interiorgs_imported)).read_bytes() == path.read_bytes(), path.name
 
 
 def test_collision_usd_meshes_replace_the_surfaces(interiorgs_demo, run_cli, tmp_path):
@@ -149,7 +156,7 @@ def test_bad_folders_get_one_line_and_nothing_is_written(interiorgs_demo, run_cl
     assert not (tmp_path / "out").exists()
 
 
-def test_labels_holding_no_gaussians_are_a_warning(interiorgs_demo, run_cli, tmp_path):
+def test_labels_holding_no_gaussians_and_a_disagreeing_occupancy_map_are_warnings(interiorgs_demo, run_cli, tmp_path):
     last = len(json.loads((interiorgs_demo[0] / "labels.json").read_text())) - 1  # furniture comes last
 
     def far_away(labels: list) -> None:  # two boxes moved 100 m off: nothing of the scene is in them
@@ -158,11 +165,20 @@ def test_labels_holding_no_gaussians_are_a_warning(interiorgs_demo, run_cli, tmp
                 corner["x"] += 100.0
 
     folder = _broken(interiorgs_demo[0], tmp_path, "labels.json", _labels_edit(far_away))
+    image = cv2.imread(str(folder / "occupancy.png"), cv2.IMREAD_GRAYSCALE)
+    cv2.imwrite(str(folder / "occupancy.png"), np.full_like(image, 255))  # all free: walls and furniture too
     code, out, err = run_cli("import-interiorgs", folder, "--out", tmp_path / "out")
     assert code == 0
+    assert out.startswith("import-interiorgs 0001_broken: 54 objects from 82 labels, 5 rooms, 16 walls, 7 doors, ")
     assert f"warning: 2 labels hold no Gaussians and are left out: labels.json [{last - 2}], [{last}]\n" in err
     report = json.loads((tmp_path / "out" / "interiorgs_import.json").read_text())
     assert report["labels_without_gaussians"] == [last - 2, last]
+    iou = report["occupancy_iou"]
+    assert iou < 0.8 and f"agreement {iou:.3f} IoU" in out
+    assert (f"warning: 0001_broken: occupancy.png and the imported geometry agree on {iou:.0%} of the free floor "
+            f"(IoU, under 80%); see occupancy_check.png\n") in err
+    picture = cv2.imread(str(tmp_path / "out" / "occupancy_check.png"))
+    assert (picture == (60, 90, 220)[::-1]).all(axis=2).any()  # blue: free only in occupancy.png
 
 
 def test_out_holding_other_files_is_refused(interiorgs_demo, run_cli, tmp_path):

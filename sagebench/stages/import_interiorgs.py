@@ -34,10 +34,10 @@ class ImportResult:
     def summary(self) -> str:
         r = self.report
         s = r["shares"]
-        return (f"import-interiorgs {r['scene_id']}: {r['objects']} objects from {r['labels']} labels, "
-                f"{r['gaussians']} Gaussians ({s['object_boxes']:.1%} in object boxes, {s['structure']:.1%} on walls, "
-                f"floors and ceilings, {s['background']:.1%} background), {len(r['doors'])} doors, occupancy.png "
-                f"agreement {r['occupancy_iou']:.3f} IoU -> {self.out_dir}")
+        return (f"import-interiorgs {r['scene_id']}: {r['objects']} objects from {r['labels']} labels, {r['rooms']} "
+                f"rooms, {r['walls']} walls, {len(r['doors'])} doors, {r['gaussians']:,} Gaussians "
+                f"({s['object_boxes']:.1%} in object boxes, {s['structure']:.1%} on walls, floors and ceilings, "
+                f"{s['background']:.1%} background), occupancy.png agreement {r['occupancy_iou']:.3f} IoU -> {self.out_dir}")
 
 
 def import_interiorgs_scene(src: Path, out: Path, config: InteriorGSConfig = InteriorGSConfig(), *,
