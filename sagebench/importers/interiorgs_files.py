@@ -49,7 +49,7 @@ class _Corner(_Model):
 
 
 class _Label(_Model):
-    ins_id: str | int
+    ins_id: str | int = ""  # SAGE-3D reads it with a default too
     label: Annotated[str, Field(min_length=1)]
     bounding_box: list[_Corner]
 
