@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from sagebench.importers.boxes import BoxError, OrientedBox, box_from_corners, box_owner, box_owner_reference
@@ -18,7 +18,6 @@ def _box(centre, yaw: float, half) -> OrientedBox:
                        np.asarray(half, float))
 
 
-@settings(deadline=None)
 @given(st.floats(-math.pi, math.pi), st.lists(st.floats(0.01, 3.0), min_size=3, max_size=3),
        st.permutations(range(8)))
 def test_any_corner_order_gives_back_the_box(yaw, half, order):
@@ -52,7 +51,6 @@ def test_what_is_no_box_is_refused(corners, message):
         box_from_corners(corners)
 
 
-@settings(deadline=None)
 @given(st.integers(0, 2**32 - 1))
 def test_tightest_box_matches_the_plain_reference(seed):
     rng = np.random.default_rng(seed)
