@@ -33,7 +33,7 @@ from sagebench.scene.loader import load_scene  # noqa: E402
 from sagebench.scene.synth import write_synth_scene  # noqa: E402
 from sagebench.splats.config import SplatConfig  # noqa: E402
 from sagebench.splats.ply import read_ply  # noqa: E402
-from sagebench.topdown.builder import compute_topdown
+from sagebench.topdown.builder import compute_topdown  # noqa: E402
 from sagebench.topdown.config import BuildSceneConfig  # noqa: E402
 from sagebench.topdown.footprints import footprint_reference, mesh_parts  # noqa: E402
 

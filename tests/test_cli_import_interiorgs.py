@@ -66,7 +66,7 @@ def test_other_seeds_round_trip(seed, tmp_path):
     from sagebench.importers.interiorgs import import_interiorgs, write_imported
     from sagebench.scene.synth import write_synth_scene
     from sagebench.topdown.builder import compute_topdown
-    from sagebench.topdown.config import TopdownConfig
+    from sagebench.topdown.config import BuildSceneConfig
 
     write_synth_scene(tmp_path / "scene", seed=seed)
     folder = tmp_path / f"0002_00000{seed}"
@@ -75,7 +75,7 @@ def test_other_seeds_round_trip(seed, tmp_path):
     imported = load_scene(tmp_path / "imported")
     label_of = _label_of(tmp_path / "imported")
     assert [(r.id, r.type) for r in imported.spec.rooms] == [(r.id, r.type) for r in truth.scene.spec.rooms]
-    td = compute_topdown(imported, TopdownConfig())
+    td = compute_topdown(imported, BuildSceneConfig())
     assert iou(truth.topdown.navigable != 0, on_grid(td.navigable != 0, td.grid, truth.topdown.grid)) >= 0.90
     assert np.median(band_footprint_ious(truth, imported, label_of)) >= 0.80
     assert in_box_share(truth, folder, read_ply(tmp_path / "imported" / "gaussians.ply").instance_id, label_of) >= 0.95
