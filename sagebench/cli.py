@@ -198,13 +198,15 @@ def demo(
 
 @app.command("import-interiorgs", cls=_defaults_from("sagebench.stages.import_interiorgs:InteriorGSConfig"))
 def import_interiorgs_cmd(
-    src: Annotated[Path, typer.Argument(help="InteriorGS scene folder (3dgs_compressed.ply, labels.json, structure.json, "
-                                             "occupancy.png, occupancy.json).")],
+    src: Annotated[Path, typer.Argument(
+        callback=existing, help="InteriorGS scene folder (3dgs_compressed.ply, labels.json, structure.json, "
+                                "occupancy.png, occupancy.json).")],
     out: Annotated[Path, typer.Option("--out", help="Scene directory to create: absent, empty or an earlier import "
                                                      "(replaced whole).")],
     collision_usd: Annotated[Path | None, typer.Option(
-        "--collision-usd", help="SAGE-3D's collision USD for this scene: its meshes replace the surfaces made from "
-                                "Gaussians for the objects they match.")] = None,
+        "--collision-usd", callback=existing,
+        help="SAGE-3D's collision USD for this scene: its meshes replace the surfaces made from Gaussians for the "
+             "objects they match.")] = None,
     voxel: Annotated[float | None, typer.Option(help="Voxel side of the object surfaces, m.")] = None,
     min_opacity: Annotated[float | None, typer.Option(help="Summed opacity a voxel needs to be solid.")] = None,
     max_parts: Annotated[int | None, typer.Option(help="Convex parts per object surface at most.")] = None,
@@ -555,7 +557,8 @@ def export_training_cmd(
 
 @app.command("export-sage")
 def export_sage_cmd(
-    run_dir: Annotated[Path, typer.Argument(help="Run directory with episodes/<id>/ and scenes/<id>/.")],
+    run_dir: Annotated[Path, typer.Argument(callback=existing,
+                                            help="Run directory with episodes/<id>/ and scenes/<id>/.")],
     out: Annotated[Path, typer.Option("--out", help="Directory for the GVLN files.")],
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene id (default: every scene).")] = None,
 ) -> None:
@@ -576,8 +579,9 @@ def export_sage_cmd(
 
 @app.command("import-sage-episodes", cls=_defaults_from("sagebench.stages.import_sage:SageImportConfig"))
 def import_sage_episodes_cmd(
-    file: Annotated[Path, typer.Argument(help="GVLN trajectory file (SAGE-Bench's episodes for one scene).")],
-    run: Annotated[Path, typer.Option("--run", help="Run directory holding the scene (scenes/<id>/ from build-scene).")],
+    file: Annotated[Path, typer.Argument(callback=existing, help="GVLN trajectory file (SAGE-Bench's episodes for one scene).")],
+    run: Annotated[Path, typer.Option("--run", callback=existing,
+                                      help="Run directory holding the scene (scenes/<id>/ from build-scene).")],
     scene: Annotated[str | None, typer.Option(
         "--scene", help="Scene id in the run (default: the one named by the file's scene_name).")] = None,
     goal_radius: Annotated[float | None, typer.Option(help="Success radius, m, where the file has none (SAGE-3D's).")] = None,

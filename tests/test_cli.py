@@ -127,7 +127,7 @@ def test_shell_completion_completes_command_names():
     assert done.stdout.split() == ["export-usd", "export-vlnce", "export-training"]
 
 
-INPUT_OPTIONS = {"--run", "--config", "--predictions", "--furniture"}  # options naming a file a command reads
+INPUT_OPTIONS = {"--run", "--config", "--predictions", "--furniture", "--collision-usd"}  # options naming a file a command reads
 
 
 def _input_params():
@@ -163,6 +163,8 @@ def test_every_input_path_is_checked_by_the_one_existing_helper():
     ["evaluate", "--run", "{nope}", "--predictions", "{nope}"], ["baseline", "--agent", "oracle", "--run", "{nope}",
                                                                   "--out", "{out}"],
     ["rollout", "--run", "{nope}", "--out", "{out}"], ["export-training", "{nope}", "--out", "{out}"],
+    ["import-interiorgs", "{nope}", "--out", "{out}"], ["export-sage", "{nope}", "--out", "{out}"],
+    ["import-sage-episodes", "{nope}", "--run", "{nope}"],
 ])
 def test_a_path_that_does_not_exist_is_the_one_error_and_nothing_is_written(run_cli, tmp_path, argv):
     nope = tmp_path / "typo" / "runs" / "r1"
