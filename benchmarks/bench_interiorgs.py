@@ -5,7 +5,8 @@ which follows the dataset card and SAGE-3D's code). Timing rows: the whole impor
 Gaussians (read, assign, surfaces, occupancy check, write), against reading its PLY alone, in the same run.
 Method rows (demo apartment, seed 0): the navigable map's IoU with the mesh-built one, the median and mean
 per-object IoU of the cells each object blocks in the agent's band, the IoU of the L-sofa's semantic footprint, and the
-convex parts; for the voxel-box hulls sagebench uses, one convex hull of each object's Gaussians, and the
+convex parts, and the mean share of the free space under the tops of desks and tables (their knee space: inside
+their tightest box, 3 cm clear of the mesh) that the geometry fills; for the voxel-box hulls sagebench uses, one convex hull of each object's Gaussians, and the
 labelled box itself.
 """
 
@@ -24,11 +25,14 @@ import trimesh
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from interiorgs_fixture import band_footprint_ious, iou, on_grid, write_interiorgs_folder  # noqa: E402
+from interiorgs_fixture import (  # noqa: E402
+    band_footprint_ious, empty_space_filled, iou, on_grid, write_interiorgs_folder,
+)
 
 from sagebench.collider_export.convex import hull_part  # noqa: E402
 from sagebench.importers.interiorgs import import_interiorgs, write_imported  # noqa: E402
 from sagebench.importers.interiorgs_structure import box_mesh  # noqa: E402
+from sagebench.scene.assets import CATALOGUE, table  # noqa: E402
 from sagebench.scene.loader import load_scene  # noqa: E402
 from sagebench.scene.synth import write_synth_scene  # noqa: E402
 from sagebench.splats.config import SplatConfig  # noqa: E402
@@ -38,6 +42,7 @@ from sagebench.topdown.config import BuildSceneConfig  # noqa: E402
 from sagebench.topdown.footprints import footprint_reference, mesh_parts  # noqa: E402
 
 TARGET = 1_000_000
+KNEE_SPACE = frozenset(c for c, a in CATALOGUE.items() if a.build is table)  # a top on legs: free space under it
 
 
 def _load() -> str:
@@ -107,9 +112,13 @@ def _methods(root: Path) -> list[dict]:
         a, b = footprint_reference(*mesh_parts(mesh_sofa)), footprint_reference(*mesh_parts(scene.meshes[sofa.instance_id]))
         parts = sum(int(mesh_parts(scene.meshes[i])[1].max()) + 1 for i in objects)
         band = band_footprint_ious(truth, scene, label_of)
+        knee = [empty_space_filled(truth.scene.meshes[label_of[o.instance_id]], scene.meshes[o.instance_id])
+                for o in scene.spec.objects if o.category in KNEE_SPACE and o.instance_id in objects]
+        knee = [k for k in knee if k is not None]
         out.append({"case": method, "navigable_iou": round(nav, 4), "median_band_iou": round(float(np.median(band)), 3),
                     "mean_band_iou": round(float(np.mean(band)), 3),
                     "l_sofa_footprint_iou": round(a.intersection(b).area / a.union(b).area, 3),
+                    "knee_space_filled": f"{np.mean(knee):.1%} of {len(knee)}" if knee else "none",
                     "object_parts": parts, "seconds": round(seconds, 1) if not out else "", "load": _load()})
     return out
 

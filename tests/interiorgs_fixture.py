@@ -337,3 +337,40 @@ def in_box_share(truth: Truth, folder: Path, assigned: np.ndarray, label_of: dic
         total += len(held)
         right += int((got[held] == tid).sum())
     return right / max(total, 1)
+
+
+def empty_space_filled(truth_mesh: trimesh.Trimesh, mesh: trimesh.Trimesh, *, step: float = 0.02,
+                       clearance: float = 0.03, band_min: float = 0.05) -> float | None:
+    """The share of the empty space inside an object's tightest box (a desk's knee space, an L-sofa's inner
+    corner; above `band_min`, at least `clearance` from the true surface and outside it) that `mesh`'s convex
+    parts fill; None where the box holds no such space. Judged on a `step` grid; `mesh` is in the same frame."""
+    from scipy.spatial import cKDTree
+
+    from sagebench.importers.boxes import box_from_corners
+    from sagebench.topdown.footprints import sample_surface
+
+    box = box_from_corners(obb_corners(truth_mesh))
+    axes = [np.arange(-h + step / 2, h, step) for h in box.half]
+    local = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    points = box.centre + local @ box.axes
+    points = points[points[:, 2] >= band_min]
+    tris, _ = mesh_parts(truth_mesh)
+    surface = sample_surface(tris, int(truth_mesh.area / 1e-4) + 1, np.random.default_rng(0))
+    empty = (cKDTree(surface).query(points)[0] >= clearance) & ~_in_parts(truth_mesh, points)
+    if not empty.any():
+        return None
+    return float(_in_parts(mesh, points[empty]).mean())
+
+
+def _in_parts(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
+    """[N] whether each point lies in one of the mesh's connected parts, each taken as its convex hull (as the
+    colliders and the band footprint take them)."""
+    from scipy.spatial import Delaunay
+
+    tris, part = mesh_parts(mesh)
+    inside = np.zeros(len(points), dtype=bool)
+    for k in range(int(part.max()) + 1):
+        verts = np.unique(tris[part == k].reshape(-1, 3), axis=0)
+        if len(verts) >= 4 and np.linalg.matrix_rank(verts[1:] - verts[0]) == 3:
+            inside |= Delaunay(verts).find_simplex(points) >= 0
+    return inside

@@ -1,4 +1,5 @@
-"""Surfaces from Gaussians: an L stays an L, a box stays its box, a thin base stays thin, floaters are dropped."""
+"""Surfaces from Gaussians: an L stays an L, a desk keeps its knee space, a box stays its box, a thin base stays
+thin, floaters are dropped."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import trimesh
 
 from sagebench.collider_export.quality import lattice_points
 from sagebench.render.gaussians import Gaussians
+from sagebench.scene.assets import COLOURS, table
 from sagebench.splat_geometry.surface import SurfaceSettings, gaussian_points, object_surface
 from sagebench.topdown.footprints import footprint_reference, mesh_parts
 from tests.meshes import prism
@@ -117,3 +119,23 @@ def test_wide_gaussians_stand_for_more_than_their_centre():
     assert source.tolist() == [0, 1, 0, 0]
     assert np.allclose(points[2:], [[0, 0.2, 0], [0, -0.2, 0]], atol=1e-6)
     assert weights.tolist() == pytest.approx([0.5] * 4)
+
+
+@pytest.mark.parametrize("yaw", [0.0, 0.6])
+def test_a_desk_keeps_its_knee_space(yaw):
+    """A desk (a 4 cm top on four 5 cm legs, 0.75 m high): the space under the top between the legs stays free of
+    every part (one hull of the desk, or its box, would fill it), and the top and legs are kept."""
+    mesh = table(1.2, 0.6, 0.75, COLOURS["white"])
+    turn = trimesh.transformations.rotation_matrix(yaw, [0, 0, 1])
+    mesh.apply_transform(turn)
+    pts = _points(mesh)
+    surface = object_surface(pts, np.ones(len(pts)), *_frame(mesh.vertices, yaw))
+    tris, part = mesh_parts(surface)
+    hulls = [trimesh.convex.convex_hull(tris[part == p].reshape(-1, 3)) for p in np.unique(part)]
+    knee = trimesh.transformations.transform_points(
+        np.array([[x, y, z] for x in (-0.4, 0, 0.4) for y in (-0.15, 0, 0.15) for z in (0.1, 0.35, 0.6)]), turn)
+    assert not any(h.contains(knee).any() for h in hulls)
+    assert surface.bounds[:, 2] == pytest.approx([0.0, 0.75], abs=0.005)
+    under_legs = trimesh.transformations.transform_points(np.array([[sx * 0.55, sy * 0.25, 0.35]
+                                                                   for sx in (-1, 1) for sy in (-1, 1)]), turn)
+    assert all(any(h.contains([p])[0] for h in hulls) for p in under_legs)
