@@ -97,7 +97,7 @@ def test_a_run_config_takes_the_folder_and_validates_every_trajectory(interiorgs
                                        "[gen_trajectories]\nper_scene = 8\n[validate]\nframes_per_scene = 1\n")
     code, out, err = run_cli("-q", "run", tmp_path / "run.toml")
     assert code == 0, out + err
-    report = json.loads((tmp_path / "out" / "validation" / folder.name / "report.json").read_text())
+    report = json.loads((tmp_path / "out" / "reports" / folder.name / "report.json").read_text())
     assert report["trajectories"] == 8 and report["passed"] == 8, report
     # the run imported the folder on its own: the same meshes and Gaussians, byte for byte, as import-interiorgs
     built = tmp_path / "out" / "scenes" / folder.name
