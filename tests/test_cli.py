@@ -124,7 +124,7 @@ def test_shell_completion_completes_command_names():
     env = {**os.environ, "_SAGEBENCH_COMPLETE": "complete_bash", "COMP_WORDS": "sagebench export-", "COMP_CWORD": "1"}
     done = subprocess.run([sys.executable, "-m", "sagebench"], env=env, capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
-    assert done.stdout.split() == ["export-usd", "export-vlnce", "export-training"]
+    assert done.stdout.split() == ["export-usd", "export-vlnce", "export-training", "export-sage"]
 
 
 INPUT_OPTIONS = {"--run", "--config", "--predictions", "--furniture", "--collision-usd"}  # options naming a file a command reads

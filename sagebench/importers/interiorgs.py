@@ -17,9 +17,6 @@ in id order, names the same object as SAGE-3D's item ids), then walls, floors an
 
 from __future__ import annotations
 
-import contextlib
-import tempfile
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -34,7 +31,7 @@ from sagebench.fileio import dumps_json, write_bytes
 from sagebench.importers.boxes import BoxError, OrientedBox, box_from_corners, box_owner
 from sagebench.importers.config import OCCUPANCY_PICTURE, REPORT_FILE, InteriorGSConfig
 from sagebench.importers.interiorgs_files import (
-    LABELS, STRUCTURE, InteriorGSFolder, WallSegment, is_interiorgs_folder, read_folder,
+    LABELS, STRUCTURE, InteriorGSFolder, WallSegment, read_folder,
 )
 from sagebench.importers.interiorgs_occupancy import compare_occupancy
 from sagebench.importers.interiorgs_structure import (
@@ -152,20 +149,6 @@ def write_imported(imported: ImportedScene, out: Path) -> None:
     write_ply(out / TRAINED_FILES[0], imported.gaussians)  # a scene directory's trained Gaussians
     write_bytes(out / REPORT_FILE, dumps_json(imported.report).encode())
     write_bytes(out / OCCUPANCY_PICTURE, imported.picture)
-
-
-@contextlib.contextmanager
-def opened_scene(scene_dir: Path, build: BuildSceneConfig = BuildSceneConfig()) -> Iterator[Path]:
-    """`scene_dir` itself for a sagebench scene; for an InteriorGS folder, a temporary directory holding its import
-    (removed on leaving), so build-scene and run take either."""
-    if not is_interiorgs_folder(scene_dir):
-        yield Path(scene_dir)
-        return
-    imported = import_interiorgs(Path(scene_dir), build=build)
-    with tempfile.TemporaryDirectory(prefix="sagebench-interiorgs-") as tmp:
-        out = Path(tmp) / imported.spec.scene_id
-        write_imported(imported, out)
-        yield out
 
 
 # ---------------------------------------------------------------- structure

@@ -86,7 +86,7 @@ class CheckedScene:
 def check_scene(scene_dir: Path, config: BuildSceneConfig | None = None) -> CheckedScene:
     """Everything build-scene refuses, without building (`check-scene`). An InteriorGS folder is imported into a
     temporary directory first, gone when this returns (the checked scene is in memory)."""
-    from sagebench.importers.interiorgs import opened_scene
+    from sagebench.importers.source import opened_scene
 
     with opened_scene(scene_dir, config or BuildSceneConfig()) as source:
         return _check(source, config)
@@ -106,7 +106,7 @@ def _check(scene_dir: Path, config: BuildSceneConfig | None = None) -> CheckedSc
 def build_scene(scene_dir: Path, run_dir: Path, config: BuildSceneConfig | None = None) -> BuildSceneResult:
     """Check `scene_dir` (a scene directory or an InteriorGS folder, imported first), compute its top-down maps and
     Gaussians and write RUN/scenes/<scene_id>/ atomically."""
-    from sagebench.importers.interiorgs import opened_scene
+    from sagebench.importers.source import opened_scene
 
     config = config or BuildSceneConfig()
     with opened_scene(scene_dir, config) as source:
