@@ -832,6 +832,12 @@ def main(argv: list[str] | None = None) -> None:
             raise
         _fail(err if isinstance(err, SagebenchError) else Interrupted(INTERRUPTED) if isinstance(err, KeyboardInterrupt)
               else OutputError(err.strerror or str(err), path=err.filename))
+    except Exception:
+        # a library swallowed the Ctrl-C and failed on what it left (trimesh keeps an ExceptionWrapper in place of
+        # a module whose import was interrupted; its next annotation `ExceptionWrapper | None` is a TypeError)
+        if interrupted() and not SETTINGS.debug:
+            _fail(Interrupted(INTERRUPTED))
+        raise
 
 
 INTERRUPTED = "interrupted: the work in progress was not written"

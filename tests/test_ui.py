@@ -53,3 +53,29 @@ def test_working_ticks_while_a_silent_step_runs(capsys, monkeypatch):
     with ui.working("done at once"):
         pass
     assert capsys.readouterr().err == ""  # the ticker stops with the step
+
+
+@pytest.mark.parametrize("after", ["exits 0", "fails on what it left"])
+def test_a_ctrl_c_a_library_swallowed_ends_in_the_interrupt_line(after, monkeypatch, capsys):
+    """trimesh imports its optional parts under `except BaseException`: a Ctrl-C then is kept as an ExceptionWrapper
+    and the command goes on, or fails later on a TypeError; either way the user pressed Ctrl-C and gets its line."""
+    import os
+    import signal
+
+    from sagebench import cli
+
+    def command(*args, **kwargs):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5)  # the signal arrives here
+        except BaseException:  # noqa: BLE001 - what trimesh does
+            pass
+        if after == "fails on what it left":
+            raise TypeError("unsupported operand type(s) for |: 'ExceptionWrapper' and 'NoneType'")
+        raise SystemExit(0)
+
+    monkeypatch.setattr(cli, "app", command)
+    with pytest.raises(SystemExit) as done:
+        cli.main(["validate", "somewhere"])
+    assert done.value.code == 130
+    assert capsys.readouterr().err == f"error: {cli.INTERRUPTED}\n"
