@@ -329,7 +329,8 @@ def test_a_semantic_map_that_is_a_directory_is_one_line(tiny_run, run_cli, tmp_p
 @pytest.mark.parametrize("delay", [0.0, 0.2, 0.5, 1.0, 1.8])
 def test_ctrl_c_in_the_first_seconds_of_run_is_one_line_and_writes_nothing(delay, tiny_scene, tmp_path):
     """Ctrl-C `delay` s after sagebench's own imports began (pydantic's core library mapped: the interpreter's
-    start, before any sagebench code runs, is Python's), while the CLI imports, loads the config and starts."""
+    start, before any sagebench code runs, is Python's), while the CLI imports, loads the config and starts; a
+    stage that finished before it is kept (its "ran" line), nothing partial is."""
     import signal
     import time
 
@@ -348,10 +349,14 @@ def test_ctrl_c_in_the_first_seconds_of_run_is_one_line_and_writes_nothing(delay
         pytest.fail(f"the run ignored Ctrl-C after {delay} s")
     # -SIGINT: Python ends itself by the signal when one reached code that ran under PyRun (a shell reports 130)
     assert proc.returncode in (130, -signal.SIGINT), (proc.returncode, err)
-    assert err.splitlines()[-1].startswith("error: interrupted") and "Traceback" not in err, err
-    assert len(err.splitlines()) == 1, err
+    *before, last = err.splitlines()
+    assert last.startswith("error: interrupted") and "Traceback" not in err, err
+    # on a fast machine a stage may finish first: its line is all that may come before the interrupt's
+    assert all(line.lstrip().startswith("ran ") for line in before), err
     out = tmp_path / "out"
-    assert not out.exists() or not [p for p in out.rglob("*") if p.is_file() and p.name != ".sagebench.lock"]
+    written = [p for p in out.rglob("*") if p.is_file() and p.name != ".sagebench.lock"] if out.exists() else []
+    assert not [p for p in written if ".tmp" in p.name], written  # nothing partial is left
+    assert before or not written, written  # and nothing at all when no stage had finished
 
 
 # ---------------------------------------------------------------- the count
