@@ -8,7 +8,7 @@ LOCK := constraints.txt
 DEMO_OUT := out/demo
 SEED ?= 0
 
-.PHONY: demo test explore bench schemas mutants lock install clean
+.PHONY: demo test explore bench schemas docs mutants lock install clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -53,6 +53,10 @@ lock: | $(BIN)/python
 
 schemas: $(STAMP)
 	$(BIN)/sagebench schemas --out schemas
+
+# docs/cli.md from every command's --help (tests/test_cli_docs.py fails when it is stale)
+docs: $(STAMP)
+	$(BIN)/python tools/cli_docs.py
 
 clean:
 	rm -rf out .pytest_cache

@@ -20,6 +20,7 @@ app = typer.Typer(
     add_completion=True,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,  # click's plain help: rewrapped to the terminal (80 columns at most), flags without a value
     help="Turn artist-made indoor scenes into a physically executable VLN benchmark.",
 )
 
@@ -138,7 +139,7 @@ def synth_scene(
 @app.command("check-scene")
 def check_scene(
     scene_dir: Annotated[Path, typer.Argument(
-        callback=existing, help="Artist scene directory (scene.json + meshes) or InteriorGS scene folder.")],
+        metavar="SCENE_DIR", callback=existing, help="Artist scene directory (scene.json + meshes) or InteriorGS scene folder.")],
 ) -> None:
     """Check a scene directory as build-scene would (same checks, default settings) and print a summary.
 
@@ -199,7 +200,7 @@ def demo(
 @app.command("import-interiorgs", cls=_defaults_from("sagebench.stages.import_interiorgs:InteriorGSConfig"))
 def import_interiorgs_cmd(
     src: Annotated[Path, typer.Argument(
-        callback=existing, help="InteriorGS scene folder (3dgs_compressed.ply, labels.json, structure.json, "
+        metavar="SRC", callback=existing, help="InteriorGS scene folder (3dgs_compressed.ply, labels.json, structure.json, "
                                 "occupancy.png, occupancy.json).")],
     out: Annotated[Path, typer.Option("--out", help="Scene directory to create: absent, empty or an earlier import "
                                                      "(replaced whole).")],
@@ -232,7 +233,7 @@ def import_interiorgs_cmd(
 @app.command("build-scene", cls=_defaults_from("sagebench.stages.build_scene:BuildSceneConfig"))
 def build_scene_cmd(
     scene_dir: Annotated[Path, typer.Argument(
-        callback=existing, help="Artist scene directory (scene.json + meshes) or InteriorGS scene folder.")],
+        metavar="SCENE_DIR", callback=existing, help="Artist scene directory (scene.json + meshes) or InteriorGS scene folder.")],
     out: Annotated[Path, typer.Option("--out", help="Run directory; writes OUT/scenes/<scene_id>/.")],
     resolution: Annotated[float | None, typer.Option(help="Grid cell side, m.")] = None,
     band_min: Annotated[float | None, typer.Option(help="Lowest blocking height above the floor, m.")] = None,
@@ -271,7 +272,7 @@ def build_scene_cmd(
 
 @app.command("gen-trajectories", cls=_defaults_from("sagebench.stages.gen_trajectories:GenTrajectoriesConfig"))
 def gen_trajectories_cmd(
-    run_dir: Annotated[Path, typer.Argument(callback=existing, help="Run directory that build-scene wrote (RUN/scenes/<id>/).")],
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing, help="Run directory that build-scene wrote (RUN/scenes/<id>/).")],
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene id (default: every scene).")] = None,
     per_scene: Annotated[int | None, typer.Option(help="Distinct trajectories per scene.")] = None,
     seed: Annotated[int | None, typer.Option(help="Seed of sampling and wording.")] = None,
@@ -348,7 +349,7 @@ def gen_trajectories_cmd(
 
 @app.command("render", cls=_defaults_from("sagebench.stages.render:RenderConfig"))
 def render_cmd(
-    run_dir: Annotated[Path, typer.Argument(callback=existing, help="Run directory with scenes/<scene_id>/ from build-scene.")],
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing, help="Run directory with scenes/<scene_id>/ from build-scene.")],
     scene: Annotated[str, typer.Option("--scene", help="Scene id (a directory under RUN_DIR/scenes).")],
     pose: Annotated[str, typer.Option("--pose", help="X,Y,YAW: camera position on the floor, m, and heading, rad.")],
     out: Annotated[Path, typer.Option("--out", help="PNG file to write.")],
@@ -383,7 +384,7 @@ def render_cmd(
 
 @app.command("export-usd", cls=_defaults_from("sagebench.stages.export_usd:ExportConfig"))
 def export_usd_cmd(
-    run_dir: Annotated[Path, typer.Argument(callback=existing, help="Run directory that build-scene wrote (RUN/scenes/<id>/).")],
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing, help="Run directory that build-scene wrote (RUN/scenes/<id>/).")],
     scene: Annotated[str | None, typer.Option("--scene", help="Export only this scene id (default: every scene).")] = None,
     cache_dir: Annotated[
         Path | None, typer.Option("--cache-dir", help="Collider piece cache (default: the user cache directory).")
@@ -451,7 +452,7 @@ def export_usd_cmd(
 
 @app.command("validate", cls=_defaults_from("sagebench.stages.validate:ValidateConfig"))
 def validate_cmd(
-    run_dir: Annotated[Path, typer.Argument(callback=existing, help="Run directory with scenes/<id>/ (build-scene, export-usd) and episodes/<id>/.")],
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing, help="Run directory with scenes/<id>/ (build-scene, export-usd) and episodes/<id>/.")],
     scene: Annotated[str | None, typer.Option("--scene", help="Validate only this scene id (default: every scene).")] = None,
     frames_per_scene: Annotated[
         int | None, typer.Option(help="Trajectories per scene rendered at start, middle and goal.")
@@ -495,7 +496,7 @@ def validate_cmd(
 
 @app.command("export-vlnce")
 def export_vlnce_cmd(
-    run_dir: Annotated[Path, typer.Argument(callback=existing, help="Run directory with episodes/<id>/ and scenes/<id>/.")],
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing, help="Run directory with episodes/<id>/ and scenes/<id>/.")],
     out: Annotated[Path, typer.Option("--out", help="Dataset directory to write (habitat's data_path root).")],
     split: Annotated[str | None, typer.Option("--split", autocompletion=splits,
                                               help="Export only this split (default: every split).")] = None,
@@ -520,7 +521,7 @@ def export_vlnce_cmd(
 
 @app.command("export-training", cls=_defaults_from("sagebench.stages.export_training:TrainingExportConfig"))
 def export_training_cmd(
-    run_dir: Annotated[Path, typer.Argument(callback=existing,
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing,
                                             help="Run directory (build-scene, gen-trajectories, export-usd).")],
     out: Annotated[Path, typer.Option("--out", help="Directory to write: new, or an interrupted export to resume.")],
     split: Annotated[str | None, typer.Option("--split", autocompletion=splits,
@@ -557,7 +558,7 @@ def export_training_cmd(
 
 @app.command("export-sage")
 def export_sage_cmd(
-    run_dir: Annotated[Path, typer.Argument(callback=existing,
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing,
                                             help="Run directory with episodes/<id>/ and scenes/<id>/.")],
     out: Annotated[Path, typer.Option("--out", help="Directory for the GVLN files.")],
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene id (default: every scene).")] = None,
@@ -579,7 +580,7 @@ def export_sage_cmd(
 
 @app.command("import-sage-episodes", cls=_defaults_from("sagebench.stages.import_sage:SageImportConfig"))
 def import_sage_episodes_cmd(
-    file: Annotated[Path, typer.Argument(callback=existing, help="GVLN trajectory file (SAGE-Bench's episodes for one scene).")],
+    file: Annotated[Path, typer.Argument(metavar="FILE", callback=existing, help="GVLN trajectory file (SAGE-Bench's episodes for one scene).")],
     run: Annotated[Path, typer.Option("--run", callback=existing,
                                       help="Run directory holding the scene (scenes/<id>/ from build-scene).")],
     scene: Annotated[str | None, typer.Option(
@@ -605,7 +606,7 @@ def import_sage_episodes_cmd(
 
 @app.command("run")
 def run_cmd(
-    config: Annotated[Path, typer.Argument(callback=existing, help="TOML run config (scenes, out, per-stage settings).")],
+    config: Annotated[Path, typer.Argument(metavar="CONFIG", callback=existing, help="TOML run config (scenes, out, per-stage settings).")],
     workers: Annotated[int | None, typer.Option(help="Scene-stage tasks at once (default: the config's, else 1).")] = None,
     executor: Annotated[str | None, typer.Option(help="local or ray (default: the config's, else local).")] = None,
     ray_address: Annotated[str | None, typer.Option("--ray-address", help="Ray cluster; none starts a local Ray.")] = None,
@@ -636,7 +637,7 @@ def run_cmd(
 
 @app.command("verify")
 def verify_cmd(
-    run_dir: Annotated[Path, typer.Argument(callback=existing, help="Run directory with a manifest.json.")],
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing, help="Run directory with a manifest.json.")],
     regenerate: Annotated[bool, typer.Option("--regenerate", help="Re-run CONFIG into a temporary directory and compare.")] = False,
     config: Annotated[Path | None, typer.Option("--config", callback=existing,
                                                 help="The run's TOML config (needed with --regenerate).")] = None,
@@ -811,6 +812,17 @@ def rollout_cmd(
     typer.echo(result.summary())
     if not result.complete:
         raise typer.Exit(1)
+
+
+def _add_examples() -> None:
+    """End each command's --help with its worked example (sagebench/cli_examples.py; docs/cli.md shows them)."""
+    from sagebench.cli_examples import epilog
+
+    for info in app.registered_commands:
+        info.epilog = epilog(info.name)
+
+
+_add_examples()
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -1,5 +1,5 @@
-"""Option defaults have one source: --help shows each settings model's defaults, the README's option blocks
-match --help, and a bad option value is an error naming the option as typed."""
+"""Option defaults have one source: --help shows each settings model's defaults, the option blocks of the README
+and docs/ match --help, and a bad option value is an error naming the option as typed."""
 
 from __future__ import annotations
 
@@ -45,12 +45,17 @@ def _shown(value: object) -> str:
 
 
 def _help(run_cli, monkeypatch, command: str) -> dict[str, str]:
-    """--help of COMMAND as option -> its help text (one line each: a wide terminal)."""
-    monkeypatch.setenv("COLUMNS", "400")
+    """--help of COMMAND as option -> its help text, each on one line (click's help at a very wide terminal)."""
+    import typer.main
+
+    from sagebench.cli import app
+
     code, out, _ = run_cli(command, "--help")
-    assert code == 0
-    rows = re.findall(r"^│\s+\*?\s*(--[a-z-]+)(?:,\s*-\w)?\s+(?:<\w+>)?\s+(.*?)\s*│$", out, re.MULTILINE)
-    return dict(rows)
+    assert code == 0 and f"sagebench {command}" in out
+    group = typer.main.get_command(app)
+    root = typer.Context(group, info_name="sagebench", terminal_width=10_000, max_content_width=10_000)
+    text = group.commands[command].get_help(typer.Context(group.commands[command], info_name=command, parent=root))
+    return dict(re.findall(r"^  (--[a-z-]+)(?:, -\w)?(?: <[\w\[\]|]+>)?\s{2,}(.*?)\s*$", text, re.MULTILINE))
 
 
 @pytest.mark.parametrize("command", list(COMMANDS))
@@ -72,10 +77,12 @@ def test_no_default_is_typed_into_the_cli():
     assert re.findall(r"\(default (?!X\)|\{)[^:)]*\)", text) == []
 
 
-def _readme_blocks() -> dict[str, list[tuple[str, str]]]:
-    """command -> the [--option VALUE] pairs of its README usage block (```bash ... sagebench COMMAND ...)."""
+def _doc_blocks() -> dict[str, list[tuple[str, str]]]:
+    """command -> the [--option VALUE] pairs of the usage blocks (```bash ... sagebench COMMAND ...) in the README
+    and the topic pages (docs/cli.md is --help itself)."""
     found: dict[str, list[tuple[str, str]]] = {}
-    for block in re.findall(r"```bash\n(.*?)```", (ROOT / "README.md").read_text(), re.DOTALL):
+    pages = [ROOT / "README.md", *(p for p in sorted((ROOT / "docs").glob("*.md")) if p.name != "cli.md")]
+    for block in re.findall(r"```bash\n(.*?)```", "".join(p.read_text() for p in pages), re.DOTALL):
         for usage in re.split(r"\n(?=sagebench )", block):
             m = re.match(r"sagebench ([a-z-]+)", usage)
             if m and m.group(1) in COMMANDS:
@@ -83,17 +90,17 @@ def _readme_blocks() -> dict[str, list[tuple[str, str]]]:
     return found
 
 
-def test_readme_option_blocks_match_help(run_cli, monkeypatch):
-    blocks = _readme_blocks()
+def test_doc_option_blocks_match_help(run_cli, monkeypatch):
+    blocks = _doc_blocks()
     assert {"build-scene", "gen-trajectories", "export-usd", "validate"} <= set(blocks)
     for command, pairs in blocks.items():
         model, options = _settings(command)
         shown = _help(run_cli, monkeypatch, command)
         for option, value in pairs:
-            assert option in shown, f"README: {command} has no {option}"
+            assert option in shown, f"docs: {command} has no {option}"
             if option in options and re.fullmatch(r"-?[0-9.]+", value):  # a number is the default; N, ID placeholders
                 default = _default(model, options[option])
-                assert float(value) == default, f"README: {command} {option} {value}, but its default is {default}"
+                assert float(value) == default, f"docs: {command} {option} {value}, but its default is {default}"
 
 
 def _nested(path: str, value: object) -> dict:

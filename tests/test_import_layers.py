@@ -16,7 +16,7 @@ ROOT = Path(sagebench.__file__).parent
 
 # Top-level modules and packages of sagebench by layer; a package not named here counts as a library package.
 LAYERS = {
-    "cli": 4, "__main__": 4, "schemas": 4,  # schemas gathers every model, the run config's included
+    "cli": 4, "cli_examples": 4, "__main__": 4, "schemas": 4,  # schemas gathers every model, the run config's included
     "pipeline": 3,
     "stages": 2,
     "scene": 0, "fileio": 0, "errors": 0, "config": 0, "ui": 0, "run_layout": 0, "__init__": 0,

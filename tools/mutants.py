@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-COPIED = ("sagebench", "tests", "schemas", "pyproject.toml", "README.md")
+COPIED = ("sagebench", "tests", "tools", "docs", "schemas", "pyproject.toml", "README.md")
 
 
 @dataclass(frozen=True)
