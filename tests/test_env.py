@@ -114,7 +114,7 @@ def test_vectorised_equals_sequential_byte_for_byte(demo_eval_run):
 
 
 # async: each env in a process of its own, made from the spec; spawned, since this process has rendered already
-# and numba's OpenMP threads do not survive a fork (README)
+# and numba's OpenMP threads do not survive a fork (docs/rollout.md)
 @pytest.mark.parametrize("mode, vector_kwargs", [("sync", {}), ("async", {"context": "spawn"})])
 def test_gymnasiums_own_vector_envs_step_each_env_as_alone_and_autoreset_to_the_next_episode(demo_eval_run, mode,
                                                                                           vector_kwargs):

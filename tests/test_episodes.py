@@ -1,4 +1,4 @@
-"""Episode rows: DESIGN.md's columns and types, shards that split and round-trip, byte-identical rewrites."""
+"""Episode rows: the documented columns and types (docs/outputs.md), shards that split and round-trip, byte-identical rewrites."""
 
 import cv2
 import numpy as np

@@ -135,7 +135,7 @@ def test_resample_keeps_both_ends():
 
 
 def test_turn_only_policies_keep_the_papers_ps():
-    # PS as the paper and DESIGN.md define it penalises only heading change per step, so a policy that only
+    # PS as the paper and docs/metrics.md define it penalises only heading change per step, so a policy that only
     # turns scores 1 - 15/180 in VLN-CE's discrete actions and 1 - 0.75/pi at the continuous space's top rate
     # (1.5 rad/s for 0.5 s); issue 13's "PS below 0.6" for it cannot hold without changing the formula.
     discrete = np.radians(15.0) * np.arange(40)

@@ -400,6 +400,7 @@ def main(names: list[str]) -> int:
     if names and len(chosen) != len(names):
         sys.exit(f"mutants: unknown name among {names}; known: {[m.name for m in MUTANTS]}")
     survivors, broken = [], []
+    start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="sagebench-mutants-") as tmp:
         clean = Path(tmp) / "clean"
         _copy(clean)
@@ -426,7 +427,8 @@ def main(names: list[str]) -> int:
             if passed:
                 survivors.append(m.name)
             shutil.rmtree(copy)
-    print(f"{len(chosen) - len(survivors) - len(broken)} of {len(chosen)} mutants killed"
+    print(f"{len(chosen) - len(survivors) - len(broken)} of {len(chosen)} mutants killed "
+          f"in {time.perf_counter() - start:.0f} s (load average {os.getloadavg()[0]:.1f})"
           + (f"; survived: {', '.join(survivors)}" if survivors else "")
           + (f"; no longer apply: {', '.join(broken)}" if broken else ""))
     return 1 if survivors or broken else 0

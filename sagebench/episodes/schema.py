@@ -1,4 +1,4 @@
-"""The episode row (one trajectory-instruction pair) as an Arrow schema, exactly DESIGN.md's columns.
+"""The episode row (one trajectory-instruction pair) as an Arrow schema, the columns docs/outputs.md lists.
 
 Positions are [x, y, z] and waypoints [x, y, z, yaw] in world metres and radians (Z up, yaw
 counter-clockwise from +X). Columns that may be null: the instance ids (a room endpoint has none),

@@ -1,4 +1,4 @@
-"""Navigation (NE, SR, OSR, SPL, nDTW, SDTW) and continuity (CSR, ICP, PS) metrics, as DESIGN.md defines them."""
+"""Navigation (NE, SR, OSR, SPL, nDTW, SDTW) and continuity (CSR, ICP, PS) metrics, as docs/metrics.md defines them."""
 
 from sagebench.metrics.episode import EpisodeMetrics, MetricConfig, score_episode
 from sagebench.metrics.on_foot import GoalField, NavigableMap, distance_on_foot

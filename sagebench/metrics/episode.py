@@ -1,6 +1,6 @@
 """Scores of one episode: the navigation metrics of habitat/VLN-CE and the SAGE-Bench continuity metrics.
 
-Definitions (DESIGN.md; all distances in the XY plane):
+Definitions (docs/metrics.md; all distances in the XY plane):
 - NE  = distance on foot (`on_foot.py`) from the final pose to the goal; a final pose that cannot reach the goal
         gets the largest distance on foot from the goal to any navigable cell (the worst NE on that map).
 - NE_STRAIGHT = the straight distance from the final pose to the goal (reported, never used for success).
@@ -28,7 +28,7 @@ from sagebench.metrics.polyline import distance_to_polyline, path_length, resamp
 
 @dataclass(frozen=True)
 class MetricConfig:
-    """Constants of the metrics; defaults are the paper's where it gives one, else DESIGN.md's."""
+    """Constants of the metrics; defaults are the paper's where it gives one, else docs/metrics.md's."""
 
     ndtw_threshold: float = 3.0  # d_th, m (habitat / VLN-CE)
     resample_spacing: float = 0.25  # reference resampling for nDTW and CSR, m

@@ -9,7 +9,7 @@ step with no command probes the contact at the end pose (contact sensors read th
 Per agent and interval, from the poses p_0 (start) .. p_S (end) and their contact readings:
 - commanded motion: the sum over steps of v dt along the heading at that step (contact never turns the agent);
 - c(t) = clip(1 - (achieved . commanded) / |commanded|^2, 0, 1) when the agent touched a collider at any
-  p_k and was commanded to move, else 0 (DESIGN.md's definition, the simulator's own measurement);
+  p_k and was commanded to move, else 0 (docs/metrics.md's ICP, the simulator's own measurement);
 - a pure turn (no translation commanded) is blocked only by the turn itself: c(t) = clip(1 - achieved / commanded
   rotation, 0, 1) when the agent touched a collider, else 0 (the agent's prism is not round, so a wall can stop
   its corners; standing near a wall while turning costs nothing);

@@ -3,7 +3,7 @@
 A step turns each running slot's action into a command (actions.py), moves the agents of each scene in one
 MuJoCo call (motion.py), ends slots on STOP, on the step limit or on leaving the map, and renders every
 running slot's view in one renderer call per scene (observe.py). Slots never influence each other: stepping
-episodes together gives byte for byte what stepping them one at a time gives (tests/test_navsim_simulator.py).
+episodes together gives byte for byte what stepping them one at a time gives (tests/test_env.py).
 Running metrics per slot: the distance on foot to the goal, success (stopped within the goal radius on foot)
 and c(t) of the last action: for an action that translates, the larger of the motion shortfall motion.py
 measures and the share of the step (from the pose before to the pose after, every 2 cm) within 0.01 m of a

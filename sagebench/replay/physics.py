@@ -18,7 +18,7 @@ pushes the agent aside.
 Per step t (from pose t-1 to pose t) the record holds the command, the achieved motion, whether the
 agent touched anything at pose t-1 (contact sensor, deepest contact) and the collision intensity
 c(t) = clip(1 - (achieved . commanded) / |commanded|^2, 0, 1) of the planar displacement while in
-contact, 0 otherwise (DESIGN.md).
+contact, 0 otherwise (docs/metrics.md, ICP).
 
 `replay_one` steps one MjData in a plain loop (the reference); `replay_batch` steps many paths together
 with `mujoco.rollout` threads, one step per call, the controller vectorised between calls. Both use the

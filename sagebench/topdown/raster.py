@@ -1,6 +1,6 @@
 """Grid geometry and rasterisers: which cells a polygon covers, touches, or a triangle lies over.
 
-Convention (DESIGN.md): `origin` is the world (x, y) of the lower-left corner of cell (0, 0), cells are
+Convention (README.md, Conventions): `origin` is the world (x, y) of the lower-left corner of cell (0, 0), cells are
 `resolution` metres square, and arrays are indexed [row, col] = [y, x].
 """
 
