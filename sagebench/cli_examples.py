@@ -23,6 +23,11 @@ EXAMPLES: dict[str, tuple[tuple[str, str], ...]] = {
         ("sagebench check-scene scenes/apt3",
          "Prints its rooms, objects, extent, door states and map size; writes nothing."),
     ),
+    "import-interiorgs": (
+        ("sagebench import-interiorgs InteriorGS/0001_839920 --out scenes/0001_839920",
+         "A downloaded InteriorGS scene folder as a sagebench scene directory, with its summary line "
+         "(docs/interiorgs.md); not part of the demo session: it needs the gated dataset."),
+    ),
     "build-scene": (
         ("sagebench build-scene scenes/apt3 --out runs/apt3",
          "Maps and Gaussians into runs/apt3/scenes/demo_apartment_3/ (look at topdown.png there)."),
@@ -51,6 +56,16 @@ EXAMPLES: dict[str, tuple[tuple[str, str], ...]] = {
     "export-training": (
         ("sagebench export-training out/demo --out out/train --split val_seen",
          "The val_seen episodes as WebDataset shards of (view, instruction, action) in out/train/."),
+    ),
+    "export-sage": (
+        ("sagebench export-sage runs/apt3 --out out/sage",
+         "runs/apt3's episodes as SAGE-3D's GVLN trajectory file, out/sage/demo_apartment_3/"
+         "trajectories_demo_apartment_3.json."),
+    ),
+    "import-sage-episodes": (
+        ("sagebench import-sage-episodes out/sage/demo_apartment_3/trajectories_demo_apartment_3.json --run runs/apt3",
+         "Reads them back as the episodes of the scene the file names (replacing its own), as SAGE-Bench's released "
+         "episodes are read to be rolled out and evaluated here."),
     ),
     "run": (
         ("sagebench run out/demo/run.toml --workers 2",
