@@ -65,7 +65,7 @@ def run() -> list[dict]:
     from sagebench.scene.synth import write_synth_scene
     from sagebench.stages.build_scene import build_scene
     from sagebench.collider_export.scene_export import local_meshes
-    from sagebench.stages.export_usd import make_config, part_cache
+    from sagebench.stages.export_usd import agent_band, make_config, part_cache
     from sagebench.collider_export.decompose import decompose_meshes
     from sagebench.scene.loader import door_pose
     from sagebench.ui import SETTINGS
@@ -88,16 +88,16 @@ def run() -> list[dict]:
                          "notes": f"{catalogue.name}; CPU {m['cpu']:.1f} s (all processes); load average "
                                   f"{m['load']:.1f} on {os.cpu_count()} cores"})
 
-        scene = load_scene(tmp / "run" / "scenes" / load_scene(tmp / "scene").spec.scene_id)
+        scene_dir = tmp / "run" / "scenes" / load_scene(tmp / "scene").spec.scene_id
+        scene, band = load_scene(scene_dir), agent_band(scene_dir)
         local = local_meshes(scene)
         colliders = decompose_meshes(local, make_config().colliders, cache=part_cache(tmp / "cache"), workers=WORKERS,
-                                     floor_height=scene.spec.floor_height)
+                                     band=band)
         measured = {n: mc.parts for n, mc in colliders.items() if mc.pieces}
         placed = [(o.instance_id, o.mesh, o.transform.as_matrix() if o.door is None
                    else door_pose(o.door) @ o.transform.as_matrix()) for o in scene.spec.objects if o.mesh in measured]
-        floor = scene.spec.floor_height
-        one = _cpu_seconds(lambda: measure_objects(placed, local, measured, floor, workers=1))
-        two = _cpu_seconds(lambda: measure_objects(placed, local, measured, floor, workers=WORKERS))
+        one = _cpu_seconds(lambda: measure_objects(placed, local, measured, band, workers=1))
+        two = _cpu_seconds(lambda: measure_objects(placed, local, measured, band, workers=WORKERS))
         assert one[2] == two[2]
         rows.append({"name": f"collider quality of {len(placed)} objects, 1 process", "reference": "-",
                      "seconds": one[0], "speed-up": "", "notes": f"CPU {one[1]:.1f} s"})

@@ -31,16 +31,18 @@ def screen(mode: str, entries: list, catalogue) -> list[dict]:
     from sagebench.collider_export.coacd_cache import PartCache
     from sagebench.collider_export.decompose import decompose_meshes
     from sagebench.collider_export.methods import ColliderSettings, band_error_cm
+    from sagebench.config import AgentConfig
 
     settings = ColliderSettings(mode=mode)
+    band = AgentConfig().band  # each model standing on a floor at z = 0
     out = []
     for entry in entries:
         mesh = catalogue.load_model(entry)
         v, f = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
         start, cpu = time.perf_counter(), _cpu_seconds()
-        (mc,) = decompose_meshes({entry.name: (v, f)}, settings, cache=PartCache(None), workers=1).values()
+        (mc,) = decompose_meshes({entry.name: (v, f)}, settings, cache=PartCache(None), workers=1, band=band).values()
         cpu, wall = _cpu_seconds() - cpu, time.perf_counter() - start
-        out.append({"model": f"{entry.number} {entry.name}", "band cm": band_error_cm(v, f, mc.parts, 0.0),
+        out.append({"model": f"{entry.number} {entry.name}", "band cm": band_error_cm(v, f, mc.parts, band),
                     "parts": len(mc.parts), "merged": mc.merged, "CPU s": cpu, "wall s": wall})
     return out
 

@@ -68,7 +68,7 @@ def run() -> list[dict]:
         w = sim.world(sim.slots[0].episode.scene_id)
         poses = np.array([[s.episode.start[0], s.episode.start[1], s.episode.start_yaw] for s in sim.slots])
         width, height = cfg.sensors().images["rgb"]
-        kw = dict(floor_z=w.model.floor_z, camera_height=cfg.agent.camera_height, hfov_deg=cfg.agent.hfov_deg,
+        kw = dict(floor_z=w.model.floor_z, camera_height=cfg.camera.height, hfov_deg=cfg.camera.hfov_deg,
                   width=width, height=height)
         views = [poses + [0, 0, 0.3 * k] for k in range(10)]
         observe(w.renderer, poses, ("rgb", "depth"), **kw)

@@ -36,7 +36,6 @@ def run() -> list[dict]:
     from sagebench.evaluation.predictions import Prediction, read_predictions, write_predictions
     from sagebench.stages.evaluate import evaluate
     from sagebench.stages.rollout import BaselineConfig, run_baseline
-    from sagebench.config import AgentConfig
     from sagebench.evaluation.intensity import STEP_REPLAY
     from sagebench.replay.scene_model import open_replay_model
 
@@ -69,7 +68,7 @@ def run() -> list[dict]:
         rows.append({"name": "evaluate random (intensities replayed)", "reference": "-", "seconds": s, "speed-up": "",
                      "rate": f"{n / s:.0f} episodes/s", "notes": f"{sum(len(p.poses) - 1 for p in loaded)} steps"})
 
-        rm = open_replay_model(run_dir, "demo_apartment_0", agent=AgentConfig(), replay=STEP_REPLAY)
+        rm = open_replay_model(run_dir, "demo_apartment_0", replay=STEP_REPLAY)
         sample = [np.asarray(p.poses) for p in loaded[:40]]
         steps = sum(len(p) - 1 for p in sample)
         start = time.perf_counter()

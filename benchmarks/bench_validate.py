@@ -21,7 +21,7 @@ def run() -> list[dict]:
         run_dir = built_demo_run(Path(tmp))
         trajs = read_trajectories(run_dir / "episodes" / "demo_apartment_0")
         config = ValidateConfig()
-        rm = open_replay_model(run_dir, "demo_apartment_0", agent=config.agent, replay=config.replay)
+        rm = open_replay_model(run_dir, "demo_apartment_0", replay=config.replay)
         paths = [t.reference_path for t in trajs]
         n = len(paths)
 

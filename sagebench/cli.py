@@ -236,8 +236,10 @@ def build_scene_cmd(
         metavar="SCENE_DIR", callback=existing, help="Artist scene directory (scene.json + meshes) or InteriorGS scene folder.")],
     out: Annotated[Path, typer.Option("--out", help="Run directory; writes OUT/scenes/<scene_id>/.")],
     resolution: Annotated[float | None, typer.Option(help="Grid cell side, m.")] = None,
-    band_min: Annotated[float | None, typer.Option(help="Lowest blocking height above the floor, m.")] = None,
-    band_max: Annotated[float | None, typer.Option(help="Highest blocking height above the floor, m.")] = None,
+    band_min: Annotated[float | None, typer.Option(
+        help="Lowest blocking height above the floor, m: the agent body's bottom (its clearance).")] = None,
+    band_max: Annotated[float | None, typer.Option(
+        help="Highest blocking height above the floor, m: the agent body's top (its height).")] = None,
     sample_density: Annotated[float | None, typer.Option(help="Footprint surface samples per m^2.")] = None,
     wall_gap: Annotated[float | None, typer.Option(help="Join room floors across walls up to this thick, m.")] = None,
     agent_radius: Annotated[float | None, typer.Option(help="Agent radius for the navigable map, m.")] = None,
@@ -255,6 +257,9 @@ def build_scene_cmd(
     Writes OUT/scenes/<scene_id>/: scene.json and meshes/ (normalised), topdown.npz,
     semantic_map.json, topdown.png and gaussians.ply (the scene's trained gaussians.ply with
     instance ids, else Gaussians sampled on every mesh).
+
+    --agent-radius, --band-min and --band-max declare the agent's body; semantic_map.json records it,
+    and export-usd's collider band check, validate, evaluate and the env take it from there.
 
     With --prune it prints the held-out PSNR of the pruned against the unpruned Gaussians. OUT must be new,
     empty or a sagebench run (unless --force), and is locked while it is written.

@@ -6,19 +6,46 @@ import types
 from collections.abc import Mapping
 from typing import Literal, TypeVar, Union, get_args, get_origin
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator
 
 from sagebench.errors import ConfigError, first_error
 
 
 class AgentConfig(BaseModel):
-    """The robot every map, path and replay is made for (metres, degrees)."""
+    """The robot's body, declared here and nowhere else (metres above the floor): a cylinder of `radius` from
+    `clearance` up to `height`. That span is the band whose geometry blocks: build-scene's occupancy, export-usd's
+    collider band check and the replay's agent all use it. build-scene builds a run's maps for it and records it in
+    semantic_map.json; every later stage takes it from there."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    radius: float = Field(default=0.20, gt=0, description="Cylinder radius, m.")
-    height: float = Field(default=1.2, gt=0, description="Cylinder height, m.")
-    camera_height: float = Field(default=1.2, gt=0, description="Camera above the floor, m.")
+    radius: float = Field(default=0.20, gt=0, description="Cylinder radius, m; the navigable map is inflated by it.")
+    clearance: float = Field(default=0.05, ge=0, description=(
+        "Cylinder bottom above the floor, m: the bottom of the blocking band (a rug or a threshold below it is "
+        "driven over)."))
+    height: float = Field(default=1.2, gt=0,
+                          description="Cylinder top above the floor, m: the top of the blocking band.")
+
+    @property
+    def band(self) -> tuple[float, float]:
+        """(bottom, top) of the blocking band above the floor, m: the body's span."""
+        return self.clearance, self.height
+
+    @field_validator("height")
+    @classmethod
+    def _above_clearance(cls, height: float, info: ValidationInfo) -> float:
+        clearance = info.data.get("clearance")
+        if clearance is not None and height <= clearance:
+            raise ValueError(f"{height} must be above the band's bottom, clearance ({clearance})")
+        return height
+
+
+class CameraConfig(BaseModel):
+    """The agent's camera: what each stage that renders views sees through (metres, degrees)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    height: float = Field(default=1.2, gt=0, description="Camera above the floor, m.")
     hfov_deg: float = Field(default=90.0, gt=0, lt=180, description="Horizontal field of view, degrees.")
 
 

@@ -81,7 +81,8 @@ class StageFiles:
 
 
 NORMALISED_SCENE = (Place("scene", SCENE_FILE), Place("scene", meshes=True))
-REPLAY_MODEL = (Place("scene", SCENE_FILE), Place("scene", MJCF), Place("scene", COLLIDERS))  # the agent's world
+REPLAY_MODEL = (Place("scene", SCENE_FILE), Place("scene", SEMANTIC_MAP), Place("scene", MJCF),
+                Place("scene", COLLIDERS))  # the agent's world, and its body as the map recorded it
 
 CONTRACT: dict[str, StageFiles] = {
     "build_scene": StageFiles(
@@ -92,7 +93,8 @@ CONTRACT: dict[str, StageFiles] = {
         reads=(Place("scene", SCENE_FILE), Place("scene", TOPDOWN), Place("scene", SEMANTIC_MAP)),
         writes=(Place("episodes"), Place("previews"))),
     "export_usd": StageFiles(
-        reads=(*NORMALISED_SCENE, Place("scene", GAUSSIANS), Place("scene", TOPDOWN)),  # the map: free_floor
+        reads=(*NORMALISED_SCENE, Place("scene", GAUSSIANS), Place("scene", TOPDOWN),
+               Place("scene", SEMANTIC_MAP)),  # the maps: free_floor, the agent's band
         writes=(Place("scene", COLLIDERS), Place("scene", USD_GEOMETRY), Place("scene", USD), Place("scene", USDZ),
                 Place("scene", NUREC), Place("scene", SAGE), Place("scene", MJCF))),
     "validate": StageFiles(

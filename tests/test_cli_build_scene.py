@@ -38,7 +38,7 @@ def test_bad_scene_dir_exits_2_and_writes_nothing(run_cli, tmp_path):
 def test_bad_option_exits_2_and_writes_nothing(run_cli, demo_scene_dir, tmp_path):
     code, _, err = run_cli("build-scene", demo_scene_dir, "--out", tmp_path / "run", "--band-max", "0.01")
     assert code == 2
-    assert err == "error: band_max (0.01) must be above band_min (0.05)\n"
+    assert err == "error: --band-max: 0.01 must be above the band's bottom, clearance (0.05)\n"
     assert not (tmp_path / "run").exists()
 
 

@@ -20,7 +20,9 @@ from pxr import Usd, UsdGeom, UsdPhysics, UsdSemantics, UsdValidation, UsdVol
 from sagebench.collider_export.bodies import DOOR_FLOOR_GAP_M
 from sagebench.collider_export.coacd_cache import CACHE_SUBDIR
 from sagebench.render.gaussians import Gaussians
-from sagebench.scene.loader import door_pose, load_scene, write_normalised_scene
+from sagebench.scene.loader import door_pose, load_scene
+from sagebench.stages.build_scene import build_scene
+from sagebench.stages.build_scene import make_config as make_build_config
 from sagebench.splats.ply import read_ply, write_ply
 from tests.test_collider_convex import u_prism
 from signals import as_from_a_terminal
@@ -79,12 +81,13 @@ def write_tiny_scene(src: Path) -> None:
 COUNTS = {0: 4, 1: 10, 2: 11, 3: 12, 4: 13, 5: 14}
 
 
-def make_run(tmp_path: Path, counts: dict[int, int] = COUNTS) -> Path:
+def make_run(tmp_path: Path, counts: dict[int, int] = COUNTS, **build: float) -> Path:
+    """The tiny scene built (its maps record the agent's band, which export-usd judges colliders in), with
+    `counts` Gaussians per instance id in place of the sampled ones."""
     src, run = tmp_path / "src", tmp_path / "run"
     write_tiny_scene(src)
-    scene_dir = run / "scenes" / "tiny"
-    write_normalised_scene(load_scene(src), scene_dir)
-    write_ply(scene_dir / "gaussians.ply", _gaussians(counts))
+    build_scene(src, run, make_build_config(object_density=1.0, structure_density=1.0, **build))
+    write_ply(run / "scenes" / "tiny" / "gaussians.ply", _gaussians(counts))
     return run
 
 
@@ -245,6 +248,30 @@ def test_colliders_index_lists_every_part(tiny):
             assert trimesh.load(run / "scenes" / "tiny" / "colliders" / rel).is_watertight
 
 
+@pytest.mark.parametrize("band_max, method", [(None, "hull"), ("1.9", "voxel")])
+def test_colliders_are_judged_in_the_band_the_map_was_built_for(tmp_path, run_cli, band_max, method):
+    """An L-shaped shelf from 1.3 to 1.8 m above the floor: above the default agent's 1.2 m its hull blocks nobody,
+    so export keeps the hull; for a 1.9 m tall agent (build-scene --band-max 1.9) the hull would block the L's
+    notch, so export decomposes it (the band reaches the collider check through the map)."""
+    from tests.test_collider_quality import L_SHAPE
+
+    src = tmp_path / "src"
+    (src / "meshes").mkdir(parents=True)
+    _box((3, 3, 0.05), (1.5, 1.5, -0.025)).export(src / "meshes" / "floor.ply")
+    L_SHAPE.copy().apply_scale((1, 1, 0.5)).apply_translation((0.5, 0.5, 1.3)).export(src / "meshes" / "shelf.ply")
+    (src / "scene.json").write_text(json.dumps({"scene_id": "shelf", "objects": [
+        {"instance_id": 1, "category": "floor", "kind": "floor", "mesh": "meshes/floor.ply"},
+        {"instance_id": 2, "category": "shelf", "mesh": "meshes/shelf.ply"}]}))
+    build = ["--object-density", "1", "--structure-density", "1"] + (["--band-max", band_max] if band_max else [])
+    assert run_cli("build-scene", src, "--out", tmp_path / "run", *build)[0] == 0
+    code, _, err = run_cli("export-usd", tmp_path / "run", "--cache-dir", tmp_path / "cache", "--colliders", "balanced")
+    assert code == 0, err
+    index = json.loads((tmp_path / "run" / "scenes" / "shelf" / "colliders" / "colliders.json").read_text())
+    (shelf,) = [o for o in index["objects"] if o["instance_id"] == 2]
+    assert [p["method"] for p in shelf["concave_pieces"]] == [method]
+    assert shelf["quality"]["band_over_cm"] <= 2.0 and shelf["quality"]["band_under_cm"] <= 2.0
+
+
 def test_without_gaussians_the_stage_still_gets_colliders(tmp_path, run_cli):
     run = make_run(tmp_path)
     (run / "scenes" / "tiny" / "gaussians.ply").unlink()
@@ -338,7 +365,7 @@ def test_ctrl_c_stops_a_cold_export_and_a_rerun_reuses_every_finished_piece(tmp_
         "scene_id": "six", "units": "m", "up_axis": "Z",
         "rooms": [{"id": "room_0", "type": "kitchen", "polygon": [[0, 0], [7, 0], [7, 2], [0, 2]]}],
         "objects": objects}))
-    write_normalised_scene(load_scene(src), run / "scenes" / "six")
+    build_scene(src, run, make_build_config(object_density=1.0, structure_density=1.0))
     args = ["export-usd", str(run), "--cache-dir", str(cache), "--colliders", "quality", "--coacd-max-hulls", "8"]
     pieces = cache / CACHE_SUBDIR  # beside the meshes' splits
     proc = subprocess.Popen([sys.executable, "-m", "sagebench", *args], stdout=subprocess.PIPE,

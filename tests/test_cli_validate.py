@@ -63,6 +63,28 @@ def test_demo_trajectories_all_pass(validated_run, tmp_path, run_cli):
     assert all(p.read_bytes() == b for p, b in first.items())
 
 
+def test_the_replay_agent_is_the_body_the_map_was_built_for(validated_run, tmp_path):
+    """Radius, clearance and height come from semantic_map.json (build-scene's record of the run's agent), not from
+    a default: a map built for a wider, taller agent that rides higher gets that agent in the replay."""
+    from sagebench.config import AgentConfig
+    from sagebench.replay.physics import AGENT_GEOM, ReplayConfig
+    from sagebench.replay.scene_model import open_replay_model
+
+    run = tmp_path / "run"
+    shutil.copytree(validated_run / "scenes", run / "scenes")
+    assert open_replay_model(run, SCENE, replay=ReplayConfig()).agent == AgentConfig()
+    smap = run / "scenes" / SCENE / "semantic_map.json"
+    data = json.loads(smap.read_text())
+    data |= {"agent_radius": 0.3, "band_m": [data["floor_height"] + 0.1, data["floor_height"] + 1.6]}
+    smap.write_text(json.dumps(data))
+    rm = open_replay_model(run, SCENE, replay=ReplayConfig())
+    assert rm.agent == AgentConfig(radius=0.3, clearance=0.1, height=1.6)
+    mesh = rm.model.geom(AGENT_GEOM).dataid[0]
+    adr, n = rm.model.mesh_vertadr[mesh], rm.model.mesh_vertnum[mesh]
+    body = rm.model.mesh_vert[adr:adr + n]  # the prism, centred by MuJoCo on its own frame
+    assert np.ptp(body[:, 2]) == pytest.approx(1.5, abs=1e-6) and np.ptp(body[:, 0]) >= 0.6
+
+
 def test_a_path_through_a_wall_fails_with_collision(validated_run, tmp_path, run_cli):
     run = _copy(validated_run, tmp_path)
     (shard,) = (run / "episodes" / SCENE).glob("part-*.parquet")

@@ -16,6 +16,7 @@ from sagebench.collider_export.quality import measure
 from sagebench.scene.furniture import Catalogue
 from tests.test_collider_convex import u_prism
 from tests.test_collider_pieces import inside_parts
+from tests.test_collider_quality import BAND
 
 
 def _table() -> trimesh.Trimesh:
@@ -28,14 +29,15 @@ def test_mixed_mesh_gets_exact_parts_and_decomposed_pieces(tmp_path):
     mixed = trimesh.util.concatenate([table, u.copy().apply_translation((3, 0, 0))])
     meshes = {name: (m.vertices, m.faces) for name, m in
               {"meshes/table.ply": table, "meshes/mixed.glb": mixed, "meshes/u.obj": u}.items()}
-    out = decompose_meshes(meshes, ColliderSettings(mode="fast"), cache=PartCache(tmp_path))
+    out = decompose_meshes(meshes, ColliderSettings(mode="fast"), cache=PartCache(tmp_path), band=BAND)
     assert (out["meshes/table.ply"].exact_parts, len(out["meshes/table.ply"].parts)) == (2, 2)
     assert out["meshes/table.ply"].pieces == []
     assert out["meshes/mixed.glb"].exact_parts == 2
     assert [p.method for p in out["meshes/mixed.glb"].pieces] == ["voxel"]  # the U's hull misses the band by 15 cm
     # the U inside `mixed` is moved, so it is a different piece from meshes/u.obj
     assert out["meshes/mixed.glb"].pieces[0].key != out["meshes/u.obj"].pieces[0].key
-    two = decompose_meshes(meshes, ColliderSettings(mode="fast"), cache=PartCache(tmp_path / "two"), workers=2)
+    two = decompose_meshes(meshes, ColliderSettings(mode="fast"), cache=PartCache(tmp_path / "two"), workers=2,
+                           band=BAND)
     for name, mc in out.items():  # meshes split on two processes: the same parts
         assert [(p.vertices.tobytes(), p.faces.tobytes()) for p in mc.parts] == \
             [(p.vertices.tobytes(), p.faces.tobytes()) for p in two[name].parts]
@@ -47,7 +49,7 @@ def test_a_split_is_cached_so_the_export_after_a_plan_does_not_split_again(tmp_p
     mixed = trimesh.util.concatenate([table, u.copy().apply_translation((3, 0, 0))])
     meshes = {name: (m.vertices, m.faces) for name, m in {"table": table, "mixed": mixed, "u": u}.items()}
     settings = ColliderSettings(mode="fast")
-    fresh = decompose_meshes(meshes, settings, cache=PartCache(None))
+    fresh = decompose_meshes(meshes, settings, cache=PartCache(None), band=BAND)
     plan = plan_pieces(meshes, settings, cache=PartCache(tmp_path))
 
     def split_again(*args, **kwargs):
@@ -57,7 +59,7 @@ def test_a_split_is_cached_so_the_export_after_a_plan_does_not_split_again(tmp_p
     again = plan_pieces(meshes, settings, cache=PartCache(tmp_path))
     assert [(p.name, p.vertices.tobytes(), p.faces.tobytes()) for p in again.jobs] == \
         [(p.name, p.vertices.tobytes(), p.faces.tobytes()) for p in plan.jobs]
-    cached = decompose_meshes(meshes, settings, cache=PartCache(tmp_path))
+    cached = decompose_meshes(meshes, settings, cache=PartCache(tmp_path), band=BAND)
     for name, mc in fresh.items():
         assert mc.exact_parts == cached[name].exact_parts
         assert [(p.vertices.tobytes(), p.faces.tobytes()) for p in mc.parts] == \
@@ -72,21 +74,24 @@ def _boxes(n: int) -> trimesh.Trimesh:
 
 def test_parts_over_the_budget_are_merged_and_still_cover_the_mesh(tmp_path):
     m = _boxes(10)
-    (mc,) = decompose_meshes({"m": (m.vertices, m.faces)}, ColliderSettings(max_parts=4), cache=PartCache(tmp_path)).values()
+    (mc,) = decompose_meshes({"m": (m.vertices, m.faces)}, ColliderSettings(max_parts=4), cache=PartCache(tmp_path),
+                             band=BAND).values()
     assert len(mc.parts) == 4 and mc.merged == 6 and mc.exact_parts == 0
     assert inside_parts(m.vertices, mc.parts).all()
 
 
 def test_exactly_at_the_budget_nothing_is_merged(tmp_path):
     m = _boxes(4)
-    (mc,) = decompose_meshes({"m": (m.vertices, m.faces)}, ColliderSettings(max_parts=4), cache=PartCache(tmp_path)).values()
+    (mc,) = decompose_meshes({"m": (m.vertices, m.faces)}, ColliderSettings(max_parts=4), cache=PartCache(tmp_path),
+                             band=BAND).values()
     assert (len(mc.parts), mc.merged, mc.exact_parts) == (4, 0, 4)
 
 
 def test_far_too_many_pieces_make_one_voxel_collider_of_the_whole_mesh(tmp_path):
     n = WHOLE_MESH_FACTOR * 2 + 1
     m = trimesh.util.concatenate([u_prism(0.2, 0.2, 0.05, 0.1).apply_translation((0.3 * i, 0, 0)) for i in range(n)])
-    (mc,) = decompose_meshes({"m": (m.vertices, m.faces)}, ColliderSettings(max_parts=2), cache=PartCache(tmp_path)).values()
+    (mc,) = decompose_meshes({"m": (m.vertices, m.faces)}, ColliderSettings(max_parts=2), cache=PartCache(tmp_path),
+                             band=BAND).values()
     assert mc.whole and [p.method for p in mc.pieces] == ["voxel"] and len(mc.parts) <= 2
     assert inside_parts(m.vertices, mc.parts, eps=1e-6).all()
 
@@ -105,10 +110,11 @@ def _fixture_meshes(*models: str) -> dict[str, trimesh.Trimesh]:
 def _band_errors(meshes: dict[str, trimesh.Trimesh], settings: ColliderSettings,
                  cache: Path) -> tuple[dict[str, float], int]:
     """Each mesh's collider band error (cm) in these settings, and how many meshes had parts merged."""
-    out = decompose_meshes({k: (m.vertices, m.faces) for k, m in meshes.items()}, settings, cache=PartCache(cache))
+    out = decompose_meshes({k: (m.vertices, m.faces) for k, m in meshes.items()}, settings, cache=PartCache(cache),
+                           band=BAND)
     for name, mc in out.items():
         assert len(mc.parts) <= settings.max_parts, name
-    return ({name: measure(meshes[name].vertices, meshes[name].faces, mc.parts).band_error_cm
+    return ({name: measure(meshes[name].vertices, meshes[name].faces, mc.parts, band=BAND).band_error_cm
              for name, mc in out.items()}, sum(mc.merged > 0 for mc in out.values()))
 
 
@@ -146,5 +152,5 @@ def test_every_part_keeps_within_physx_64_hull_vertices(tmp_path):
     plant = trimesh.util.concatenate([trimesh.creation.icosphere(subdivisions=2, radius=0.3).apply_translation((0, 0, 0.9)),
                                       trimesh.creation.cylinder(0.15, 0.4, sections=96).apply_translation((0, 0, 0.2))])
     (mc,) = decompose_meshes({"plant": (plant.vertices, plant.faces)}, ColliderSettings(mode="fast"),
-                             cache=PartCache(tmp_path)).values()
+                             cache=PartCache(tmp_path), band=BAND).values()
     assert len(mc.parts) == 2 and max(len(p.vertices) for p in mc.parts) == 64

@@ -13,10 +13,10 @@ import pytest
 
 from sagebench.collider_export import methods
 from sagebench.collider_export.free_floor import FloorMap, covered_free_floor
-from sagebench.collider_export.methods import ColliderSettings, agent_band
+from sagebench.collider_export.methods import ColliderSettings
 from sagebench.scene.loader import door_pose, load_scene
 from sagebench.stages.build_scene import build_scene
-from sagebench.stages.export_usd import ExportConfig, export_usd
+from sagebench.stages.export_usd import ExportConfig, agent_band, export_usd
 from sagebench.topdown.grid_file import read_topdown_grids
 from sagebench.ui import SETTINGS
 
@@ -84,7 +84,7 @@ def _covered(run: Path) -> dict[int, np.ndarray]:
         from sagebench.collider_export.convex import ConvexPart
 
         spot = covered_free_floor([ConvexPart(np.asarray(m.vertices), np.asarray(m.faces)) for m in parts],
-                                  agent_band(scene.spec.floor_height), floor, 0.02)
+                                  agent_band(scene.source_dir), floor, 0.02)
         if spot is not None:
             out[obj.instance_id] = spot
     return out

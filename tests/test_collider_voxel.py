@@ -12,7 +12,7 @@ from sagebench.collider_export.quality import lattice_points, lattice_rows
 from sagebench.collider_export.voxel import (_max_table, _rect_max, column_corners, greedy_boxes, greedy_boxes_reference,
                                             merge_boxes, run_ends, voxel_parts)
 from tests.test_collider_pieces import inside_parts
-from tests.test_collider_quality import L_SHAPE
+from tests.test_collider_quality import BAND, L_SHAPE
 
 
 def _paint(boxes, shape) -> np.ndarray:
@@ -95,7 +95,7 @@ def test_rectangle_max_matches_a_plain_max(seed):
 
 def test_an_axis_aligned_l_comes_out_within_half_a_cell():
     parts = voxel_parts(L_SHAPE.vertices, L_SHAPE.faces, pitch=0.05, max_parts=8)
-    q = measure(L_SHAPE.vertices, L_SHAPE.faces, parts)
+    q = measure(L_SHAPE.vertices, L_SHAPE.faces, parts, band=BAND)
     # each part is the hull of the L's points in its box: only a box across the notch's corner bridges it,
     # by less than half a cell (2.5 cm); the old box faces on the cell boundary reached exactly 2.5 cm past x = 1
     assert 0.0 < q.to_source_max_cm < 2.5
@@ -109,5 +109,5 @@ def test_an_open_mesh_is_covered_too():
     box = trimesh.creation.box((0.4, 0.3, 0.5)).apply_translation((0, 0, 0.25))
     open_box = trimesh.Trimesh(box.vertices, box.faces[2:], process=False)  # one side missing
     parts = voxel_parts(open_box.vertices, open_box.faces, pitch=0.02, max_parts=4)
-    q = measure(open_box.vertices, open_box.faces, parts)
+    q = measure(open_box.vertices, open_box.faces, parts, band=BAND)
     assert q.band_over_cm <= 1.0 and q.band_under_cm <= 1.0

@@ -21,6 +21,9 @@ from sagebench.navsim.protocol import decode_request
 from sagebench.navsim.policies import RandomWalk, built_in
 from sagebench.navsim.rollout import rollout
 from sagebench.navsim.simulator import EnvConfig, Simulator
+from sagebench.replay.physics import ReplayConfig
+from sagebench.errors import first_error
+from sagebench.navsim.actions import ActionConfig
 
 BLIND = EnvConfig(observations=(), privileged=("pose",))  # the built-in baselines steer by the pose
 
@@ -28,6 +31,25 @@ BLIND = EnvConfig(observations=(), privileged=("pose",))  # the built-in baselin
 # gymnasium's checker warns of any infinite Box limit: positions are scene metres and depth has no far plane
 UNBOUNDED = {"A Box observation space maximum value is infinity. This is probably too high.",
              "A Box observation space minimum value is -infinity. This is probably too low."}
+
+
+@pytest.mark.parametrize("replay, actions, problem", [
+    (ReplayConfig(max_speed=0.3), ActionConfig(), "actions.forward_step / actions.control_interval "
+     "(0.25 m / 0.5 s = 0.5 m/s) exceeds replay.max_speed (0.3 m/s)"),
+    (ReplayConfig(max_turn_rate=0.5), ActionConfig(), "actions.turn_deg / actions.control_interval "
+     "(15 deg / 0.5 s = 0.5236 rad/s) exceeds replay.max_turn_rate (0.5 rad/s)"),
+    (ReplayConfig(), ActionConfig(forward_step=0.25, control_interval=0.25), "actions.forward_step / "
+     "actions.control_interval (0.25 m / 0.25 s = 1 m/s) exceeds replay.max_speed (0.8 m/s)"),
+])
+def test_actions_beyond_the_envs_own_replay_limits_are_refused_naming_the_fields(replay, actions, problem):
+    """A discrete action must be one the env's replay can drive (and stop against a wall): checked against the
+    env's ReplayConfig, not a default one."""
+    with pytest.raises(ValueError) as err:
+        EnvConfig(replay=replay, actions=actions)
+    assert first_error(err.value)[1] == problem
+    # faster actions are fine where the env's replay allows them
+    fast = EnvConfig(replay=ReplayConfig(max_speed=2.5), actions=ActionConfig(forward_step=1.0))
+    assert fast.actions.forward_step / fast.actions.control_interval == 2.0
 
 
 def test_gymnasium_makes_and_accepts_the_env(demo_eval_run):

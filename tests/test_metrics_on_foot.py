@@ -47,7 +47,7 @@ def _prediction(xy, stopped=True, eid="e") -> Prediction:
 
 
 def test_a_stop_in_the_bathroom_near_a_kitchen_goal_is_no_success():
-    field = distance_on_foot(NAV, RES, (0.0, 0.0), GOAL)
+    field = distance_on_foot(NAV, RES, (0.0, 0.0), GOAL, snap_radius=0.2)
     stop = np.array([2.6, 1.0])  # 0.9 m straight from the goal, through the wall
     p = _prediction([(0.5, 1.0), (1.5, 1.0), tuple(stop)])
     m = score_prediction(_episode(), p, np.zeros(3), on_foot=field)
@@ -60,7 +60,7 @@ def test_a_stop_in_the_bathroom_near_a_kitchen_goal_is_no_success():
 
 
 def test_a_clear_line_to_the_goal_is_the_straight_distance_and_succeeds():
-    field = distance_on_foot(NAV, RES, (0.0, 0.0), GOAL)
+    field = distance_on_foot(NAV, RES, (0.0, 0.0), GOAL, snap_radius=0.2)
     np.testing.assert_allclose(field.distance(np.array([[4.3, 1.6], [3.5, 1.0], [5.9, 3.9]])),
                                [1.0, 0.0, math.hypot(2.4, 2.9)])
     m = score_prediction(_episode(), _prediction([(0.5, 1.0), (2.5, 3.5), (4.3, 1.6)]), np.zeros(3), on_foot=field)
@@ -99,13 +99,13 @@ def test_a_pose_pressed_into_the_wall_snaps_back_within_the_agent_radius():
 def test_an_unreachable_final_pose_gets_the_worst_distance_on_foot():
     sealed = NAV.copy()
     sealed[64:, 58:62] = 0  # close the doorway: the bathroom cannot reach the kitchen
-    field = distance_on_foot(sealed, RES, (0.0, 0.0), GOAL)
+    field = distance_on_foot(sealed, RES, (0.0, 0.0), GOAL, snap_radius=0.2)
     m = score_prediction(_episode(), _prediction([(0.5, 1.0), (2.6, 1.0)]), np.zeros(2), on_foot=field)
     assert m.sr == 0.0 and m.ne == field.worst
 
 
 def test_the_worst_distance_is_the_farthest_kitchen_corner_on_the_grid():
-    field = distance_on_foot(NAV, RES, (0.0, 0.0), GOAL)
+    field = distance_on_foot(NAV, RES, (0.0, 0.0), GOAL, snap_radius=0.2)
     # from the goal cell (row 20, col 70) to the bathroom's far corner (row 0, col 0) round the wall: checked
     # against the cell-by-cell 8-connected distance, independent of Dijkstra
     def octile(a, b):
@@ -127,7 +127,7 @@ _BETTER_HIGH = ("sr", "osr", "spl", "ndtw", "sdtw", "csr", "ps")
                           st.lists(st.floats(0, 1), min_size=6, max_size=6)), min_size=1, max_size=5),
        st.data())
 def test_removing_episodes_never_improves_any_mean(runs, data):
-    navmap = NavigableMap(NAV, RES, (0.0, 0.0))
+    navmap = NavigableMap(NAV, RES, (0.0, 0.0), snap_radius=0.2)
     field = navmap.field(GOAL)
     scores = []
     for i, (xy, stopped, c) in enumerate(runs):

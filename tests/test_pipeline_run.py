@@ -179,8 +179,8 @@ def test_quality_spreads_both_its_passes_over_the_executor(workspace, run_cli, d
     config = ExportConfig.model_validate({"colliders": {"mode": "quality"}})
     assert len(mode_passes(config.colliders)) == 2
     for sid in ("demo_apartment_0", "demo_apartment_1"):
-        jobs, floor = scene_pieces(run, sid, config, cache)
-        assert {piece_key(p, c, floor) for p, c in jobs} <= {t.key for t, _ in pieces}  # nothing left to the export
+        jobs, band = scene_pieces(run, sid, config, cache)
+        assert {piece_key(p, c, band) for p, c in jobs} <= {t.key for t, _ in pieces}  # nothing left to the export
 
 
 def _stage_counts(out: str) -> dict[str, tuple[int, int, int]]:

@@ -6,6 +6,7 @@ import json
 import shutil
 
 
+from sagebench.config import AgentConfig
 from sagebench.episodes.shards import read_episodes
 
 from sagebench.pipeline import tasks
@@ -33,6 +34,22 @@ def test_a_changed_setting_reruns_a_stamped_stage(demo_built_run, demo_scene_dir
     shard = read_episodes(run / "episodes" / SCENE)
     assert len(set(shard.column("trajectory_id").to_pylist())) == 4
     assert gen(4) == "skipped"
+
+
+def test_a_stamp_records_the_agent_its_stage_worked_for_and_another_body_reruns_it(demo_built_run, demo_scene_dir,
+                                                                                   tmp_path):
+    """The body comes from the scene's map (build-scene wrote it from the run's settings): a map built for
+    another agent makes every stage that reads it run again, and its stamp says which agent."""
+    run = tmp_path / "run"
+    shutil.copytree(demo_built_run / "scenes", run / "scenes")
+    settings = GenTrajectoriesConfig(per_scene=2, seed=0).model_dump(mode="json")
+    task = Task("gen_trajectories", SCENE, demo_scene_dir, run, settings)
+    assert run_task(task).status == "ran"
+    assert json.loads(stamp_path(task).read_text())["agent"] == AgentConfig().model_dump(mode="json")
+    smap = run / "scenes" / SCENE / "semantic_map.json"
+    smap.write_text(smap.read_text().replace('"agent_radius": 0.2,', '"agent_radius": 0.25,'))
+    assert run_task(task).status == "ran"
+    assert json.loads(stamp_path(task).read_text())["agent"] == AgentConfig(radius=0.25).model_dump(mode="json")
 
 
 def test_a_changed_library_version_reruns_a_stamped_stage(demo_built_run, demo_scene_dir, tmp_path, monkeypatch):

@@ -97,7 +97,8 @@ def _boxes_mjcf(floor_z: float, boxes: dict[str, tuple[tuple[float, float, float
 def test_a_30_cm_stool_stops_the_agent_and_a_3_cm_threshold_does_not(floor_z):
     """The agent's body spans the map's blocking band, 0.05..1.2 m above the floor: what the map blocks stops
     it, what lies under the band (a threshold strip) it drives over."""
-    scene = _boxes_mjcf(floor_z, {"threshold": ((0.5, -1, 0), (0.6, 1, 0.03)), "stool": ((1.0, -0.2, 0), (1.4, 0.2, 0.3))})
+    scene = _boxes_mjcf(floor_z, {"threshold": ((0.5, -1, 0), (0.6, 1, 0.03)),
+                                  "stool": ((1.0, -0.2, 0), (1.4, 0.2, 0.3))})
     rm = build_replay_model(mujoco.MjSpec.from_string(scene), floor_z=floor_z)
     rec = replay_one(rm, _path((0, 0), (2.5, 0)))
     assert rec.outcome != "reached"

@@ -16,7 +16,10 @@ from meshes import wall_with_openings
 from sagebench.errors import ConfigError, SceneError
 from sagebench.scene import assets
 from sagebench.scene.loader import load_scene
+from sagebench.config import AgentConfig
+from sagebench.episodes.targets import scene_targets
 from sagebench.stages.build_scene import BuildSceneConfig, build_scene, make_config
+from sagebench.stages.gen_trajectories import read_scene_inputs
 from sagebench.topdown.semantic_map import SemanticMap
 
 RES = 0.05
@@ -222,8 +225,9 @@ def test_a_floor_raised_3_m_gives_the_same_maps(tmp_path):
         floor["mesh"].apply_translation((0, 0, lift))
         return write_scene(root, [("r", _rect(0, 0, 4, 4))], [floor, *things], floor_height=lift)
 
-    low, low_sem = _load(build_scene(scene(tmp_path / "low", 0.0), tmp_path / "run").out_dir)
-    high, high_sem = _load(build_scene(scene(tmp_path / "high", 3.0), tmp_path / "run").out_dir)
+    low_dir = build_scene(scene(tmp_path / "low", 0.0), tmp_path / "run").out_dir
+    high_dir = build_scene(scene(tmp_path / "high", 3.0), tmp_path / "run").out_dir
+    (low, low_sem), (high, high_sem) = _load(low_dir), _load(high_dir)
     # (the instance raster may differ by a cell at a footprint's edge: surface samples are drawn by face areas,
     # which the mesh file's float32 heights change in their last bits)
     for name in ("occupancy", "navigable", "region", "origin"):
@@ -232,6 +236,10 @@ def test_a_floor_raised_3_m_gives_the_same_maps(tmp_path):
     assert [i.blocks for i in high_sem.instances] == [i.blocks for i in low_sem.instances] == [False, True, False,
                                                                                                True, True, True, True]
     assert tuple(high_sem.band_m) == pytest.approx((3.05, 4.2)) and tuple(low_sem.band_m) == pytest.approx((0.05, 1.2))
+    assert high_sem.agent() == low_sem.agent() == AgentConfig()
+    # the same goals: the table, not the lamp above the band (the band's top was once offset by the floor twice)
+    targets = [{t.key for t in scene_targets(*read_scene_inputs(d)[:2])[0]} for d in (low_dir, high_dir)]
+    assert targets[0] == targets[1] and "object:2" in targets[0] and "object:3" not in targets[0]
 
 
 def test_hanging_lamp_and_rug_do_not_block(tmp_path):
@@ -279,7 +287,7 @@ def test_no_rooms_and_no_floor_is_an_error(tmp_path):
 
 
 def test_config_errors_name_the_option():
-    with pytest.raises(ConfigError, match="band_max .* must be above band_min"):
+    with pytest.raises(ConfigError, match=r"^--band-max: 0.4 must be above the band's bottom, clearance \(0.5\)$"):
         make_config(band_min=0.5, band_max=0.4)
     with pytest.raises(ConfigError, match="^--agent-radius: "):
         make_config(agent_radius=-1.0)

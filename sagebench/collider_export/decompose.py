@@ -11,7 +11,7 @@ import numpy as np
 from sagebench.collider_export.coacd_cache import PartCache, PieceResult, split_key
 from sagebench.collider_export.convex import ConvexPart, ConvexSplit, merge_parts, split_convex, weld
 from sagebench.collider_export.fanout import map_processes
-from sagebench.collider_export.methods import ColliderSettings, agent_band, band_error_cm, ladder
+from sagebench.collider_export.methods import ColliderSettings, band_error_cm, ladder
 from sagebench.collider_export.pieces import Piece, decompose_pieces
 from sagebench.collider_export.quality import BandReach
 from sagebench.collider_export.vertex_limit import within_vertex_limit
@@ -38,9 +38,10 @@ def decompose_meshes(
     cache: PartCache,
     workers: int = 1,
     convex_tolerance: float = 0.002,
-    floor_height: float = 0.0,
+    band: tuple[float, float],
 ) -> dict[str, MeshColliders]:
     """Parts for each named mesh (vertices [V, 3], faces [F, 3]); all concave pieces share one batch of workers.
+    `band` is the agent's (bottom, top) as z in the meshes' frame, m.
 
     A mesh with more parts than `settings.max_parts` gets its closest parts merged, within the band tolerance
     of its footprint where possible (merge_to_budget); one with more than WHOLE_MESH_FACTOR times that many
@@ -50,11 +51,11 @@ def decompose_meshes(
     PhysX's hull vertex limit (vertex_limit), so USD and MJCF collide with the same hulls.
     """
     runs = [_decompose(meshes, s, cache=cache, workers=workers, convex_tolerance=convex_tolerance,
-                       floor_height=floor_height) for s in mode_passes(settings)]
+                       band=band) for s in mode_passes(settings)]
     if len(runs) == 1:
         return runs[0]
     return {name: min((run[name] for run in runs),
-                      key=lambda mc: (band_error_cm(*meshes[name], mc.parts, floor_height), len(mc.parts)))
+                      key=lambda mc: (band_error_cm(*meshes[name], mc.parts, band), len(mc.parts)))
             for name in meshes}
 
 
@@ -66,10 +67,10 @@ def mode_passes(settings: ColliderSettings) -> tuple[ColliderSettings, ...]:
 
 
 def _decompose(meshes: Mapping[str, tuple[np.ndarray, np.ndarray]], settings: ColliderSettings, *, cache: PartCache,
-               workers: int, convex_tolerance: float, floor_height: float) -> dict[str, MeshColliders]:
+               workers: int, convex_tolerance: float, band: tuple[float, float]) -> dict[str, MeshColliders]:
     """decompose_meshes by the one mode `settings.mode`."""
     plan = plan_pieces(meshes, settings, cache=cache, convex_tolerance=convex_tolerance, workers=workers)
-    results = iter(decompose_pieces(plan.jobs, settings, cache=cache, workers=workers, floor_height=floor_height))
+    results = iter(decompose_pieces(plan.jobs, settings, cache=cache, workers=workers, band=band))
     out: dict[str, MeshColliders] = {}
     for name, split in plan.splits.items():
         if name in plan.over:
@@ -78,7 +79,7 @@ def _decompose(meshes: Mapping[str, tuple[np.ndarray, np.ndarray]], settings: Co
             continue
         pieces = [next(results) for _ in split.concave]
         parts = list(split.parts) + [p for r in pieces for p in r.parts]
-        kept = merge_to_budget(parts, meshes[name], settings, floor_height) if len(parts) > settings.max_parts else parts
+        kept = merge_to_budget(parts, meshes[name], settings, band) if len(parts) > settings.max_parts else parts
         exact = len(split.parts) if kept is parts else 0
         out[name] = MeshColliders(within_vertex_limit(kept), exact, pieces, merged=len(parts) - len(kept))
     return {name: out[name] for name in meshes}
@@ -128,12 +129,12 @@ def split_meshes(meshes: Mapping[str, tuple[np.ndarray, np.ndarray]], cache: Par
 
 
 def merge_to_budget(parts: list[ConvexPart], mesh: tuple[np.ndarray, np.ndarray], settings: ColliderSettings,
-                    floor_height: float) -> list[ConvexPart]:
+                    band: tuple[float, float]) -> list[ConvexPart]:
     """`parts` of the mesh (vertices [V, 3], faces [F, 3]) merged to the part budget, each merge kept within
-    the band tolerance of the mesh's footprint where some pair allows it (convex.merge_parts)."""
+    the band tolerance of the mesh's footprint in the agent's band (z, m) where some pair allows it
+    (convex.merge_parts)."""
     import trimesh
 
-    band = agent_band(floor_height)
     source = trimesh.Trimesh(*mesh, process=False)
     reach = BandReach(source, np.concatenate([p.vertices for p in parts]), band)
     return merge_parts(parts, settings.max_parts, band, reach=reach, tolerance=settings.band_tolerance_cm / 100)

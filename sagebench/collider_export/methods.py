@@ -26,7 +26,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench.collider_export.coacd_cache import CoacdParams, run_coacd
 from sagebench.collider_export.convex import ConvexPart, hull_part
-from sagebench.collider_export.quality import AGENT_BAND, band_errors
+from sagebench.collider_export.quality import band_errors
 from sagebench.collider_export.repair import close_holes
 from sagebench.collider_export.voxel import voxel_parts
 
@@ -65,14 +65,15 @@ def ladder(settings: ColliderSettings, faces: int) -> tuple[Method, ...]:
 
 
 def run_method(method: Method, vertices: np.ndarray, faces: np.ndarray, settings: ColliderSettings,
-               floor_height: float = 0.0) -> list[ConvexPart]:
-    """Convex parts of one piece (vertices [V, 3] m, faces [F, 3]) by `method`; raises when the method fails."""
+               band: tuple[float, float]) -> list[ConvexPart]:
+    """Convex parts of one piece (vertices [V, 3] m, faces [F, 3]) by `method`, the agent's band (bottom, top) as z
+    in the piece's frame; raises when the method fails."""
     if method == "hull":
         return [hull_part(vertices)]
     if method == "voxel":
         # the voxel footprint is a pitch coarse: a box within tolerance of it may reach half a cell farther
         return voxel_parts(vertices, faces, pitch=settings.voxel_pitch, max_parts=settings.max_parts,
-                           band=agent_band(floor_height),
+                           band=band,
                            tolerance=max(settings.band_tolerance_cm / 100 - settings.voxel_pitch / 2, 0.0))
     closed = close_holes(vertices, faces)
     if closed is None:
@@ -83,16 +84,10 @@ def run_method(method: Method, vertices: np.ndarray, faces: np.ndarray, settings
     return [hull_part(v) for v, _ in run_coacd(*closed, params, threads=1)]
 
 
-def agent_band(floor_height: float) -> tuple[float, float]:
-    """The agent band as z (m) in a mesh frame whose floor is at floor_height."""
-    return floor_height + AGENT_BAND[0], floor_height + AGENT_BAND[1]
-
-
-def band_error_cm(vertices: np.ndarray, faces: np.ndarray, parts: list[ConvexPart], floor_height: float) -> float:
-    """The worse of the band over/under figures (cm) of `parts` against the piece, band measured from floor_height."""
+def band_error_cm(vertices: np.ndarray, faces: np.ndarray, parts: list[ConvexPart], band: tuple[float, float]) -> float:
+    """The worse of the band over/under figures (cm) of `parts` against the piece, in the agent's band (z, m)."""
     import trimesh
 
-    band = agent_band(floor_height)
     source = trimesh.Trimesh(np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64), process=False)
     return 100.0 * max(band_errors(source, parts, band, 0.01))
 

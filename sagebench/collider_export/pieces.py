@@ -54,10 +54,10 @@ class _Run:
     accepted: bool = False
 
 
-def piece_key(piece: Piece, settings: ColliderSettings, floor_height: float) -> str:
-    """The piece's cache key: its mesh, methods, floor height and the settings that shape parts."""
+def piece_key(piece: Piece, settings: ColliderSettings, band: tuple[float, float]) -> str:
+    """The piece's cache key: its mesh, methods, the agent band (z) and the settings that shape parts."""
     return cache_key(piece.vertices, piece.faces, settings, exclude=UNSHAPING, methods=list(piece.methods),
-                     floor_height=floor_height)
+                     band=list(band))
 
 
 def decompose_pieces(
@@ -66,12 +66,13 @@ def decompose_pieces(
     *,
     cache: PartCache,
     workers: int = 1,
-    floor_height: float = 0.0,
+    band: tuple[float, float],
     progress: bool = True,
 ) -> list[PieceResult]:
-    """A result per piece, in input order; equal pieces run once, cached ones are read back. `progress`
-    False leaves the progress lines to the caller (a run that hands out pieces one by one counts them itself)."""
-    keys = [piece_key(p, settings, floor_height) for p in pieces]
+    """A result per piece, in input order; equal pieces run once, cached ones are read back. `band` is the agent's
+    (bottom, top) as z in the pieces' frame, m. `progress` False leaves the progress lines to the caller (a run
+    that hands out pieces one by one counts them itself)."""
+    keys = [piece_key(p, settings, band) for p in pieces]
     done: dict[str, PieceResult] = {}
     todo: dict[str, int] = {}
     for i, key in enumerate(keys):
@@ -84,15 +85,15 @@ def decompose_pieces(
             todo[key] = i
     order = sorted(todo.values(), key=lambda i: -len(pieces[i].faces))  # the biggest set the pace: start them first
     if order:
-        _Scheduler(pieces, keys, settings, cache, workers, floor_height, progress).run(order, done)
+        _Scheduler(pieces, keys, settings, cache, workers, band, progress).run(order, done)
     return [done[k] for k in keys]
 
 
 class _Scheduler:
-    def __init__(self, pieces, keys, settings: ColliderSettings, cache: PartCache, workers: int, floor_height: float,
-                 progress: bool):
+    def __init__(self, pieces, keys, settings: ColliderSettings, cache: PartCache, workers: int,
+                 band: tuple[float, float], progress: bool):
         self.pieces, self.keys, self.settings, self.cache = pieces, keys, settings, cache
-        self.workers, self.floor_height = max(1, workers), floor_height
+        self.workers, self.band = max(1, workers), band
         self.ctx = worker_context()
         self.running: dict[Connection, _Run] = {}
         self.progress = PieceProgress(quiet=not progress)
@@ -127,7 +128,7 @@ class _Scheduler:
         piece = self.pieces[run.index]
         parent, child = self.ctx.Pipe(duplex=False)
         run.process = self.ctx.Process(target=_work, args=(child, piece.vertices, piece.faces, tuple(run.methods),
-                                                           self.settings, self.floor_height), daemon=True)
+                                                           self.settings, self.band), daemon=True)
         run.process.start()
         child.close()
         run.started = time.monotonic()
@@ -199,7 +200,7 @@ class _Scheduler:
             method, parts, error = min(run.results, key=lambda r: (r[2], len(r[1])))
         else:  # every method failed: the hull always exists
             parts = [hull_part(piece.vertices)]
-            method, error = "hull", band_error_cm(piece.vertices, piece.faces, parts, self.floor_height)
+            method, error = "hull", band_error_cm(piece.vertices, piece.faces, parts, self.band)
         result = PieceResult(parts, method, run.key, error)
         self.cache.put(result)
         done[run.key] = result
@@ -207,7 +208,7 @@ class _Scheduler:
 
 
 def _work(conn: Connection, vertices: np.ndarray, faces: np.ndarray, methods: tuple[Method, ...],
-          settings: ColliderSettings, floor_height: float) -> None:
+          settings: ColliderSettings, band: tuple[float, float]) -> None:
     """Worker body: run the methods in order, report each (start, result), stop at the first good enough.
     Native libraries' own prints (pymeshfix's "could not fix everything") are silenced: results and failures
     reach the parent through `conn`."""
@@ -218,11 +219,11 @@ def _work(conn: Connection, vertices: np.ndarray, faces: np.ndarray, methods: tu
     for method in methods:
         conn.send(("start", method))
         try:
-            parts = run_method(method, vertices, faces, settings, floor_height)
+            parts = run_method(method, vertices, faces, settings, band)
         except Exception as err:  # CoACD and the repair raise many kinds; the next method handles all of them
             conn.send(("result", method, None, float("inf"), str(err) or type(err).__name__))
             continue
-        error = band_error_cm(vertices, faces, parts, floor_height)
+        error = band_error_cm(vertices, faces, parts, band)
         conn.send(("result", method, parts, error, None))
         if good_enough(error, settings):
             break

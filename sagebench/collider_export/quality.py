@@ -25,8 +25,6 @@ from scipy import ndimage
 from sagebench.collider_export.convex import ConvexPart
 from sagebench.collider_export.fanout import map_processes
 
-AGENT_BAND = (0.05, 1.2)  # m above the floor: what the agent's body sweeps through
-
 
 @dataclass(frozen=True)
 class QualitySettings:
@@ -64,7 +62,7 @@ def measure(
     faces: np.ndarray,
     parts: Sequence[ConvexPart],
     *,
-    band: tuple[float, float] = AGENT_BAND,
+    band: tuple[float, float],
     settings: QualitySettings = QualitySettings(),
 ) -> ColliderQuality:
     """The quality of `parts` as a collider for the mesh (vertices [V, 3] m, faces [F, 3]); `band` is the agent
@@ -328,31 +326,31 @@ def rasterise(polygons: list[np.ndarray], lo: np.ndarray, pitch: float, shape: t
     return image.astype(bool)
 
 
-def band_in_mesh_frame(matrix: np.ndarray, floor_height: float) -> tuple[float, float] | None:
-    """The agent band as z in the mesh's own frame when `matrix` (4x4, mesh -> world) keeps z axes parallel
-    (yaw, translation, uniform-in-z scale 1); None otherwise."""
+def band_in_mesh_frame(matrix: np.ndarray, band: tuple[float, float]) -> tuple[float, float] | None:
+    """The agent's band (world z, m) as z in the mesh's own frame when `matrix` (4x4, mesh -> world) keeps z axes
+    parallel (yaw, translation, uniform-in-z scale 1); None otherwise."""
     m = np.asarray(matrix, dtype=np.float64)
     if not (np.allclose(m[2, :3], [0.0, 0.0, 1.0], atol=1e-9) and np.allclose(m[:2, 2], 0.0, atol=1e-9)):
         return None
-    return floor_height + AGENT_BAND[0] - m[2, 3], floor_height + AGENT_BAND[1] - m[2, 3]
+    return band[0] - m[2, 3], band[1] - m[2, 3]
 
 
 def measure_placed(vertices: np.ndarray, faces: np.ndarray, parts: Sequence[ConvexPart], matrix: np.ndarray,
-                   floor_height: float, settings: QualitySettings = QualitySettings()) -> ColliderQuality:
-    """`measure` for a mesh placed by `matrix` (4x4, mesh -> world) in a scene whose floor is at floor_height."""
-    band = band_in_mesh_frame(matrix, floor_height)
-    if band is not None:
-        return measure(vertices, faces, parts, band=band, settings=settings)
+                   band: tuple[float, float], settings: QualitySettings = QualitySettings()) -> ColliderQuality:
+    """`measure` for a mesh placed by `matrix` (4x4, mesh -> world) in a scene whose agent band is `band`
+    (world z: floor + the agent's clearance .. floor + its height)."""
+    local = band_in_mesh_frame(matrix, band)
+    if local is not None:
+        return measure(vertices, faces, parts, band=local, settings=settings)
     world = [ConvexPart(trimesh.transform_points(p.vertices, matrix), p.faces) for p in parts]
-    return measure(trimesh.transform_points(vertices, matrix), faces, world,
-                   band=(floor_height + AGENT_BAND[0], floor_height + AGENT_BAND[1]), settings=settings)
+    return measure(trimesh.transform_points(vertices, matrix), faces, world, band=band, settings=settings)
 
 
 def measure_objects(
     placed: Sequence[tuple[int, str, np.ndarray]],
     meshes: Mapping[str, tuple[np.ndarray, np.ndarray]],
     parts: Mapping[str, Sequence[ConvexPart]],
-    floor_height: float,
+    band: tuple[float, float],
     settings: QualitySettings = QualitySettings(),
     *,
     workers: int = 1,
@@ -362,11 +360,11 @@ def measure_objects(
     keys = []
     first: dict[tuple, tuple[str, np.ndarray]] = {}
     for instance_id, name, matrix in placed:
-        band = band_in_mesh_frame(matrix, floor_height)
-        key = (name, tuple(np.round(band, 9))) if band is not None else (name, instance_id)
+        local = band_in_mesh_frame(matrix, band)
+        key = (name, tuple(np.round(local, 9))) if local is not None else (name, instance_id)
         keys.append(key)
         first.setdefault(key, (name, matrix))
-    jobs = [(*meshes[name], parts[name], matrix, floor_height, settings) for name, matrix in first.values()]
+    jobs = [(*meshes[name], parts[name], matrix, band, settings) for name, matrix in first.values()]
     results = map_processes(measure_placed, jobs, workers=workers, sizes=[len(job[1]) for job in jobs])
     done = dict(zip(first, results))
     return {instance_id: done[key] for (instance_id, _, _), key in zip(placed, keys)}

@@ -18,7 +18,7 @@ from sagebench.collider_export.convex import hull_part
 from sagebench.collider_export.decompose import (MeshColliders, decompose_meshes, mode_passes, plan_pieces,
                                                  tolerance_cause)
 from sagebench.collider_export.free_floor import FloorMap, check_free_floor
-from sagebench.collider_export.methods import UNSHAPING, ColliderSettings, agent_band
+from sagebench.collider_export.methods import UNSHAPING, ColliderSettings
 from sagebench.collider_export.door_gap import clear_floor
 from sagebench.collider_export.mjcf_writer import MjcfBody, mjcf_model, room_lights, scene_body
 from sagebench.collider_export.pieces import Piece
@@ -67,19 +67,20 @@ class SceneExport:
     mjcf: str
 
 
-def build_export(scene: LoadedScene, gaussians: Gaussians | None, floor: FloorMap | None, *, config: ExportConfig,
-                 cache: PartCache) -> SceneExport:
+def build_export(scene: LoadedScene, gaussians: Gaussians | None, floor: FloorMap | None, *,
+                 band: tuple[float, float], config: ExportConfig, cache: PartCache) -> SceneExport:
     """Colliders, USD layers and MJCF of a normalised scene (RUN/scenes/<id>, loaded) and its Gaussians (None when
-    the scene has no gaussians.ply: the stage then has colliders and semantics only); colliders that cover the free
-    floor of `floor` (build-scene's occupancy) beyond the tolerance are refused (free_floor). Nothing is
+    the scene has no gaussians.ply: the stage then has colliders and semantics only); `band` is the agent's (world
+    z: floor + its clearance .. floor + its height) that the colliders are judged in; colliders that cover the
+    free floor of `floor` (build-scene's occupancy) beyond the tolerance are refused (free_floor). Nothing is
     written."""
     spec = scene.spec
     per_object = None if gaussians is None else split_gaussians(gaussians, scene)
     nurec = config.gaussians == "nurec"
     local = local_meshes(scene)
     colliders = decompose_meshes(local, config.colliders, cache=cache, workers=config.workers,
-                                 convex_tolerance=config.convex_tolerance, floor_height=spec.floor_height)
-    quality = _measure_objects(scene, local, colliders, config.workers)
+                                 convex_tolerance=config.convex_tolerance, band=band)
+    quality = _measure_objects(scene, local, colliders, band, config.workers)
     rooms = {r.id: r.type for r in spec.rooms}
     objects: list[StageObject] = []
     files: dict[str, bytes] = {}
@@ -115,7 +116,7 @@ def build_export(scene: LoadedScene, gaussians: Gaussians | None, floor: FloorMa
         check_free_floor([(names[o.instance_id], matrices[o.instance_id], colliders[o.mesh].parts,
                            quality[o.instance_id].band_error_cm, causes[o.instance_id])
                           for o in spec.objects if o.instance_id in quality],
-                         agent_band(spec.floor_height), floor, config.colliders.band_tolerance_cm)
+                         band, floor, config.colliders.band_tolerance_cm)
     mjcf = mjcf_model(spec.scene_id, bodies, meshes=files, meshdir=COLLIDERS, floor_height=spec.floor_height,
                       lights=room_lights(scene))
     usd = _usd_files(spec.scene_id, objects, gaussians, None if per_object is None or nurec else per_object.get(0),
@@ -167,14 +168,14 @@ def plan_scene_pieces(scene: LoadedScene, config: ExportConfig,
 
 
 def _measure_objects(scene: LoadedScene, local: dict[str, tuple[np.ndarray, np.ndarray]],
-                     colliders: dict[str, MeshColliders], workers: int) -> dict[int, ColliderQuality]:
+                     colliders: dict[str, MeshColliders], band: tuple[float, float],
+                     workers: int) -> dict[int, ColliderQuality]:
     """Quality of the objects whose colliders have decomposed or merged pieces (exact convex pieces are their own
     collider)."""
     placed = [(o.instance_id, o.mesh, o.transform.as_matrix() if o.door is None
                else door_pose(o.door) @ o.transform.as_matrix()) for o in scene.spec.objects
               if colliders[o.mesh].pieces or colliders[o.mesh].merged]
-    return measure_objects(placed, local, {name: mc.parts for name, mc in colliders.items()}, scene.spec.floor_height,
-                           workers=workers)
+    return measure_objects(placed, local, {name: mc.parts for name, mc in colliders.items()}, band, workers=workers)
 
 
 def _warn_over_tolerance(names: dict[int, str], causes: dict[int, str], quality: dict[int, ColliderQuality],

@@ -25,7 +25,7 @@ def scene_context(spec: SceneSpec, smap: SemanticMap, type_mix: dict[str, float]
     out, so they serve as no landmark.
     """
     attrs = {o.instance_id: dict(o.attributes) for o in spec.objects}
-    top = smap.floor_height + smap.band_m[1]
+    top = smap.band_m[1]  # world z, the floor included
 
     def info(i) -> ObjectInfo:
         return ObjectInfo(i.instance_id, i.category, i.room,
@@ -56,7 +56,7 @@ def scene_targets(spec: SceneSpec, smap: SemanticMap,
     rooms and what is in them (`unreachable_rooms`).
     """
     ctx = scene_context(spec, smap) if ctx is None else ctx
-    top = smap.floor_height + smap.band_m[1]
+    top = smap.band_m[1]  # world z, the floor included
     cut_off = set(unreachable_rooms(smap))
     targets: list[TargetSpec] = []
     names: dict[str, str] = {}

@@ -88,7 +88,7 @@ class NavigableMap:
     navigable: np.ndarray  # [H, W], nonzero = the agent's centre may stand here
     resolution: float
     origin: tuple[float, float]
-    snap_radius: float = 0.20
+    snap_radius: float  # m: a point off the map snaps to navigable floor this near (the agent's radius)
     _fields: dict[tuple[int, int], np.ndarray] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -158,6 +158,6 @@ class NavigableMap:
 
 
 def distance_on_foot(navigable: np.ndarray, resolution: float, origin: tuple[float, float], goal_xy: np.ndarray,
-                     *, snap_radius: float = 0.20) -> GoalField:
+                     *, snap_radius: float) -> GoalField:
     """The distances on foot to one goal over a navigable map; `.distance(points)` gives them at any points."""
     return NavigableMap(navigable, resolution, origin, snap_radius).field(goal_xy)

@@ -22,11 +22,11 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from sagebench.config import AgentConfig
+from sagebench.config import CameraConfig
 from sagebench.evaluation.predictions import Prediction
 from sagebench.episodes.episode import Episode
 from sagebench.metrics.on_foot import GoalField, distances_on_foot
-from sagebench.navsim.actions import ActionConfig, continuous_commands, discrete_commands
+from sagebench.navsim.actions import ActionConfig, beyond_limits, continuous_commands, discrete_commands
 from sagebench.navsim.motion import Agents, MotionConfig, wrap
 from sagebench.navsim.observe import observe
 from sagebench.navsim.profiles import PrivilegedKey, ProfileName, Sensors, gps_compass, resolve
@@ -47,7 +47,7 @@ class EnvConfig(BaseModel):
                                                                "(sagebench.navsim.profiles).")
     width: int | None = Field(default=None, ge=1, le=4096, description="Image width, px (default: the profile's).")
     height: int | None = Field(default=None, ge=1, le=4096, description="Image height, px (default: the profile's).")
-    agent: AgentConfig = AgentConfig()
+    camera: CameraConfig = CameraConfig()
     observations: tuple[str, ...] | None = Field(
         default=None, description="custom profile: images to render, of rgb and depth (default both; none: the "
                                   "instruction only).")
@@ -64,8 +64,11 @@ class EnvConfig(BaseModel):
         "Renderer backend: gsplat on a CUDA GPU when installed (auto), else the CPU splat renderer."))
 
     @model_validator(mode="after")
-    def _profile_allows(self) -> EnvConfig:
-        self.sensors()
+    def _checked(self) -> EnvConfig:
+        self.sensors()  # the profile allows the observations asked for
+        problem = beyond_limits(self.actions, self.replay)
+        if problem:
+            raise ValueError(problem)
         return self
 
     def sensors(self) -> Sensors:
@@ -143,7 +146,7 @@ class Simulator:
     def world(self, scene_id: str) -> World:
         if scene_id not in self._worlds:
             c = self.config
-            self._worlds[scene_id] = w = open_world(self.run_dir, scene_id, agent=c.agent, replay=c.replay,
+            self._worlds[scene_id] = w = open_world(self.run_dir, scene_id, replay=c.replay,
                                                     images=tuple(self.sensors.images), renderer=c.renderer)
             self._probes[scene_id] = ContactProbe(w.model, threads=self.threads)
         return self._worlds[scene_id]
@@ -252,7 +255,7 @@ class Simulator:
             images: dict[str, np.ndarray] = {}
             for (width, height), keys in sensors.sizes().items():
                 images |= observe(w.renderer, poses, keys, floor_z=w.model.floor_z,
-                                  camera_height=c.agent.camera_height, hfov_deg=c.agent.hfov_deg, width=width,
+                                  camera_height=c.camera.height, hfov_deg=c.camera.hfov_deg, width=width,
                                   height=height)
             if "depth" in images:
                 images["depth"] = sensors.depth.apply(images["depth"])

@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 
-from sagebench.config import AgentConfig
 from sagebench.episodes.load import load_episodes
 from sagebench.episodes.shards import read_episodes
 from sagebench.episodes.episode import Episode
@@ -39,19 +38,19 @@ class World:
         return (xy[:, 0] >= x0) & (xy[:, 0] <= x1) & (xy[:, 1] >= y0) & (xy[:, 1] <= y1)
 
 
-def open_world(run_dir: Path, scene_id: str, *, agent: AgentConfig, replay: ReplayConfig,
-               images: Sequence[str] = (), renderer: str = "cpu") -> World:
+def open_world(run_dir: Path, scene_id: str, *, replay: ReplayConfig, images: Sequence[str] = (),
+               renderer: str = "cpu") -> World:
     """Load one scene of a run (Gaussians and a renderer by `renderer`, auto, cpu or gsplat, only when `images`
-    names some)."""
+    names some); the agent's body is the one its map was built for."""
     from sagebench.splats.ply import read_ply
 
     scene_dir = run_scene_dir(run_dir, scene_id)
+    model = open_replay_model(run_dir, scene_id, replay=replay)
     grids = read_topdown_grids(scene_dir / TOPDOWN)
-    navmap = NavigableMap(grids.navigable, grids.resolution, grids.origin, snap_radius=agent.radius)
+    navmap = NavigableMap(grids.navigable, grids.resolution, grids.origin, snap_radius=model.agent.radius)
     h, w = grids.navigable.shape
     ox, oy = grids.origin
     bounds = (ox, oy, ox + w * grids.resolution, oy + h * grids.resolution)
-    model = open_replay_model(run_dir, scene_id, agent=agent, replay=replay)
     gaussians = pack(read_ply(scene_dir / GAUSSIANS)) if images else None
     drawn = open_renderer(gaussians, renderer, needs=images) if gaussians is not None else None
     return World(scene_id=scene_id, model=model, navmap=navmap, gaussians=gaussians, renderer=drawn, bounds=bounds)

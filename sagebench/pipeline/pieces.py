@@ -27,7 +27,7 @@ class PieceTask:
     scene_id: str
     key: str  # the piece's cache key
     piece: Piece
-    floor_height: float
+    band: tuple[float, float]  # the agent's band the piece is judged in (world z, m)
     colliders: dict[str, Any]  # the ColliderSettings of the piece's pass as JSON data (quality runs two passes)
     cache_dir: Path | None = None  # the run's CoACD cache
 
@@ -59,12 +59,12 @@ def plan_export(task: Task) -> tuple[PieceTask, ...]:
                 return ()
             config = ExportConfig.model_validate(task.settings)
             cache = part_cache(task.cache_dir)
-            jobs, floor_height = scene_pieces(task.run_dir, task.scene_id, config, cache)
+            jobs, band = scene_pieces(task.run_dir, task.scene_id, config, cache)
             out: dict[str, PieceTask] = {}
             for piece, colliders in jobs:
-                key = piece_key(piece, colliders, floor_height)
+                key = piece_key(piece, colliders, band)
                 if key not in out and not cache.has(key):
-                    out[key] = PieceTask(task.scene_id, key, piece, floor_height, colliders.model_dump(mode="json"),
+                    out[key] = PieceTask(task.scene_id, key, piece, band, colliders.model_dump(mode="json"),
                                          task.cache_dir)
             return tuple(out.values())
     except Exception:  # noqa: BLE001 - the export task meets the same error and reports it as the scene's failure
@@ -80,7 +80,7 @@ def run_piece(task: PieceTask) -> PieceOutcome:
     worker = f"{socket.gethostname()}:{os.getpid()}"
     with ui.collect_warnings() as found:
         try:
-            result = decompose_piece(task.piece, ColliderSettings.model_validate(task.colliders), task.floor_height,
+            result = decompose_piece(task.piece, ColliderSettings.model_validate(task.colliders), task.band,
                                      task.cache_dir)
             method, error = result.method, ""
         except Exception as err:  # noqa: BLE001

@@ -5,7 +5,8 @@ A stage is skipped when its stamp (RUN/.stamps/<scene_id>/<stage>.json) records 
 the sagebench version, the versions of Python and the libraries that shape outputs (sagebench.versions),
 the stage's settings and every input file — and every output file it recorded is
 still there with the same hash. Stamps are written after the outputs, so a run killed at any moment
-re-runs exactly the stages whose stamps are missing or stale.
+re-runs exactly the stages whose stamps are missing or stale. A stamp also records the agent's body the stage
+worked for (the run's `[build_scene.agent]`, as the scene's map recorded it).
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ from sagebench import __version__, ui
 from sagebench.errors import SagebenchError
 from sagebench.fileio import dumps_json, write_text
 from sagebench.pipeline.manifest import sha256_file
-from sagebench.run_layout import STAMPS, after, stage_files
+from sagebench.run_layout import SEMANTIC_MAP, STAMPS, after, run_scene_dir, stage_files
+from sagebench.topdown.semantic_map import read_semantic_map
 from sagebench.versions import output_versions
 
 
@@ -119,6 +121,13 @@ def stage_key(task: Task, inputs: list[Path]) -> str:
     return h.hexdigest()
 
 
+def _agent(task: Task) -> dict[str, float] | None:
+    """The agent's body the stage worked for: the one the scene's map records (build-scene wrote it from its
+    settings; every later stage takes it from there). None when the scene has no map."""
+    path = run_scene_dir(task.run_dir, task.scene_id) / SEMANTIC_MAP
+    return read_semantic_map(path).agent().model_dump(mode="json") if path.is_file() else None
+
+
 def _hashes(paths: list[Path], run_dir: Path) -> dict[str, str]:
     return {p.relative_to(run_dir).as_posix(): sha256_file(p) for p in paths}
 
@@ -162,7 +171,8 @@ def _run_task(task: Task) -> Outcome:
                            stamp.get("message", ""), stamp.get("ok", True))
         message, ok = stage.run(task)
         outputs = _hashes(stage.outputs(task), task.run_dir)
-        write_text(stamp_path(task), dumps_json({"key": key, "outputs": outputs, "message": message, "ok": ok}))
+        write_text(stamp_path(task), dumps_json({"key": key, "outputs": outputs, "message": message, "ok": ok,
+                                                 "agent": _agent(task)}))
         return Outcome(task.stage, task.scene_id, "ran", time.perf_counter() - start, message, ok)
     except SagebenchError as err:
         return Outcome(task.stage, task.scene_id, "failed", time.perf_counter() - start, str(err), False)

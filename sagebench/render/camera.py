@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sagebench.config import CameraConfig
+
 
 @dataclass(frozen=True)
 class Camera:
@@ -60,20 +62,22 @@ def agent_camera(
     yaw: float,
     *,
     floor_z: float = 0.0,
-    camera_height: float = 1.2,
+    camera_height: float = CameraConfig().height,
     pitch_deg: float = 0.0,
-    hfov_deg: float = 90.0,
+    hfov_deg: float = CameraConfig().hfov_deg,
     width: int = 640,
     height: int = 480,
 ) -> Camera:
     """The agent's camera: at (x, y, floor_z + camera_height), looking along `yaw` (radians, CCW from +X),
-    tilted up by `pitch_deg` (negative looks down), Z up, square pixels."""
+    tilted up by `pitch_deg` (negative looks down), Z up, square pixels (height and field of view default to
+    CameraConfig's, declared there only)."""
     return agent_cameras(np.array([[x, y, yaw]], dtype=np.float64), floor_z=floor_z, camera_height=camera_height,
                          pitch_deg=pitch_deg, hfov_deg=hfov_deg, width=width, height=height)[0]
 
 
-def agent_cameras(poses: np.ndarray, *, floor_z: float = 0.0, camera_height: float = 1.2, pitch_deg: float = 0.0,
-                  hfov_deg: float = 90.0, width: int = 640, height: int = 480) -> list[Camera]:
+def agent_cameras(poses: np.ndarray, *, floor_z: float = 0.0, camera_height: float = CameraConfig().height,
+                  pitch_deg: float = 0.0, hfov_deg: float = CameraConfig().hfov_deg, width: int = 640,
+                  height: int = 480) -> list[Camera]:
     """`agent_camera` at each pose [B, >=3] (x, y, ..., yaw last) in one go. Sines and cosines come from `math`
     (libm, as for one camera; numpy's vectorised ones may differ in the last bit)."""
     poses = np.atleast_2d(np.asarray(poses, dtype=np.float64))

@@ -5,8 +5,8 @@ collision shape, and a yaw hinge on a child body that carries only the drive sit
 agent but never twist its heading. The shape is a 32-sided prism circumscribing the cylinder (at most 1 mm
 wider): MuJoCo's polytope collision gives exact depths and the radial normal at a corner, while its
 cylinder-versus-mesh contacts report the box face's normal at vertical edges (the agent snags on every
-corner) and libccd's MPR over-states face depths several-fold. The prism spans floor + 0.05 m to
-floor + height (DESIGN's occupancy band); plane geoms (the MJCF's ground) and the bodies named as floors stop
+corner) and libccd's MPR over-states face depths several-fold. The prism spans floor + clearance to
+floor + height (the map's blocking band); plane geoms (the MJCF's ground) and the bodies named as floors stop
 colliding, so floor contacts never happen. Contacts are frictionless.
 
 Three velocity actuators act through the site: forward speed v and lateral speed (always commanded 0) along
@@ -42,7 +42,6 @@ AGENT_BODY = "sagebench_agent"
 HEADING_BODY = "sagebench_agent_heading"
 AGENT_GEOM = "sagebench_agent_cylinder"
 DRIVE_SITE = "sagebench_agent_drive"
-FLOOR_CLEARANCE = 0.05  # m: the cylinder starts here above the floor, the bottom of DESIGN's occupancy band
 AGENT_MASS = 20.0  # kg, translating body; only the ratio to the gains matters
 HEADING_MASS = 1.0  # kg
 HEADING_IZZ = 1.0  # kg m^2
@@ -76,6 +75,7 @@ class ReplayModel:
 
     model: mujoco.MjModel
     config: ReplayConfig
+    agent: AgentConfig  # the body the agent was built with
     floor_z: float
     qpos: tuple[int, int, int]  # addresses of x, y, yaw
     sensor: int  # address of the contact sensor's (found, dist)
@@ -150,7 +150,7 @@ def build_replay_model(
     body.mass, body.inertia, body.explicitinertial = AGENT_MASS, [1.0, 1.0, 1.0], True
     body.add_joint(name=f"{AGENT_BODY}_x", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[1, 0, 0])
     body.add_joint(name=f"{AGENT_BODY}_y", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 1, 0])
-    spec.add_mesh(name=AGENT_GEOM, uservert=agent_prism(agent.radius, FLOOR_CLEARANCE, agent.height).ravel().tolist())
+    spec.add_mesh(name=AGENT_GEOM, uservert=agent_prism(agent.radius, *agent.band).ravel().tolist())
     body.add_geom(name=AGENT_GEOM, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=AGENT_GEOM, condim=1, priority=1,
                   contype=1, conaffinity=1)
     heading = body.add_body(name=HEADING_BODY)
@@ -173,7 +173,8 @@ def build_replay_model(
     model = spec.compile()
     qpos = tuple(int(model.jnt_qposadr[model.joint(f"{AGENT_BODY}_{n}").id]) for n in ("x", "y", "yaw"))
     sensor = int(model.sensor_adr[model.nsensor - 1])
-    return ReplayModel(model=model, config=config, floor_z=float(floor_z), qpos=qpos, sensor=sensor)  # type: ignore[arg-type]
+    return ReplayModel(model=model, config=config, agent=agent, floor_z=float(floor_z),
+                       qpos=qpos, sensor=sensor)  # type: ignore[arg-type]
 
 
 def agent_prism(radius: float, z0: float, z1: float, sides: int = PRISM_SIDES) -> np.ndarray:

@@ -7,11 +7,11 @@ from pathlib import Path
 
 import mujoco
 
-from sagebench.config import AgentConfig
 from sagebench.errors import DataError
 from sagebench.replay.physics import ReplayConfig, ReplayModel, build_replay_model
-from sagebench.run_layout import MJCF, REPLAY_MODEL, SCENE_FILE, require, run_scene_dir
+from sagebench.run_layout import MJCF, REPLAY_MODEL, SCENE_FILE, SEMANTIC_MAP, require, run_scene_dir
 from sagebench.scene.loader import parse_spec
+from sagebench.topdown.semantic_map import read_semantic_map
 
 
 def floor_body_names(scene_dir: Path, bodies: Iterable[str]) -> list[str]:
@@ -24,10 +24,12 @@ def floor_body_names(scene_dir: Path, bodies: Iterable[str]) -> list[str]:
     return [b for b in bodies if "_" in b and b.rpartition("_")[2] in floors]
 
 
-def open_replay_model(run_dir: Path, scene_id: str, *, agent: AgentConfig, replay: ReplayConfig) -> ReplayModel:
-    """The replay agent in RUN/scenes/<scene_id>/scene.xml, floors not colliding (validate, evaluate, baseline)."""
+def open_replay_model(run_dir: Path, scene_id: str, *, replay: ReplayConfig) -> ReplayModel:
+    """The replay agent in RUN/scenes/<scene_id>/scene.xml, floors not colliding (validate, evaluate, baseline);
+    its body is the one the scene's map was built for (semantic_map.json)."""
     scene_dir = run_scene_dir(run_dir, scene_id)
     require(REPLAY_MODEL, run_dir, scene_id)
+    agent = read_semantic_map(scene_dir / SEMANTIC_MAP).agent()
     spec_path = scene_dir / SCENE_FILE
     floor_z = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path).floor_height
     try:

@@ -16,7 +16,7 @@ import shapely
 from shapely.geometry import Polygon
 
 from sagebench import ui
-from sagebench.config import AgentConfig
+from sagebench.config import CameraConfig
 from sagebench.errors import DataError, SceneError
 from sagebench.render.camera import Camera, agent_camera
 from sagebench.render.gaussians import Gaussians, concat
@@ -56,7 +56,7 @@ def trained_gaussians(scene: LoadedScene) -> Gaussians | None:
 
 
 def scene_gaussians(scene: LoadedScene, config: SplatConfig = SplatConfig(), *, seed: int = 0,
-                    agent: AgentConfig = AgentConfig(),
+                    camera: CameraConfig = CameraConfig(),
                     trained: Gaussians | None = None) -> tuple[Gaussians, PruneReport | None]:
     """The scene's Gaussians in world space (m, Z up) with instance ids, and the pruning report if pruned.
 
@@ -73,7 +73,7 @@ def scene_gaussians(scene: LoadedScene, config: SplatConfig = SplatConfig(), *, 
         g = sampled_gaussians(scene, config, seed=seed)
     if config.prune == 0.0:
         return g, None
-    views = list(room_views(scene, config.prune_views * 5 // 4, seed=seed, agent=agent, width=config.prune_width))
+    views = list(room_views(scene, config.prune_views * 5 // 4, seed=seed, camera=camera, width=config.prune_width))
     cut = config.prune_views
     return prune(g, config.prune, views[:cut], views[cut:])
 
@@ -146,7 +146,7 @@ def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                      aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], axis=-1)
 
 
-def room_views(scene: LoadedScene, count: int, *, seed: int, agent: AgentConfig = AgentConfig(),
+def room_views(scene: LoadedScene, count: int, *, seed: int, camera: CameraConfig = CameraConfig(),
                width: int = 320) -> Iterator[Camera]:
     """`count` agent cameras at random points inside the rooms' floor polygons, random yaw, level."""
     rng = np.random.default_rng([seed, 6])
@@ -166,5 +166,5 @@ def room_views(scene: LoadedScene, count: int, *, seed: int, agent: AgentConfig 
                 break
             made += 1
             yield agent_camera(float(x), float(y), float(yaw), floor_z=scene.spec.floor_height,
-                               camera_height=agent.camera_height, hfov_deg=agent.hfov_deg,
+                               camera_height=camera.height, hfov_deg=camera.hfov_deg,
                                width=width, height=width * 3 // 4)

@@ -26,17 +26,17 @@ if TYPE_CHECKING:
     from sagebench.topdown.semantic_map import RoomReach
 
 # build-scene's options and the BuildSceneConfig fields they set (their defaults and error names come from here)
-OPTIONS = {"--resolution": "resolution", "--band-min": "band_min", "--band-max": "band_max",
+OPTIONS = {"--resolution": "resolution", "--band-min": "agent.clearance", "--band-max": "agent.height",
            "--sample-density": "sample_density", "--wall-gap": "wall_gap", "--agent-radius": "agent.radius",
            "--seed": "seed", "--object-density": "splats.object_density",
            "--structure-density": "splats.structure_density", "--prune": "splats.prune"}
 
 
-def make_config(*, agent_radius: float | None = None, prune: float | None = None,
-                object_density: float | None = None, structure_density: float | None = None,
-                **fields: object) -> BuildSceneConfig:
+def make_config(*, agent_radius: float | None = None, band_min: float | None = None, band_max: float | None = None,
+                prune: float | None = None, object_density: float | None = None,
+                structure_density: float | None = None, **fields: object) -> BuildSceneConfig:
     """A BuildSceneConfig from the options given (None = keep the default); a bad value is a ConfigError."""
-    given = {**fields, "agent": {"radius": agent_radius},
+    given = {**fields, "agent": {"radius": agent_radius, "clearance": band_min, "height": band_max},
              "splats": {"prune": prune, "object_density": object_density, "structure_density": structure_density}}
     return from_options(BuildSceneConfig, given, OPTIONS)
 
@@ -123,7 +123,7 @@ def _build(checked: CheckedScene, run_dir: Path, config: BuildSceneConfig) -> Bu
     scene = checked.scene
     td = compute_topdown(scene, config)
     png = render_topdown(td)
-    gaussians, pruned = scene_gaussians(scene, config.splats, seed=config.seed, agent=config.agent,
+    gaussians, pruned = scene_gaussians(scene, config.splats, seed=config.seed, camera=config.camera,
                                         trained=checked.trained)
     out = run_scene_dir(run_dir, scene.spec.scene_id)
     with staged_dir(out) as tmp:

@@ -16,7 +16,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench import ui
-from sagebench.config import AgentConfig, from_options
+from sagebench.config import from_options
 from sagebench.episodes.episode import Episode
 from sagebench.episodes.load import load_episodes
 from sagebench.episodes.splits import SPLITS
@@ -31,8 +31,9 @@ from sagebench.fileio import write_json
 from sagebench.metrics import MetricConfig, NavigableMap
 from sagebench.replay.physics import ReplayConfig, ReplayModel
 from sagebench.replay.scene_model import open_replay_model
-from sagebench.run_layout import TOPDOWN, run_scene_dir
+from sagebench.run_layout import SEMANTIC_MAP, TOPDOWN, run_scene_dir
 from sagebench.topdown.grid_file import read_topdown_grids
+from sagebench.topdown.semantic_map import read_semantic_map
 
 
 class EvaluateConfig(BaseModel):
@@ -41,7 +42,6 @@ class EvaluateConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     metrics: MetricConfig = MetricConfig()
-    agent: AgentConfig = AgentConfig()
     replay: ReplayConfig = STEP_REPLAY
     start_tolerance: float = Field(
         default=0.10, gt=0, description="The first pose must lie this close to the episode's start (XY), m.")
@@ -172,10 +172,13 @@ class Evaluation:
         return "\n".join(out)
 
 
-def read_navigable_map(run_dir: Path, scene_id: str, agent_radius: float) -> NavigableMap:
-    """The scene's navigable map, for distances on foot (a final pose off it snaps back within the agent radius)."""
-    grids = read_topdown_grids(run_scene_dir(run_dir, scene_id) / TOPDOWN)
-    return NavigableMap(grids.navigable, grids.resolution, grids.origin, snap_radius=agent_radius)
+def read_navigable_map(run_dir: Path, scene_id: str) -> NavigableMap:
+    """The scene's navigable map, for distances on foot (a final pose off it snaps back within the radius of the
+    agent the map was built for)."""
+    scene_dir = run_scene_dir(run_dir, scene_id)
+    grids = read_topdown_grids(scene_dir / TOPDOWN)
+    radius = read_semantic_map(scene_dir / SEMANTIC_MAP).agent().radius
+    return NavigableMap(grids.navigable, grids.resolution, grids.origin, snap_radius=radius)
 
 
 def _r(x: float) -> float | None:
@@ -223,8 +226,8 @@ def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = Evaluate
     matched, missing = match_episodes(rows, by_id, predictions, allow_missing=config.allow_missing or asked_only)
     _check_start(by_id, rows, predictions, config.start_tolerance)
     need_replay = sorted({by_id[p.episode_id].scene_id for p in matched.values() if p.collision_intensity is None})
-    maps = {sid: read_navigable_map(run_dir, sid, config.agent.radius) for sid in sorted({e.scene_id for e in episodes})}
-    models = {sid: open_replay_model(run_dir, sid, agent=config.agent, replay=config.replay) for sid in need_replay}
+    maps = {sid: read_navigable_map(run_dir, sid) for sid in sorted({e.scene_id for e in episodes})}
+    models = {sid: open_replay_model(run_dir, sid, replay=config.replay) for sid in need_replay}
     scores = score_episodes(episodes, matched, _derived(models, episodes, matched, config.workers), maps, config.metrics)
     result = Evaluation(scores=scores, summary=summarise_scores(scores), missing=missing, predictions=predictions,
                         predictions_sha256=hashlib.sha256(predictions.read_bytes()).hexdigest(), config=config,

@@ -22,9 +22,11 @@ from sagebench.collider_export.scene_export import ExportResult, build_export, p
 from sagebench.config import from_options
 from sagebench.fileio import staged_dir, write_bytes, write_text
 from sagebench.render.gaussians import Gaussians
-from sagebench.run_layout import COLLIDERS, GAUSSIANS, MJCF, NUREC, SAGE, TOPDOWN, USDZ, run_scene_dir, run_scenes
+from sagebench.run_layout import (COLLIDERS, GAUSSIANS, MJCF, NUREC, SAGE, SEMANTIC_MAP, TOPDOWN, USDZ, run_scene_dir,
+                                   run_scenes)
 from sagebench.scene.loader import load_scene
 from sagebench.topdown.grid_file import read_topdown_grids
+from sagebench.topdown.semantic_map import read_semantic_map
 
 
 # export-usd's options and the ExportConfig fields they set (their defaults and error names come from here)
@@ -72,27 +74,33 @@ def part_cache(cache_dir: Path | None) -> PartCache:
 
 
 def scene_pieces(run_dir: Path, scene_id: str, config: ExportConfig,
-                 cache: PartCache) -> tuple[list[tuple[Piece, ColliderSettings]], float]:
+                 cache: PartCache) -> tuple[list[tuple[Piece, ColliderSettings]], tuple[float, float]]:
     """The concave pieces export_scene would decompose for the scene, each with the settings of its pass, and the
-    floor height they are measured from."""
+    agent band they are judged in."""
     (sid,) = run_scenes(run_dir, scene_id)
-    scene = load_scene(run_scene_dir(run_dir, sid))
-    return plan_scene_pieces(scene, config, cache), scene.spec.floor_height
+    scene_dir = run_scene_dir(run_dir, sid)
+    return plan_scene_pieces(load_scene(scene_dir), config, cache), agent_band(scene_dir)
 
 
-def decompose_piece(piece: Piece, colliders: ColliderSettings, floor_height: float,
+def agent_band(scene_dir: Path) -> tuple[float, float]:
+    """The world z band (floor + the agent's clearance .. floor + its height) the scene's map was built for:
+    the colliders are judged in the band the map blocks."""
+    low, high = read_semantic_map(scene_dir / SEMANTIC_MAP).band_m
+    return low, high
+
+
+def decompose_piece(piece: Piece, colliders: ColliderSettings, band: tuple[float, float],
                     cache_dir: Path | None) -> PieceResult:
     """One piece as export_scene's pass with `colliders` makes it (methods, safety limit, cache), without
     progress lines."""
-    (result,) = decompose_pieces([piece], colliders, cache=part_cache(cache_dir), floor_height=floor_height,
-                                 progress=False)
+    (result,) = decompose_pieces([piece], colliders, cache=part_cache(cache_dir), band=band, progress=False)
     return result
 
 
 def export_scene(scene_dir: Path, *, config: ExportConfig, cache: PartCache) -> ExportResult:
     """Export one built scene: everything is computed before the first byte is written."""
     made = build_export(load_scene(scene_dir), _read_gaussians(scene_dir / GAUSSIANS), _floor_map(scene_dir),
-                        config=config, cache=cache)
+                        band=agent_band(scene_dir), config=config, cache=cache)
     with staged_dir(scene_dir / COLLIDERS) as tmp:
         for rel, data in made.colliders.items():
             write_bytes(tmp / rel, data)

@@ -13,7 +13,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-from pydantic import ValidationError
 
 from sagebench import ui
 from sagebench.astar.sampling import GridMap, SamplingResult, sample_trajectories
@@ -23,7 +22,7 @@ from sagebench.episodes.preview import render_paths
 from sagebench.episodes.rows import episode_rows
 from sagebench.episodes.shards import write_shards
 from sagebench.episodes.targets import scene_context, scene_sight, scene_targets, unreachable_rooms
-from sagebench.errors import ConfigError, DataError, ServiceError, first_error
+from sagebench.errors import ConfigError, DataError, ServiceError
 from sagebench.fileio import staged_dir, write_bytes
 from sagebench.instructions.execution import BlockedMap
 from sagebench.instructions.llm_client import API_KEY_ENV, check_cache_dir, default_cache_dir
@@ -34,7 +33,7 @@ from sagebench.run_layout import (
 from sagebench.scene.loader import parse_spec
 from sagebench.scene.model import SceneSpec
 from sagebench.topdown.grid_file import read_topdown_grids
-from sagebench.topdown.semantic_map import SemanticMap
+from sagebench.topdown.semantic_map import SemanticMap, read_semantic_map
 
 if TYPE_CHECKING:
     from sagebench.instructions.llm import LLMInstructor
@@ -144,11 +143,7 @@ def read_scene_inputs(scene_dir: Path) -> tuple[SceneSpec, SemanticMap, GridMap,
     require(CONTRACT["gen_trajectories"].reads, scene_dir.parent.parent, scene_dir.name)
     spec_path, smap_path, npz_path = scene_dir / SCENE_FILE, scene_dir / SEMANTIC_MAP, scene_dir / TOPDOWN
     spec = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)
-    try:
-        smap = SemanticMap.model_validate_json(smap_path.read_bytes())
-    except ValidationError as err:
-        loc, msg, _ = first_error(err)
-        raise DataError(msg, path=smap_path, field=loc) from None
+    smap = read_semantic_map(smap_path)
     grids = read_topdown_grids(npz_path)
     grid = GridMap(grids.navigable, grids.resolution, grids.origin, float(spec.floor_height), grids.anchors)
     return spec, smap, grid, grids.occupancy

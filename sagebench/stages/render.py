@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from sagebench.config import AgentConfig, from_options
+from sagebench.config import CameraConfig, from_options
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import write_bytes
 from sagebench.render.backends import RendererChoice, open_renderer
@@ -24,11 +24,11 @@ from sagebench.scene.loader import parse_spec
 
 
 class RenderConfig(BaseModel):
-    """The view: camera height and field of view come from the agent unless overridden."""
+    """The view: the agent's camera (CameraConfig), tilted by pitch_deg."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    agent: AgentConfig = AgentConfig()
+    camera: CameraConfig = CameraConfig()
     pitch_deg: float = Field(default=0.0, gt=-90, lt=90, description="Camera tilt up (negative: down), degrees.")
     width: int = Field(default=640, ge=1, le=8192, description="Image width, px.")
     height: int = Field(default=480, ge=1, le=8192, description="Image height, px.")
@@ -37,13 +37,13 @@ class RenderConfig(BaseModel):
 
 
 # render's options and the RenderConfig fields they set (their defaults and error names come from here)
-OPTIONS = {"--camera-height": "agent.camera_height", "--hfov": "agent.hfov_deg", "--pitch": "pitch_deg",
+OPTIONS = {"--camera-height": "camera.height", "--hfov": "camera.hfov_deg", "--pitch": "pitch_deg",
            "--width": "width", "--height": "height", "--renderer": "renderer"}
 
 
 def make_render_config(*, camera_height: float | None = None, hfov: float | None = None, **fields: object) -> RenderConfig:
     """A RenderConfig from the options given (None = default); a bad value is a ConfigError naming the option."""
-    given = {**fields, "agent": {"camera_height": camera_height, "hfov_deg": hfov}}
+    given = {**fields, "camera": {"height": camera_height, "hfov_deg": hfov}}
     return from_options(RenderConfig, given, OPTIONS)
 
 
@@ -72,8 +72,8 @@ def render_view(run_dir: Path, scene_id: str, pose: tuple[float, float, float], 
             raise DataError(f"missing; run `sagebench build-scene ... --out {run_dir}` first", path=path)
     spec = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)
     x, y, yaw = pose
-    cam = agent_camera(x, y, yaw, floor_z=spec.floor_height, camera_height=config.agent.camera_height,
-                       pitch_deg=config.pitch_deg, hfov_deg=config.agent.hfov_deg, width=config.width,
+    cam = agent_camera(x, y, yaw, floor_z=spec.floor_height, camera_height=config.camera.height,
+                       pitch_deg=config.pitch_deg, hfov_deg=config.camera.hfov_deg, width=config.width,
                        height=config.height)
     return open_renderer(read_ply(ply_path), config.renderer, needs=needs).render([cam])[0]
 

@@ -91,7 +91,7 @@ def validate_scene(run_dir: Path, scene_id: str, config: ValidateConfig) -> Scen
     """Replay, judge and spot-check one scene; writes RUN/validation/<scene_id>/ whole."""
     scene_dir = run_scene_dir(run_dir, scene_id)
     trajectories = read_trajectories(run_episodes_dir(run_dir, scene_id))
-    rm = open_replay_model(run_dir, scene_id, agent=config.agent, replay=config.replay)
+    rm = open_replay_model(run_dir, scene_id, replay=config.replay)  # the agent the scene's map was built for
     start = time.perf_counter()
     with ui.working(f"validate {scene_id}: replaying {len(trajectories)} trajectories"):
         records = replay_batch(rm, [t.reference_path for t in trajectories], threads=config.workers)

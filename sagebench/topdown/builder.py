@@ -19,7 +19,7 @@ from sagebench.topdown.occupancy import band_occupancy, clip_to_band, inflate
 from sagebench.topdown.passages import Passages, open_passages
 from sagebench.topdown.raster import Grid, polygon_mask
 from sagebench.topdown.regions import reachability
-from sagebench.topdown.semantic_map import MapInstance, MultiPolygon, Region, RoomReach, SemanticMap
+from sagebench.topdown.semantic_map import DECIMALS, MapInstance, MultiPolygon, Region, RoomReach, SemanticMap
 from sagebench.ui import track
 
 NOT_BLOCKING_KINDS = frozenset({"floor", "ceiling"})  # walkable surfaces and what is above every head
@@ -48,7 +48,7 @@ def compute_topdown(scene: LoadedScene, config: BuildSceneConfig) -> Topdown:
     scene_grid(scene, config.resolution)  # refuses a map over the cell budget before any work
     spec = scene.spec
     res = config.resolution
-    z_lo, z_hi = spec.floor_height + config.band_min, spec.floor_height + config.band_max
+    z_lo, z_hi = (spec.floor_height + z for z in config.agent.band)  # the band is measured from the floor
     objects = spec.objects
     parts = {o.instance_id: mesh_parts(scene.meshes[o.instance_id]) for o in objects}
     footprints: dict[int, BaseGeometry] = {}
@@ -230,5 +230,4 @@ def _geojson(geom: BaseGeometry) -> MultiPolygon:
 
 
 def _r(v: float) -> float:
-    """Round to 0.1 mm: stable text, far below the grid's resolution."""
-    return round(float(v), 4)
+    return round(float(v), DECIMALS)

@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
+from sagebench.config import AgentConfig
+from sagebench.errors import DataError, first_error
 from sagebench.scene.model import DoorState, Kind
 
 XY = tuple[float, float]
+DECIMALS = 4  # lengths in semantic_map.json are rounded to 0.1 mm: stable text, far below a grid cell
 
 
 class _Model(BaseModel):
@@ -78,7 +82,8 @@ class SemanticMap(_Model):
     origin: XY = Field(description="World (x, y) of the lower-left corner of cell (0, 0), m.")
     shape: tuple[int, int] = Field(description="[H rows (y), W cols (x)] of every array in topdown.npz.")
     floor_height: float
-    band_m: XY = Field(description="World z range whose geometry blocks: floor + band_min .. floor + band_max.")
+    band_m: XY = Field(description="World z range whose geometry blocks: floor + the agent's clearance .. floor + "
+                                   "its height.")
     agent_radius: Annotated[float, Field(gt=0)]
     connectivity: Literal[8] = Field(default=8, description="Regions join 8-connected steps that cut no blocked corner "
                                                            "(the planner's), so cells touching only diagonally do not.")
@@ -90,3 +95,21 @@ class SemanticMap(_Model):
                                                         "nothing is navigable.")]
     rooms: list[RoomReach]
     all_rooms_connected: bool = Field(description="Every room is reachable (see RoomReach.reachable).")
+
+    def agent(self) -> AgentConfig:
+        """The agent's body the map was built for, as build-scene recorded it: every later stage takes it from here."""
+        return AgentConfig(radius=self.agent_radius, clearance=round(self.band_m[0] - self.floor_height, DECIMALS),
+                           height=round(self.band_m[1] - self.floor_height, DECIMALS))
+
+
+def read_semantic_map(path: Path) -> SemanticMap:
+    """A scene's semantic_map.json; a missing or malformed one is a DataError naming the file (and the field)."""
+    try:
+        raw = Path(path).read_bytes()
+    except OSError as err:
+        raise DataError(f"cannot read: {err.strerror} (run build-scene first)", path=path) from None
+    try:
+        return SemanticMap.model_validate_json(raw)
+    except ValidationError as err:
+        loc, msg, _ = first_error(err)
+        raise DataError(msg, path=path, field=loc) from None

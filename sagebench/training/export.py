@@ -25,7 +25,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from sagebench import __version__
-from sagebench.config import AgentConfig
+from sagebench.config import CameraConfig
 from sagebench.episodes.splits import SPLITS
 from sagebench.errors import ConfigError
 from sagebench.fileio import dumps_json, remove_temporaries, write_text
@@ -61,7 +61,7 @@ class TrainingExportConfig(BaseModel):
     batch: int = Field(default=8, ge=1, description="Episodes stepped (and rendered) together.")
     workers: int = Field(default=2, ge=1, description="Threads stepping MuJoCo.")
     navila: bool = Field(default=False, description="Also write NaVILA's layout (navila/) from the shards.")
-    agent: AgentConfig = AgentConfig()
+    camera: CameraConfig = CameraConfig()  # the body is the one the run's maps were built for
     actions: ActionConfig = ActionConfig()
 
     @field_validator("split")
@@ -72,7 +72,7 @@ class TrainingExportConfig(BaseModel):
         return value
 
     def env(self) -> EnvConfig:
-        return EnvConfig(width=self.width, height=self.height, agent=self.agent, actions=self.actions,
+        return EnvConfig(width=self.width, height=self.height, camera=self.camera, actions=self.actions,
                          observations=("rgb", "depth") if self.depth else ("rgb",), privileged=("pose",),
                          max_steps=1_000_000, renderer=self.renderer)
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from sagebench.config import AgentConfig
+from sagebench.config import CameraConfig
 from sagebench.render.backends import RendererChoice
 from sagebench.replay.physics import ReplayConfig
 from sagebench.validation.checks import CheckConfig
@@ -15,7 +15,7 @@ class ValidateConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    agent: AgentConfig = AgentConfig()
+    camera: CameraConfig = CameraConfig()
     replay: ReplayConfig = ReplayConfig()
     checks: CheckConfig = CheckConfig()
     frames_per_scene: int = Field(default=3, ge=0, description="Trajectories per scene with spot-check frames.")

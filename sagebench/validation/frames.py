@@ -60,8 +60,8 @@ def spot_checks(gaussians: Gaussians, rm: ReplayModel, picks: list[tuple[Traject
         tiles = []
         for point, k in zip(FRAME_POINTS, (0, len(rec.poses) // 2, len(rec.poses) - 1)):
             x, y, _, yaw = rec.poses[k]
-            cam = agent_camera(x, y, yaw, floor_z=rm.floor_z, camera_height=config.agent.camera_height,
-                               hfov_deg=config.agent.hfov_deg, width=config.frame_width, height=config.frame_height)
+            cam = agent_camera(x, y, yaw, floor_z=rm.floor_z, camera_height=config.camera.height,
+                               hfov_deg=config.camera.hfov_deg, width=config.frame_width, height=config.frame_height)
             view = renderer.observe([cam], [img for img in VIEW_IMAGES if img in renderer.draws])
             if "instance" not in view:
                 view |= CpuRenderer(gaussians).observe([cam], ("instance",))
