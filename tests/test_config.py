@@ -17,7 +17,7 @@ ROOT = Path(sagebench.__file__).parent
 DECLARED_IN = ROOT / "config.py"
 FACTS = {0.2, 1.2, 0.05}  # the default radius, height (and camera height) and clearance, m
 # names under which a module would re-declare them: constants, fields, parameters
-NAMED = re.compile(r"radius|height|clearance|band|agent|floor", re.IGNORECASE)
+NAMED = re.compile(r"radius|height|clearance|band|agent|robot|floor", re.IGNORECASE)
 
 
 def _literals(node: ast.AST | None) -> set[float]:
@@ -67,10 +67,11 @@ def test_the_agents_body_and_band_are_declared_in_config_py_only():
     ("class C:\n    band_max: float = Field(default=1.2, gt=0)", "line 2: band_max"),
     ("def f(x, *, snap_radius: float = 0.20): pass", "line 1: snap_radius"),
     ("def agent_camera(x, camera_height=1.2): pass", "line 1: camera_height"),
+    ("ROBOT_R = 0.2  # the connectivity check's robot radius, m", "line 1: ROBOT_R"),
 ])
 def test_the_check_finds_each_way_a_module_restated_them_before(source, hit):
     """The four places issue 29 found (topdown/config.py, quality.AGENT_BAND, physics.FLOOR_CLEARANCE, the
-    defaults of snap_radius and camera_height) in the forms they took."""
+    defaults of snap_radius and camera_height) and the demo generator's robot, in the forms they took."""
     assert restated_facts(source) == [hit]
 
 

@@ -3,7 +3,7 @@
 A 3 x 2 grid of cells with seeded sizes; two neighbouring cells merge into the living room.
 Doors on a random spanning tree of the room graph are open, the remaining shared walls get an
 ajar or closed door, and the front door is closed. Furniture is placed against walls or in groups,
-never overlapping, keeping door swings clear and the floor connected for a 0.2 m robot.
+never overlapping, keeping door swings clear and the floor connected for the default agent (AgentConfig).
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from scipy import ndimage
 from shapely import affinity
 from shapely.geometry import Polygon, box as rect
 
+from sagebench.config import AgentConfig
 from sagebench.errors import ConfigError
 from sagebench.fileio import dumps_json, staged_dir, write_bytes
 from sagebench.scene import assets
@@ -36,7 +37,7 @@ DOOR_W = 1.0  # opening width, m
 DOOR_H = 2.1  # opening height, m
 LEAF_W, LEAF_T, LEAF_H = 0.95, 0.04, 2.05
 CLEAR = 1.1  # side of the square kept free on both sides of a door, m
-ROBOT_R = 0.2  # the connectivity check's robot radius, m
+ROBOT_R = AgentConfig().radius  # the connectivity check's robot: the default agent, m
 GRID = 0.05  # the connectivity check's cell size, m
 
 ROOM_PROGRAMS: dict[str, list[str]] = {
