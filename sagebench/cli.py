@@ -762,7 +762,8 @@ def rollout_cmd(
     episodes: Annotated[int | None, typer.Option(help="Run a seeded sample of N of those episodes (default: all).")] = None,
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene's episodes (default: every scene).")] = None,
     preset: Annotated[str | None, typer.Option(autocompletion=values_of("sagebench.stages.rollout:RolloutConfig", "--preset"), help="Another benchmark's settings: vlnce (success distance 3 m, "
-                                                    "VLN-CE's body, camera and observations).")] = None,
+                                                    "VLN-CE's camera, actions and observations; the body stays the "
+                                                    "one the run's maps were built for).")] = None,
     profile: Annotated[str | None, typer.Option(autocompletion=values_of("sagebench.stages.rollout:RolloutConfig", "--profile"), help="Observations: custom (--obs at --width x --height), vlnce, "
                                                      "sage or full (privileged included).")] = None,
     obs: Annotated[str | None, typer.Option(help="custom profile: images to render, rgb and/or depth, or none.")] = None,

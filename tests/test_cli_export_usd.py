@@ -388,9 +388,19 @@ def test_ctrl_c_stops_a_cold_export_and_a_rerun_reuses_every_finished_piece(tmp_
     assert {p: p.stat().st_mtime_ns for p in finished} == finished  # read back, never made again
 
 
-def test_an_object_the_part_budget_keeps_off_its_footprint_is_named_in_a_warning(tmp_path, run_cli):
+def test_an_object_the_part_budget_keeps_off_its_footprint_is_refused_or_named_in_a_warning(tmp_path, run_cli):
     # one part for the U-shaped planter: its hull fills the U, far past the 2 cm tolerance in the agent band
     run = make_run(tmp_path)
+    before = _hashes(run / "scenes" / "tiny")
+    code, _, err = run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", "--colliders", "balanced",
+                           "--max-parts", "1")
+    last = err.rstrip().splitlines()[-1]
+    assert code == 2 and last.startswith("error: planter_4: colliders 15.0 cm off in the agent band cover free floor at ")
+    assert last.endswith("that the object leaves open (a doorway?): hull parts of one of its pieces at the "
+                                 "1-part budget (--max-parts); nothing was written")
+    assert _hashes(run / "scenes" / "tiny") == before
+    # without build-scene's occupancy (a scene whose maps were written by other means) the warning is all there is
+    (run / "scenes" / "tiny" / "topdown.npz").unlink()
     code, _, err = run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", "--colliders", "balanced",
                            "--max-parts", "1")
     assert code == 0

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from sagebench.config import CameraConfig
+from sagebench.config import AgentConfig, CameraConfig
 from sagebench.episodes.episode import Episode
 from sagebench.navsim.actions import Action
 from sagebench.navsim.protocol import decode_request
@@ -45,6 +45,7 @@ from sagebench.navsim.simulator import EnvConfig
 PRESETS = ("vlnce",)
 VLNCE_SUCCESS_DISTANCE = 3.0  # m, vlnce_task.yaml TASK.SUCCESS.SUCCESS_DISTANCE
 VLNCE_CAMERA = CameraConfig(height=1.25, hfov_deg=90.0)  # habitat-lab 0.1.7's RGB and depth sensors
+VLNCE_BODY = AgentConfig(radius=0.1, height=1.5)  # habitat-lab 0.1.7's SIMULATOR.AGENT_0
 
 
 def preset_env(name: str) -> dict:
@@ -69,6 +70,17 @@ def preset_differences(env: EnvConfig, default: EnvConfig) -> list[str]:
     if env.max_steps != default.max_steps:
         out.append(f"max steps {env.max_steps} (default {default.max_steps})")
     return out
+
+
+def body_note(bodies: Sequence[AgentConfig]) -> str:
+    """The body a rollout replays, set against VLN-CE's: the preset cannot change it (the maps were built for it),
+    so the user is told which one the agent drove."""
+    said = ", ".join(dict.fromkeys(f"radius {b.radius:g} m, height {b.height:g} m" for b in bodies))
+    if all(b.radius == VLNCE_BODY.radius and b.height == VLNCE_BODY.height for b in bodies):
+        return f"agent body: the run's maps', {said} (VLN-CE's)"
+    return (f"agent body: the run's maps', {said}, not VLN-CE's radius {VLNCE_BODY.radius:g} m, height "
+            f"{VLNCE_BODY.height:g} m (build-scene --agent-radius {VLNCE_BODY.radius:g} --band-max "
+            f"{VLNCE_BODY.height:g} builds a run for it)")
 
 
 NEEDED = ("rgb", "depth", "instruction", "instruction_tokens")  # the vlnce profile's keys

@@ -98,7 +98,7 @@ def import_interiorgs(src: Path, config: InteriorGSConfig = InteriorGSConfig(),
     structure = _StructureIndex(pieces, np.array([walls[i].instance_id for i in piece_wall], dtype=np.int64),
                                 rooms, slabs)
     ids, shares = _assign(gaussians.means, objects, structure, config)
-    band = (build.band_min, build.band_max)  # the floor is z = 0
+    band = build.agent.band  # the floor is z = 0
     settings = SurfaceSettings(config.voxel, config.min_opacity, config.max_parts, band)
     empty = _surfaces(gaussians, ids, objects, settings)
     if empty:

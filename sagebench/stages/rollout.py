@@ -22,7 +22,7 @@ import cv2
 from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench import ui
-from sagebench.adapters.vlnce import PRESETS, VlnceAgents, preset_differences, preset_env
+from sagebench.adapters.vlnce import PRESETS, VlnceAgents, body_note, preset_differences, preset_env
 from sagebench.config import from_options
 from sagebench.errors import ConfigError, DataError, Interrupted
 from sagebench.evaluation.record import Observed, RolloutRecord, read_record, record_path
@@ -232,7 +232,15 @@ def run_rollout(run_dir: Path, out: Path, config: RolloutConfig = RolloutConfig(
                           episodes=len(written.predictions), stopped=sum(p.stopped for p in written.predictions),
                           steps=result.steps, seconds=time.perf_counter() - start, failed=result.failed,
                           stopped_early=result.stopped_early,
-                          preset=preset_differences(config.env, EnvConfig()) if config.preset else [])
+                          preset=preset_lines(config, sim, asked))
+
+
+def preset_lines(config: RolloutConfig, sim: Simulator, asked: list[str]) -> list[str]:
+    """What the preset set differently from the defaults, and the body it could not set."""
+    if not config.preset:
+        return []
+    scenes = dict.fromkeys(sim.episodes[i].scene_id for i in asked)
+    return [*preset_differences(config.env, EnvConfig()), body_note([sim.world(s).model.agent for s in scenes])]
 
 
 def open_inputs(sim: Simulator, asked: list[str], out: Path) -> None:
