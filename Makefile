@@ -29,7 +29,10 @@ test: $(STAMP)
 
 # before a release: the property tests alone, ten times the examples, from a fresh seed (printed; pass
 # EXPLORE_SEED=N to replay one); a failure found becomes an explicit @example on its test
-EXPLORE_SEED ?= $(shell $(PY) -c "import secrets; print(secrets.randbelow(2**32))")
+# drawn once (`:=`): a recursive `?=` drew one seed for the echo and another for pytest
+ifeq ($(origin EXPLORE_SEED), undefined)
+EXPLORE_SEED := $(shell $(PY) -c "import secrets; print(secrets.randbelow(2**32))")
+endif
 explore: $(STAMP)
 	@echo "make explore: hypothesis seed $(EXPLORE_SEED)"
 	$(BIN)/python -m pytest -n 2 -m hypothesis --hypothesis-profile=explore --hypothesis-seed=$(EXPLORE_SEED)

@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import ast
 import re
+import shutil
+import subprocess
 from pathlib import Path
 
+import pytest
 from hypothesis import settings
 
 from profiles import CI_EXAMPLES, EXPLORE_FACTOR, examples
@@ -60,3 +63,15 @@ def test_the_ci_profile_is_derandomized_and_explore_draws_ten_times_as_many():
     assert examples(150) == 150 * settings.default.max_examples // CI_EXAMPLES
     if settings.default.derandomize:  # the run itself is under ci: the oracle property draws 150, explore 1,500
         assert examples(150) == 150
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="make is not installed")
+def test_make_explore_runs_the_seed_it_prints():
+    """The printed seed is the one a user replays with: `make explore EXPLORE_SEED=N`."""
+    dry = subprocess.run(["make", "-n", "explore"], cwd=ROOT, capture_output=True, text=True, check=True).stdout
+    (said,) = re.findall(r"make explore: hypothesis seed (\d+)", dry)
+    (used,) = re.findall(r"--hypothesis-seed=(\d+)", dry)
+    assert said == used
+    given = subprocess.run(["make", "-n", "explore", "EXPLORE_SEED=42"], cwd=ROOT, capture_output=True, text=True,
+                           check=True).stdout
+    assert "hypothesis seed 42" in given and "--hypothesis-seed=42" in given
