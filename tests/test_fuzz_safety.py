@@ -329,8 +329,8 @@ def test_a_semantic_map_that_is_a_directory_is_one_line(tiny_run, run_cli, tmp_p
 @pytest.mark.parametrize("delay", [0.0, 0.2, 0.5, 1.0, 1.8])
 def test_ctrl_c_in_the_first_seconds_of_run_is_one_line_and_writes_nothing(delay, tiny_scene, tmp_path):
     """Ctrl-C `delay` s after sagebench's own imports began (pydantic's core library mapped: the interpreter's
-    start, before any sagebench code runs, is Python's), while the CLI imports, loads the config and starts; a
-    stage that finished before it is kept (its "ran" line), nothing partial is."""
+    start, before any sagebench code runs, is Python's), while the CLI imports, loads the config and starts: one
+    line, no partial file, and what is left is what the interrupt line promises, stages to go on from."""
     import signal
     import time
 
@@ -351,12 +351,15 @@ def test_ctrl_c_in_the_first_seconds_of_run_is_one_line_and_writes_nothing(delay
     assert proc.returncode in (130, -signal.SIGINT), (proc.returncode, err)
     *before, last = err.splitlines()
     assert last.startswith("error: interrupted") and "Traceback" not in err, err
-    # on a fast machine a stage may finish first: its line is all that may come before the interrupt's
-    assert all(line.lstrip().startswith("ran ") for line in before), err
+    # on a fast machine a stage may finish first: its "ran" line (and its warnings) may come before the interrupt's
+    assert not [line for line in before if line.startswith("error")], err
     out = tmp_path / "out"
     written = [p for p in out.rglob("*") if p.is_file() and p.name != ".sagebench.lock"] if out.exists() else []
     assert not [p for p in written if ".tmp" in p.name], written  # nothing partial is left
-    assert before or not written, written  # and nothing at all when no stage had finished
+    if written:  # a stage got as far as writing (on a loaded machine even without its "ran" line yet)
+        code = subprocess.run([sys.executable, "-m", "sagebench", "-q", "run", str(config)], capture_output=True,
+                              text=True, timeout=600)
+        assert code.returncode == 0, code.stderr  # "run again to go on from them": the run finishes on top of it
 
 
 # ---------------------------------------------------------------- the count
