@@ -13,7 +13,7 @@ import numpy as np
 
 from sagebench.navsim.protocol import decode_request
 
-FAULTS = ("status500", "drip", "hang", "close")
+FAULTS = ("status500", "drip", "hang", "close", "truncated")
 LONGEST_FAULT = 60.0  # s: a hanging or dripping reply gives up after this
 DRIP_S = 0.2  # s between dripped bytes: well inside any read timeout, so only a request's deadline ends a drip
 
@@ -68,8 +68,11 @@ class FakePolicy:
                     reply += b" " * int(LONGEST_FAULT / DRIP_S)
                 self.send_response(200)
                 self.send_header("Content-Type", "application/json")
-                self.send_header("Content-Length", str(len(reply)))
+                # truncated: the policy decided, and its reply ends before the length it announced
+                self.send_header("Content-Length", str(len(reply) + 10 * (fault == "truncated")))
                 self.end_headers()
+                if fault == "truncated":
+                    self.close_connection = True
                 if fault == "drip":  # a byte every DRIP_S until the client gives up (or LONGEST_FAULT)
                     start = time.monotonic()
                     for byte in reply:

@@ -67,6 +67,16 @@ def test_connections_that_keep_closing_fail_after_the_retries(server):
     assert s.requests == 3
 
 
+def test_a_reply_cut_short_is_not_sent_again(server):
+    """The policy answered (its step is taken: a recurrent policy's state moved on), so sending the step again
+    would show it the same observation twice; only a connection closed before any reply is retried."""
+    s = server("truncated")
+    content_type, data = body()
+    with pytest.raises(RequestFailed, match="^connection error: IncompleteRead"):
+        post(s.url, data, content_type, timeout=30.0, retries=3)
+    assert s.requests == 1 and len(s.seen) == 1
+
+
 def test_an_http_error_is_not_retried(server):
     s = server("status500")
     content_type, data = body()
