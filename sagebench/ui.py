@@ -37,12 +37,13 @@ _INTERRUPTED = threading.Event()
 def interrupts_noted() -> Iterator[None]:
     """Ctrl-C raises KeyboardInterrupt as always, and is also noted, so that `check_interrupted` raises it again
     where a library swallowed it (trimesh imports its optional parts under `except BaseException`). Installed
-    only over Python's own handler (a job started with SIGINT ignored keeps ignoring it)."""
-    _INTERRUPTED.clear()
+    only over Python's own handler (a job started with SIGINT ignored keeps ignoring it); inside another
+    `interrupts_noted` (the console entry's, which covers the CLI's own imports) it keeps what that one noted."""
     if threading.current_thread() is not threading.main_thread() or \
             signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
         yield
         return
+    _INTERRUPTED.clear()
 
     def note(signum, frame):  # noqa: ANN001 - signal's handler signature
         _INTERRUPTED.set()

@@ -362,6 +362,39 @@ def test_ctrl_c_in_the_first_seconds_of_run_is_one_line_and_writes_nothing(delay
         assert code.returncode == 0, code.stderr  # "run again to go on from them": the run finishes on top of it
 
 
+SWALLOWS_CTRL_C = """
+import signal, sys
+from importlib.abc import MetaPathFinder
+
+class Swallow(MetaPathFinder):  # a library that imports under `except BaseException`, as trimesh's optional parts do
+    def find_spec(self, name, path=None, target=None):
+        if name == "pydantic_core":
+            sys.meta_path.remove(self)
+            try:
+                signal.raise_signal(signal.SIGINT)  # Ctrl-C, raised in the handler at once
+            except BaseException:
+                pass
+        return None
+
+sys.meta_path.insert(0, Swallow())
+sys.argv[0] = "sagebench"
+from sagebench.__main__ import entry
+entry()
+"""
+
+
+def test_ctrl_c_a_library_swallows_while_the_cli_imports_still_ends_the_run(tiny_scene, tmp_path):
+    """CI once sent Ctrl-C as pydantic's core loaded and the run went on to finish with exit 0: a Ctrl-C caught
+    by a library while the command imports is noted and ends it in one line, before anything is written."""
+    from signals import as_from_a_terminal
+
+    config = _toml(tmp_path / "run.toml", tiny_scene, tmp_path / "out")
+    proc = subprocess.run([sys.executable, "-c", SWALLOWS_CTRL_C, "run", str(config)], capture_output=True,
+                          text=True, timeout=600, preexec_fn=as_from_a_terminal)
+    assert (proc.returncode, proc.stderr, proc.stdout) == (130, "error: interrupted: nothing was written\n", "")
+    assert not (tmp_path / "out").exists()
+
+
 # ---------------------------------------------------------------- the count
 
 
@@ -373,7 +406,7 @@ CASES = [*FOLDER_CASES, *(f"key-{how}" for how in ("401-echo", "redirect", "cras
          "navigable-nan", "navigable-zero", "navigable-3", "agent-radius-50",
          *(f"scene-{c}" for c in SCENE_TRACEBACKS), *(f"toml-{c}" for c in TOML_TRACEBACKS),
          "predictions-1e6-poses", "predictions-10001-poses", "semantic-map-a-directory",
-         *(f"ctrl-c-{d}" for d in (0.0, 0.2, 0.5, 1.0, 1.8))]
+         *(f"ctrl-c-{d}" for d in (0.0, 0.2, 0.5, 1.0, 1.8)), "ctrl-c-swallowed-while-importing"]
 
 
 def test_the_reliability_suite_adds_its_cases_to_the_damaged_inputs():

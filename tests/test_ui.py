@@ -84,3 +84,23 @@ def test_a_ctrl_c_a_library_swallowed_ends_in_the_interrupt_line(after, monkeypa
         signal.signal(signal.SIGINT, previous)
     assert done.value.code == 130
     assert capsys.readouterr().err == f"error: {cli.INTERRUPTED}\n"
+
+
+def test_a_ctrl_c_noted_while_the_cli_imported_is_kept_when_the_command_starts():
+    """The console entry notes Ctrl-C around the CLI's imports; cli.main's own noting, inside it, keeps a note
+    made there (a later command in the same process starts afresh)."""
+    import signal
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # as a terminal starts it, not as `nohup`
+    try:
+        with ui.interrupts_noted():
+            try:
+                signal.raise_signal(signal.SIGINT)
+            except KeyboardInterrupt:
+                pass  # swallowed, as a library importing its optional parts may
+            with ui.interrupts_noted():
+                assert ui.interrupted()
+        with ui.interrupts_noted():
+            assert not ui.interrupted()
+    finally:
+        signal.signal(signal.SIGINT, previous)
