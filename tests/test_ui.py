@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import signal
 import time
 
 import pytest
@@ -15,6 +16,15 @@ def clock(monkeypatch):
     now = [1000.0]
     monkeypatch.setattr(ui.time, "monotonic", lambda: now[0])
     return now
+
+
+@pytest.fixture
+def pythons_sigint_handler():
+    """Python's own SIGINT handler, as in a fresh `sagebench` process started from a terminal (a test worker
+    started under `nohup` or `&` has SIGINT ignored, and interrupts_noted then installs nothing)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
 
 
 def test_track_prints_a_line_every_interval_off_a_terminal(clock, capsys):
@@ -56,11 +66,10 @@ def test_working_ticks_while_a_silent_step_runs(capsys, monkeypatch):
 
 
 @pytest.mark.parametrize("after", ["exits 0", "fails on what it left"])
-def test_a_ctrl_c_a_library_swallowed_ends_in_the_interrupt_line(after, monkeypatch, capsys):
+def test_a_ctrl_c_a_library_swallowed_ends_in_the_interrupt_line(after, monkeypatch, capsys, pythons_sigint_handler):
     """trimesh imports its optional parts under `except BaseException`: a Ctrl-C then is kept as an ExceptionWrapper
     and the command goes on, or fails later on a TypeError; either way the user pressed Ctrl-C and gets its line."""
     import os
-    import signal
 
     from sagebench import cli
 
@@ -75,32 +84,21 @@ def test_a_ctrl_c_a_library_swallowed_ends_in_the_interrupt_line(after, monkeypa
         raise SystemExit(0)
 
     monkeypatch.setattr(cli, "app", command)
-    # Python's own handler, as in a fresh `sagebench` process (a test worker may have another in place)
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        with pytest.raises(SystemExit) as done:
-            cli.main(["validate", "somewhere"])
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    with pytest.raises(SystemExit) as done:
+        cli.main(["validate", "somewhere"])
     assert done.value.code == 130
     assert capsys.readouterr().err == f"error: {cli.INTERRUPTED}\n"
 
 
-def test_a_ctrl_c_noted_while_the_cli_imported_is_kept_when_the_command_starts():
+def test_a_ctrl_c_noted_while_the_cli_imported_is_kept_when_the_command_starts(pythons_sigint_handler):
     """The console entry notes Ctrl-C around the CLI's imports; cli.main's own noting, inside it, keeps a note
     made there (a later command in the same process starts afresh)."""
-    import signal
-
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # as a terminal starts it, not as `nohup`
-    try:
+    with ui.interrupts_noted():
+        try:
+            signal.raise_signal(signal.SIGINT)
+        except KeyboardInterrupt:
+            pass  # swallowed, as a library importing its optional parts may
         with ui.interrupts_noted():
-            try:
-                signal.raise_signal(signal.SIGINT)
-            except KeyboardInterrupt:
-                pass  # swallowed, as a library importing its optional parts may
-            with ui.interrupts_noted():
-                assert ui.interrupted()
-        with ui.interrupts_noted():
-            assert not ui.interrupted()
-    finally:
-        signal.signal(signal.SIGINT, previous)
+            assert ui.interrupted()
+    with ui.interrupts_noted():
+        assert not ui.interrupted()
