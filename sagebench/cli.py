@@ -264,8 +264,9 @@ def build_scene_cmd(
     With --prune it prints the held-out PSNR of the pruned against the unpruned Gaussians. OUT must be new,
     empty or a sagebench run (unless --force), and is locked while it is written.
     """
+    from sagebench.pipeline.stage_commands import build_scene
     from sagebench.run_folder import check_scenes_apart, claim_run_dir
-    from sagebench.stages.build_scene import build_scene, make_config
+    from sagebench.stages.build_scene import make_config
 
     config = make_config(resolution=resolution, band_min=band_min, band_max=band_max, sample_density=sample_density,
                          wall_gap=wall_gap, agent_radius=agent_radius, seed=seed, prune=prune,
@@ -328,8 +329,9 @@ def gen_trajectories_cmd(
 
     from sagebench.errors import ConfigError, Interrupted
     from sagebench.instructions.llm_client import api_key_from_env
+    from sagebench.pipeline.stage_commands import gen_trajectories
     from sagebench.run_folder import claim_run_dir
-    from sagebench.stages.gen_trajectories import gen_trajectories, make_config
+    from sagebench.stages.gen_trajectories import make_config
 
     llm = {k: v for k, v in {"base_url": llm_base_url, "model": llm_model, "cache_dir": llm_cache_dir,
                              "concurrency": llm_concurrency, "timeout_s": llm_timeout, "max_attempts": llm_attempts,
@@ -442,8 +444,9 @@ def export_usd_cmd(
     sage/<id>.usda and sage/<id>_collision.usd. Each finished piece goes to the cache at once, so an
     interrupted export resumes there.
     """
+    from sagebench.pipeline.stage_commands import export_usd
     from sagebench.run_folder import claim_run_dir
-    from sagebench.stages.export_usd import export_usd, make_config
+    from sagebench.stages.export_usd import make_config
 
     config = make_config(colliders=colliders, max_parts=max_parts, piece_limit=piece_limit,
                          band_tolerance=band_tolerance, coacd_threshold=coacd_threshold,
@@ -451,7 +454,7 @@ def export_usd_cmd(
                          coacd_preprocess=coacd_preprocess, workers=workers, usdz=usdz, gaussians=gaussians,
                          layout=layout)
     with claim_run_dir(run_dir, "export-usd", force=force):
-        for result in export_usd(run_dir, scene_id=scene, config=config, cache_dir=cache_dir):
+        for result in export_usd(run_dir, config, scene_id=scene, cache_dir=cache_dir):
             typer.echo(result.line())
 
 
@@ -480,14 +483,15 @@ def validate_cmd(
 
     Exit status 1 when any trajectory fails or a frame's depths disagree, listing the failures.
     """
+    from sagebench.pipeline.stage_commands import validate
     from sagebench.run_folder import claim_run_dir
-    from sagebench.stages.validate import make_config, validate_run
+    from sagebench.stages.validate import make_config
 
     config = make_config(frames_per_scene=frames_per_scene, depth_tolerance=depth_tolerance, workers=workers,
                          renderer=renderer)
     failed = False
     with claim_run_dir(run_dir, "validate", force=force):
-        for result in validate_run(run_dir, config, scene_id=scene):
+        for result in validate(run_dir, config, scene_id=scene):
             typer.echo(result.summary())
             for trajectory_id, reasons in result.failures:
                 typer.echo(f"  FAIL {result.scene_id} {trajectory_id}: {', '.join(reasons)}")
@@ -602,7 +606,8 @@ def import_sage_episodes_cmd(
 
     Writes RUN/episodes/<id>/part-<split>-NNNNN.parquet, replacing that scene's episodes.
     """
-    from sagebench.stages.import_sage import import_sage_episodes, make_config
+    from sagebench.pipeline.stage_commands import import_sage_episodes
+    from sagebench.stages.import_sage import make_config
 
     config = make_config(goal_radius=goal_radius, split=split)
     for line in import_sage_episodes(file, run, config, scene_id=scene).lines():
@@ -664,7 +669,7 @@ def verify_cmd(
         typer.echo(line)
     if not diff.ok:
         raise typer.Exit(1)
-    typer.echo(f"ok: every file of {run_dir} matches its manifest" + (" and a regeneration" if regenerate else ""))
+    typer.echo(f"ok: every file of {run_dir} matches {diff.against}" + (" and a regeneration" if regenerate else ""))
 
 
 @app.command("evaluate", cls=_defaults_from("sagebench.stages.evaluate:EvaluateConfig"))
