@@ -262,7 +262,9 @@ def build_scene_cmd(
     and export-usd's collider band check, validate, evaluate and the env take it from there.
 
     With --prune it prints the held-out PSNR of the pruned against the unpruned Gaussians. OUT must be new,
-    empty or a sagebench run (unless --force), and is locked while it is written.
+    empty or a sagebench run (unless --force), and is locked while it is written. The stamp
+    OUT/.stamps/<scene_id>/build_scene.json records every file written with its sha256; later stages check
+    what they read against it.
     """
     from sagebench.pipeline.stage_commands import build_scene
     from sagebench.run_folder import check_scenes_apart, claim_run_dir
@@ -324,6 +326,9 @@ def gen_trajectories_cmd(
     RUN_DIR/previews/<id>/paths.png. With --instructions llm it also reads and writes the
     answer cache; the API key comes from the environment variable SAGEBENCH_LLM_API_KEY (or the one
     --llm-api-key-env names). Exit status 1 when the LLM gave no usable answer for a scene.
+
+    Refuses (exit 2, nothing written) a file it reads that differs from what build-scene's stamp records;
+    writes its own stamp, RUN_DIR/.stamps/<id>/gen_trajectories.json.
     """
     import os
 
@@ -443,6 +448,9 @@ def export_usd_cmd(
     with --gaussians nurec the Gaussians go to gaussians.usdz (NuRec) instead, and with --layout sage also
     sage/<id>.usda and sage/<id>_collision.usd. Each finished piece goes to the cache at once, so an
     interrupted export resumes there.
+
+    Refuses (exit 2, nothing written) a file it reads that differs from what build-scene's stamp records;
+    writes its own stamp, RUN_DIR/.stamps/<id>/export_usd.json.
     """
     from sagebench.pipeline.stage_commands import export_usd
     from sagebench.run_folder import claim_run_dir
@@ -480,6 +488,10 @@ def validate_cmd(
     Writes RUN_DIR/validation/<id>/part-00000.parquet (one row per trajectory: pass/fail, reasons,
     CSR, ICP, PS, path length, steps, ...) and RUN_DIR/reports/<id>/: report.json (counts, failures by
     reason, metric distributions, alignment per frame) and frames/*.png with frames/contact_sheet.png.
+
+    Refuses (exit 2, nothing written) a scene whose files differ from what RUN_DIR/manifest.json records or,
+    in a run without a manifest, from what the stamps of the stages that wrote them record; writes its own
+    stamp, RUN_DIR/.stamps/<id>/validate.json.
 
     Exit status 1 when any trajectory fails or a frame's depths disagree, listing the failures.
     """
@@ -604,7 +616,9 @@ def import_sage_episodes_cmd(
 
     Reads FILE and RUN/scenes/<id>/scene.json.
 
-    Writes RUN/episodes/<id>/part-<split>-NNNNN.parquet, replacing that scene's episodes.
+    Writes RUN/episodes/<id>/part-<split>-NNNNN.parquet, replacing that scene's episodes, and the stamp
+    RUN/.stamps/<id>/import_sage.json in place of gen-trajectories'. Refuses (exit 2) a scene.json that
+    differs from what build-scene's stamp records.
     """
     from sagebench.pipeline.stage_commands import import_sage_episodes
     from sagebench.stages.import_sage import make_config
@@ -647,17 +661,19 @@ def run_cmd(
 
 @app.command("verify")
 def verify_cmd(
-    run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing, help="Run directory with a manifest.json.")],
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing,
+                                            help="Run directory with a manifest.json, or the stamps of a run made stage by stage.")],
     regenerate: Annotated[bool, typer.Option("--regenerate", help="Re-run CONFIG into a temporary directory and compare.")] = False,
     config: Annotated[Path | None, typer.Option("--config", callback=existing,
                                                 help="The run's TOML config (needed with --regenerate).")] = None,
     workers: Annotated[int, typer.Option(help="Workers for --regenerate.")] = 1,
 ) -> None:
-    """Check a run byte for byte against its manifest.
+    """Check a run byte for byte against its manifest and the stamps of the stages that wrote it.
 
-    Reads RUN_DIR/manifest.json and every file of the run (with --regenerate also CONFIG and its scenes).
-    Writes nothing (--regenerate works in a temporary directory it removes). Exit status 1 names every
-    file that differs and every scene whose stage failed in the run (the manifest records them).
+    Reads RUN_DIR/manifest.json, RUN_DIR/.stamps/ and every file of the run (with --regenerate also CONFIG
+    and its scenes); a run made stage by stage (no manifest) is checked against its stamps alone. Writes
+    nothing (--regenerate works in a temporary directory it removes). Exit status 1 names every file that
+    differs and every scene whose stage failed in the run (the manifest records them).
     """
     from sagebench.errors import ConfigError
     from sagebench.pipeline.verify import regenerate_and_compare, verify_run

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -82,11 +82,10 @@ def _agent(run_dir: Path, scene_id: str) -> dict[str, float] | None:
     return read_semantic_map(path).agent().model_dump(mode="json") if path.is_file() else None
 
 
-def stamp_problems(run_dir: Path, scene_id: str, places: Iterable[Place]) -> list[tuple[Path, str]]:
+def stamp_problems(run_dir: Path, scene_id: str, places: Iterable[Place]) -> Iterator[tuple[Path, str]]:
     """(file, why) for each file of `places` (run places, not the source scene) that differs from the stamp of
     the stage that wrote it: changed, missing, or not listed. A place whose writer has no stamp is not checked."""
     stamps = {s: read_stamp(run_dir, scene_id, s) for s in CONTRACT}
-    out = []
     for place in dict.fromkeys(p for p in places if p.root != "source"):
         stage = next((s for s in CONTRACT if place in CONTRACT[s].writes and stamps[s] is not None), None)
         if stage is None:
@@ -97,8 +96,7 @@ def stamp_problems(run_dir: Path, scene_id: str, places: Iterable[Place]) -> lis
             why = _differs(path, outputs.get(rel))
             if why is not None:
                 stamp = stamp_path(run_dir, scene_id, stage).relative_to(run_dir).as_posix()
-                out.append((path, WHY[why].format(command=STAGE_COMMANDS[stage], stamp=stamp)))
-    return out
+                yield path, WHY[why].format(command=STAGE_COMMANDS[stage], stamp=stamp)
 
 
 def _names(place: Place, run_dir: Path, scene_id: str, outputs: dict[str, str]) -> set[str]:
