@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 import tempfile
-from collections.abc import Iterable
+from collections.abc import Container, Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -64,8 +64,8 @@ class StampCheck:
     listed: dict[str, str]  # every file the stamps list: run-relative path -> sha256
     problems: tuple[tuple[str, str], ...]  # (run-relative path, why) for each file that differs from its stamp
 
-    def lines(self, leave_out: Iterable[str] = ()) -> tuple[str, ...]:
-        return tuple(f"{rel}: {why}" for rel, why in self.problems if rel not in set(leave_out))
+    def lines(self, leave_out: Container[str] = ()) -> tuple[str, ...]:
+        return tuple(f"{rel}: {why}" for rel, why in self.problems if rel not in leave_out)
 
 
 def check_stamps(run_dir: Path, scene_ids: Iterable[str] | None) -> StampCheck:
