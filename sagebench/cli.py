@@ -262,10 +262,13 @@ def build_scene_cmd(
     and export-usd's collider band check, validate, evaluate and the env take it from there.
 
     With --prune it prints the held-out PSNR of the pruned against the unpruned Gaussians. OUT must be new,
-    empty or a sagebench run (unless --force), and is locked while it is written.
+    empty or a sagebench run (unless --force), and is locked while it is written. The stamp
+    OUT/.stamps/<scene_id>/build_scene.json records every file written with its sha256; later stages check
+    what they read against it.
     """
+    from sagebench.pipeline.stage_commands import build_scene
     from sagebench.run_folder import check_scenes_apart, claim_run_dir
-    from sagebench.stages.build_scene import build_scene, make_config
+    from sagebench.stages.build_scene import make_config
 
     config = make_config(resolution=resolution, band_min=band_min, band_max=band_max, sample_density=sample_density,
                          wall_gap=wall_gap, agent_radius=agent_radius, seed=seed, prune=prune,
@@ -323,13 +326,17 @@ def gen_trajectories_cmd(
     RUN_DIR/previews/<id>/paths.png. With --instructions llm it also reads and writes the
     answer cache; the API key comes from the environment variable SAGEBENCH_LLM_API_KEY (or the one
     --llm-api-key-env names). Exit status 1 when the LLM gave no usable answer for a scene.
+
+    Refuses (exit 2, nothing written) a file it reads that differs from what build-scene's stamp records;
+    writes its own stamp, RUN_DIR/.stamps/<id>/gen_trajectories.json.
     """
     import os
 
     from sagebench.errors import ConfigError, Interrupted
     from sagebench.instructions.llm_client import api_key_from_env
+    from sagebench.pipeline.stage_commands import gen_trajectories
     from sagebench.run_folder import claim_run_dir
-    from sagebench.stages.gen_trajectories import gen_trajectories, make_config
+    from sagebench.stages.gen_trajectories import make_config
 
     llm = {k: v for k, v in {"base_url": llm_base_url, "model": llm_model, "cache_dir": llm_cache_dir,
                              "concurrency": llm_concurrency, "timeout_s": llm_timeout, "max_attempts": llm_attempts,
@@ -441,9 +448,13 @@ def export_usd_cmd(
     with --gaussians nurec the Gaussians go to gaussians.usdz (NuRec) instead, and with --layout sage also
     sage/<id>.usda and sage/<id>_collision.usd. Each finished piece goes to the cache at once, so an
     interrupted export resumes there.
+
+    Refuses (exit 2, nothing written) a file it reads that differs from what build-scene's stamp records;
+    writes its own stamp, RUN_DIR/.stamps/<id>/export_usd.json.
     """
+    from sagebench.pipeline.stage_commands import export_usd
     from sagebench.run_folder import claim_run_dir
-    from sagebench.stages.export_usd import export_usd, make_config
+    from sagebench.stages.export_usd import make_config
 
     config = make_config(colliders=colliders, max_parts=max_parts, piece_limit=piece_limit,
                          band_tolerance=band_tolerance, coacd_threshold=coacd_threshold,
@@ -451,7 +462,7 @@ def export_usd_cmd(
                          coacd_preprocess=coacd_preprocess, workers=workers, usdz=usdz, gaussians=gaussians,
                          layout=layout)
     with claim_run_dir(run_dir, "export-usd", force=force):
-        for result in export_usd(run_dir, scene_id=scene, config=config, cache_dir=cache_dir):
+        for result in export_usd(run_dir, config, scene_id=scene, cache_dir=cache_dir):
             typer.echo(result.line())
 
 
@@ -478,16 +489,21 @@ def validate_cmd(
     CSR, ICP, PS, path length, steps, ...) and RUN_DIR/reports/<id>/: report.json (counts, failures by
     reason, metric distributions, alignment per frame) and frames/*.png with frames/contact_sheet.png.
 
+    Refuses (exit 2, nothing written) a scene whose files differ from what RUN_DIR/manifest.json records or,
+    in a run without a manifest, from what the stamps of the stages that wrote them record; writes its own
+    stamp, RUN_DIR/.stamps/<id>/validate.json.
+
     Exit status 1 when any trajectory fails or a frame's depths disagree, listing the failures.
     """
+    from sagebench.pipeline.stage_commands import validate
     from sagebench.run_folder import claim_run_dir
-    from sagebench.stages.validate import make_config, validate_run
+    from sagebench.stages.validate import make_config
 
     config = make_config(frames_per_scene=frames_per_scene, depth_tolerance=depth_tolerance, workers=workers,
                          renderer=renderer)
     failed = False
     with claim_run_dir(run_dir, "validate", force=force):
-        for result in validate_run(run_dir, config, scene_id=scene):
+        for result in validate(run_dir, config, scene_id=scene):
             typer.echo(result.summary())
             for trajectory_id, reasons in result.failures:
                 typer.echo(f"  FAIL {result.scene_id} {trajectory_id}: {', '.join(reasons)}")
@@ -600,9 +616,12 @@ def import_sage_episodes_cmd(
 
     Reads FILE and RUN/scenes/<id>/scene.json.
 
-    Writes RUN/episodes/<id>/part-<split>-NNNNN.parquet, replacing that scene's episodes.
+    Writes RUN/episodes/<id>/part-<split>-NNNNN.parquet, replacing that scene's episodes, and the stamp
+    RUN/.stamps/<id>/import_sage.json in place of gen-trajectories'. Refuses (exit 2) a scene.json that
+    differs from what build-scene's stamp records.
     """
-    from sagebench.stages.import_sage import import_sage_episodes, make_config
+    from sagebench.pipeline.stage_commands import import_sage_episodes
+    from sagebench.stages.import_sage import make_config
 
     config = make_config(goal_radius=goal_radius, split=split)
     for line in import_sage_episodes(file, run, config, scene_id=scene).lines():
@@ -642,17 +661,19 @@ def run_cmd(
 
 @app.command("verify")
 def verify_cmd(
-    run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing, help="Run directory with a manifest.json.")],
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing,
+                                            help="Run directory with a manifest.json, or the stamps of a run made stage by stage.")],
     regenerate: Annotated[bool, typer.Option("--regenerate", help="Re-run CONFIG into a temporary directory and compare.")] = False,
     config: Annotated[Path | None, typer.Option("--config", callback=existing,
                                                 help="The run's TOML config (needed with --regenerate).")] = None,
     workers: Annotated[int, typer.Option(help="Workers for --regenerate.")] = 1,
 ) -> None:
-    """Check a run byte for byte against its manifest.
+    """Check a run byte for byte against its manifest and the stamps of the stages that wrote it.
 
-    Reads RUN_DIR/manifest.json and every file of the run (with --regenerate also CONFIG and its scenes).
-    Writes nothing (--regenerate works in a temporary directory it removes). Exit status 1 names every
-    file that differs and every scene whose stage failed in the run (the manifest records them).
+    Reads RUN_DIR/manifest.json, RUN_DIR/.stamps/ and every file of the run (with --regenerate also CONFIG
+    and its scenes); a run made stage by stage (no manifest) is checked against its stamps alone. Writes
+    nothing (--regenerate works in a temporary directory it removes). Exit status 1 names every file that
+    differs and every scene whose stage failed in the run (the manifest records them).
     """
     from sagebench.errors import ConfigError
     from sagebench.pipeline.verify import regenerate_and_compare, verify_run
@@ -664,7 +685,7 @@ def verify_cmd(
         typer.echo(line)
     if not diff.ok:
         raise typer.Exit(1)
-    typer.echo(f"ok: every file of {run_dir} matches its manifest" + (" and a regeneration" if regenerate else ""))
+    typer.echo(f"ok: every file of {run_dir} matches {diff.against}" + (" and a regeneration" if regenerate else ""))
 
 
 @app.command("evaluate", cls=_defaults_from("sagebench.stages.evaluate:EvaluateConfig"))

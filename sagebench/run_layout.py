@@ -112,12 +112,14 @@ CONTRACT: dict[str, StageFiles] = {
 
 OUTPUT_ROOTS = tuple(sorted({_RUN_ROOTS[p.root] for s in CONTRACT.values() for p in s.writes}))
 
+# The command that runs each stage writing into a run directory (each leaves a stamp, stamps.py).
+STAGE_COMMANDS = {"build_scene": "build-scene", "gen_trajectories": "gen-trajectories", "export_usd": "export-usd",
+                  "validate": "validate", "import_sage": "import-sage-episodes"}
 # What each command that writes into a run directory writes there, by top-level name (run_folder.py: under
 # --force the user's files may share the folder, never these names).
-_STAGE_COMMANDS = {"build_scene": "build-scene", "gen_trajectories": "gen-trajectories", "export_usd": "export-usd",
-                   "validate": "validate"}
 COMMAND_WRITES: dict[str, tuple[str, ...]] = {
-    command: tuple(sorted({_RUN_ROOTS[p.root] for p in CONTRACT[stage].writes})) for stage, command in _STAGE_COMMANDS.items()}
+    command: (*sorted({_RUN_ROOTS[p.root] for p in CONTRACT[stage].writes}), STAMPS)
+    for stage, command in STAGE_COMMANDS.items()}
 COMMAND_WRITES["run"] = (*OUTPUT_ROOTS, STAMPS, MANIFEST, DATASET_CARD)
 COMMAND_WRITES["demo"] = (*COMMAND_WRITES["run"], BASELINES, DEMO_INPUT, DEMO_CONFIG)
 

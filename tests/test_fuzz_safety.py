@@ -142,9 +142,11 @@ def _flip_geodesic(run: Path) -> None:
                                     pa.array(values)), shard)
 
 
-def _without_manifest(damage):
-    """`damage` to a run that single-stage commands made: no manifest (nor the dataset card written with it)."""
-    return lambda run: (damage(run), (run / "manifest.json").unlink(), (run / "README.md").unlink())
+def _without_records(damage):
+    """`damage` to a run that an older sagebench's single-stage commands made: no manifest (nor the dataset card
+    written with it), no stamps; what validate reads is then checked by its content alone."""
+    return lambda run: (damage(run), (run / "manifest.json").unlink(), (run / "README.md").unlink(),
+                        shutil.rmtree(run / ".stamps"))
 
 
 VALIDATE_CASES = {  # damage to a copy of a made run -> what validate's one line says
@@ -156,13 +158,13 @@ VALIDATE_CASES = {  # damage to a copy of a made run -> what validate's one line
                     "part-train-00009.parquet: not listed in manifest.json"),
     "usda-deleted": (lambda run: (run / "scenes" / "tiny" / "scene.usda").unlink(),
                      "scene.usda: missing; run `sagebench export-usd` on this run first"),
-    "usda-garbage": (_without_manifest(lambda run: (run / "scenes" / "tiny" / "scene.usda").write_text("#usda 1.0\n(")),
+    "usda-garbage": (_without_records(lambda run: (run / "scenes" / "tiny" / "scene.usda").write_text("#usda 1.0\n(")),
                      "scene.usda: cannot open as USD"),
-    "usda-no-objects": (_without_manifest(lambda run: (run / "scenes" / "tiny" / "scene.usda").write_text(
+    "usda-no-objects": (_without_records(lambda run: (run / "scenes" / "tiny" / "scene.usda").write_text(
         '#usda 1.0\n(\n    defaultPrim = "World"\n)\n\ndef Xform "World"\n{\n}\n')), "scene.usda: no prim for object 1"),
     "usdc-deleted": (lambda run: (run / "scenes" / "tiny" / "geometry.usdc").unlink(),
                      "geometry.usdc: missing; run `sagebench export-usd`"),
-    "usdc-garbage": (_without_manifest(lambda run: (run / "scenes" / "tiny" / "geometry.usdc").write_bytes(b"PXR-USDC")),
+    "usdc-garbage": (_without_records(lambda run: (run / "scenes" / "tiny" / "geometry.usdc").write_bytes(b"PXR-USDC")),
                      "scene.usda: "),
     "gaussians-a-directory": (lambda run: ((run / "scenes" / "tiny" / "gaussians.ply").unlink(),
                                            (run / "scenes" / "tiny" / "gaussians.ply").mkdir()),
@@ -196,7 +198,9 @@ def test_verify_checks_rows_and_the_usd_stage_beyond_the_hashes(made_run, run_cl
     assert out.splitlines() == [f"broken: {shard}: {manifest['rows'][shard] - 1} rows, the manifest records "
                                 f"{manifest['rows'][shard]}",
                                 f"broken: scenes/tiny/scene.usda: {usda}: no prim for object 1 (floor) under "
-                                "/World/Objects; run export-usd again"]
+                                "/World/Objects; run export-usd again",
+                                "broken: scenes/tiny/scene.usda: changed since export-usd wrote it (its stamp "
+                                ".stamps/tiny/export_usd.json records another sha256); run export-usd again"]
 
 
 def _npz_navigable(value) -> callable:

@@ -9,6 +9,7 @@ import shutil
 from sagebench.config import AgentConfig
 from sagebench.episodes.shards import read_episodes
 
+from sagebench import stamps
 from sagebench.pipeline import tasks
 from sagebench.pipeline.tasks import Task, run_task, stamp_path
 from sagebench.stages.gen_trajectories import GenTrajectoriesConfig
@@ -59,7 +60,7 @@ def test_a_changed_library_version_reruns_a_stamped_stage(demo_built_run, demo_s
     task = Task("gen_trajectories", SCENE, demo_scene_dir, run, settings)
     assert run_task(task).status == "ran" and run_task(task).status == "skipped"
     older = output_versions() | {"pyarrow": "0.0.1"}  # Parquet bytes embed the writer's version
-    monkeypatch.setattr(tasks, "output_versions", lambda: older)
+    monkeypatch.setattr(stamps, "output_versions", lambda: older)
     assert run_task(task).status == "ran"
     assert run_task(task).status == "skipped"
 

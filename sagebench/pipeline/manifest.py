@@ -60,7 +60,7 @@ def write_manifest(run_dir: Path, *, config: dict[str, Any], inputs: dict[str, s
 
 @dataclass(frozen=True)
 class FileDiff:
-    """Files that differ between a manifest and a directory (relative paths)."""
+    """Files that differ between a manifest (or the stamps) and a directory (relative paths)."""
 
     changed: tuple[str, ...]
     missing: tuple[str, ...]
@@ -68,6 +68,7 @@ class FileDiff:
     cause: str = ""  # what probably made the files differ, when known
     failed: tuple[str, ...] = ()  # "SCENE at STAGE: why", the manifest's failed stages
     broken: tuple[str, ...] = ()  # "PATH: why" for files whose content does not hold what the manifest says
+    against: str = "its manifest"  # what the files were compared with, for the line saying they all match
 
     @property
     def ok(self) -> bool:

@@ -1,19 +1,16 @@
 """The per-scene stages of a run and the stamp that lets a re-run skip one; what each reads and writes, and
 so which stages it waits for, comes from the run layout's CONTRACT.
 
-A stage is skipped when its stamp (RUN/.stamps/<scene_id>/<stage>.json) records the same key — a hash of
-the sagebench version, the versions of Python and the libraries that shape outputs (sagebench.versions),
-the stage's settings and every input file — and every output file it recorded is
-still there with the same hash. Stamps are written after the outputs, so a run killed at any moment
-re-runs exactly the stages whose stamps are missing or stale. A stamp also records the agent's body the stage
-worked for (the run's `[build_scene.agent]`, as the scene's map recorded it).
+A stage is skipped when its stamp (RUN/.stamps/<scene_id>/<stage>.json, sagebench.stamps) records the same
+key — a hash of the versions, the stage's settings and every input file — and every output file it recorded
+is still there with the same hash. Stamps are written after the outputs, so a run killed at any moment
+re-runs exactly the stages whose stamps are missing or stale. The stage commands write the same stamps
+(pipeline/stage_commands.py), so a run made stage by stage is skipped as well when its settings are the run's.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-import json
 import time
 import traceback
 from collections.abc import Callable
@@ -21,13 +18,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sagebench import __version__, ui
+from sagebench import stamps, ui
 from sagebench.errors import SagebenchError
-from sagebench.fileio import dumps_json, write_text
-from sagebench.pipeline.manifest import sha256_file
-from sagebench.run_layout import SEMANTIC_MAP, STAMPS, after, run_scene_dir, stage_files
-from sagebench.topdown.semantic_map import read_semantic_map
-from sagebench.versions import output_versions
+from sagebench.run_layout import after, stage_files
 
 
 @dataclass(frozen=True)
@@ -78,7 +71,7 @@ def _run_validate(t: Task) -> tuple[str, bool]:
     from sagebench.stages.validate import ValidateConfig, validate_run
 
     (result,) = validate_run(t.run_dir, ValidateConfig.model_validate(t.settings), scene_id=t.scene_id,
-                             against_manifest=False)  # the stamps vouch for its inputs; the manifest comes after
+                             against_records=False)  # run: the stamps vouch for its inputs; the manifest comes after
     return result.summary(), result.passed
 
 
@@ -94,9 +87,6 @@ class Stage:
     def inputs(self, t: Task) -> list[Path]:
         return stage_files(self.name, "reads", t.run_dir, t.scene_id, t.source)
 
-    def outputs(self, t: Task) -> list[Path]:
-        return stage_files(self.name, "writes", t.run_dir, t.scene_id, t.source)
-
     def cpus(self, t: Task) -> int:
         """CPUs the stage keeps busy: its `workers` setting (CoACD processes, replay threads), else one."""
         return int(t.settings.get("workers", 1))
@@ -111,45 +101,19 @@ STAGES: dict[str, Stage] = {s.name: s for s in (
 
 
 def stage_key(task: Task, inputs: list[Path]) -> str:
-    """sha256 of (versions, stage, settings, every input file's path and content hash)."""
-    h = hashlib.sha256(f"{__version__}\0{task.stage}\0".encode())
-    h.update(json.dumps(output_versions(), sort_keys=True).encode() + b"\0")
-    h.update(json.dumps(task.settings, sort_keys=True).encode())
-    for p in inputs:
-        root = task.source if p.is_relative_to(task.source) else task.run_dir
-        h.update(b"\0" + p.relative_to(root).as_posix().encode() + b"\0" + sha256_file(p).encode())
-    return h.hexdigest()
-
-
-def _agent(task: Task) -> dict[str, float] | None:
-    """The agent's body the stage worked for: the one the scene's map records (build-scene wrote it from its
-    settings; every later stage takes it from there). None when the scene has no map."""
-    path = run_scene_dir(task.run_dir, task.scene_id) / SEMANTIC_MAP
-    return read_semantic_map(path).agent().model_dump(mode="json") if path.is_file() else None
-
-
-def _hashes(paths: list[Path], run_dir: Path) -> dict[str, str]:
-    return {p.relative_to(run_dir).as_posix(): sha256_file(p) for p in paths}
+    return stamps.stage_key(task.stage, task.settings, inputs, task.run_dir, task.source)
 
 
 def stamp_path(task: Task) -> Path:
-    return task.run_dir / STAMPS / task.scene_id / f"{task.stage}.json"
+    return stamps.stamp_path(task.run_dir, task.scene_id, task.stage)
 
 
 def up_to_date(task: Task, key: str) -> bool:
-    path = stamp_path(task)
-    if not path.is_file():
+    stamp = stamps.read_stamp(task.run_dir, task.scene_id, task.stage)
+    if stamp is None or stamp.get("key") != key:
         return False
-    try:
-        stamp = json.loads(path.read_text())
-    except (OSError, ValueError, RecursionError):  # unreadable: the stage runs again and writes a new one
-        return False
-    if not isinstance(stamp, dict):
-        return False
-    if stamp.get("key") != key:
-        return False
-    outputs = _hashes(STAGES[task.stage].outputs(task), task.run_dir)
-    return outputs == stamp.get("outputs") and bool(outputs)
+    outputs = stamps.output_hashes(task.stage, task.run_dir, task.scene_id)
+    return outputs == stamp["outputs"] and bool(outputs)
 
 
 def run_task(task: Task) -> Outcome:
@@ -166,13 +130,11 @@ def _run_task(task: Task) -> Outcome:
     try:
         key = stage_key(task, stage.inputs(task))
         if up_to_date(task, key):
-            stamp = json.loads(stamp_path(task).read_text())
+            stamp = stamps.read_stamp(task.run_dir, task.scene_id, task.stage) or {}
             return Outcome(task.stage, task.scene_id, "skipped", time.perf_counter() - start,
                            stamp.get("message", ""), stamp.get("ok", True))
         message, ok = stage.run(task)
-        outputs = _hashes(stage.outputs(task), task.run_dir)
-        write_text(stamp_path(task), dumps_json({"key": key, "outputs": outputs, "message": message, "ok": ok,
-                                                 "agent": _agent(task)}))
+        stamps.write_stamp(task.run_dir, task.scene_id, task.stage, key, message, ok)
         return Outcome(task.stage, task.scene_id, "ran", time.perf_counter() - start, message, ok)
     except SagebenchError as err:
         return Outcome(task.stage, task.scene_id, "failed", time.perf_counter() - start, str(err), False)

@@ -1,26 +1,36 @@
-"""`sagebench verify`: re-hash a run against its manifest, or regenerate it and compare byte for byte."""
+"""`sagebench verify`: re-hash a run against its manifest and its stamps, or regenerate it and compare byte for
+byte."""
 
 from __future__ import annotations
 
 import json
 import tempfile
-from dataclasses import replace
+from collections.abc import Container, Iterable
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from sagebench.errors import DataError, SagebenchError
 from sagebench.pipeline.manifest import FileDiff, compare, hash_run, parquet_rows
-from sagebench.run_layout import MANIFEST, SCENE_FILE, SCENES, USD
+from sagebench.run_layout import CONTRACT, MANIFEST, SCENE_FILE, SCENES, STAMPS, USD
 from sagebench.scene.loader import parse_spec
+from sagebench.stamps import read_stamp, stamp_problems, stamped_places
 from sagebench.validation.usd_stage import check_stage
 from sagebench.versions import likely_cause, output_versions
 
 
 def read_manifest(run_dir: Path) -> dict:
+    manifest = _manifest_if_any(run_dir)
+    if manifest is None:
+        raise DataError("no manifest.json: this is not the directory of a `sagebench run`", path=run_dir)
+    return manifest
+
+
+def _manifest_if_any(run_dir: Path) -> dict | None:
     path = Path(run_dir) / MANIFEST
     try:
         manifest = json.loads(path.read_text())
     except FileNotFoundError:
-        raise DataError("no manifest.json: this is not the directory of a `sagebench run`", path=run_dir) from None
+        return None
     except (OSError, ValueError, RecursionError) as err:  # ValueError: bad JSON, UTF-8, a 5,000-digit number
         raise DataError(f"unreadable manifest: {str(err).split(';')[0] or type(err).__name__}", path=path) from None
     if not isinstance(manifest, dict) or not isinstance(manifest.get("files"), dict):
@@ -29,13 +39,46 @@ def read_manifest(run_dir: Path) -> dict:
 
 
 def verify_run(run_dir: Path) -> FileDiff:
-    """Compare every file of the run's scenes with the manifest's hashes, and check their content: every Parquet
-    file holds the rows the manifest records, every scene's USD stage opens with a prim per object. A stage the
-    manifest records as failed fails the run too."""
-    manifest = read_manifest(run_dir)
+    """Compare every file of the run's scenes with the manifest's hashes and with the stamps of the stages that
+    wrote them, and check their content: every Parquet file holds the rows the manifest records, every scene's
+    USD stage opens with a prim per object. A stage the manifest records as failed fails the run too. A run
+    made stage by stage (no manifest) is checked against its stamps alone."""
+    run_dir = Path(run_dir)
+    manifest = _manifest_if_any(run_dir)
+    if manifest is None:
+        stamped = check_stamps(run_dir, None)
+        if not stamped.listed:
+            raise DataError(f"no {MANIFEST} and no stamps ({STAMPS}/): nothing records what this run's files "
+                            "should be (`sagebench run` and the stage commands write them)", path=run_dir)
+        return FileDiff((), (), (), broken=(*stamped.lines(), *content_problems(run_dir, {"files": stamped.listed})),
+                        against="the stamps of the stages that wrote them")
     scenes = manifest.get("inputs") if isinstance(manifest.get("inputs"), dict) else None
-    diff = compare(manifest["files"], hash_run(Path(run_dir), scenes))
-    return replace(diff, failed=failed_stages(manifest), broken=content_problems(Path(run_dir), manifest))
+    diff = compare(manifest["files"], hash_run(run_dir, scenes))
+    named = {*diff.changed, *diff.missing, *diff.extra}  # a stamp's word on these would say it twice
+    return replace(diff, failed=failed_stages(manifest), broken=(
+        *content_problems(run_dir, manifest), *check_stamps(run_dir, scenes).lines(leave_out=named)))
+
+
+@dataclass(frozen=True)
+class StampCheck:
+    listed: dict[str, str]  # every file the stamps list: run-relative path -> sha256
+    problems: tuple[tuple[str, str], ...]  # (run-relative path, why) for each file that differs from its stamp
+
+    def lines(self, leave_out: Container[str] = ()) -> tuple[str, ...]:
+        return tuple(f"{rel}: {why}" for rel, why in self.problems if rel not in leave_out)
+
+
+def check_stamps(run_dir: Path, scene_ids: Iterable[str] | None) -> StampCheck:
+    """Every file the stamps of the scenes (default: every scene with stamps) list, against its stamp."""
+    root = run_dir / STAMPS
+    ids = sorted(d.name for d in root.glob("*") if d.is_dir()) if scene_ids is None else sorted(scene_ids)
+    listed, problems = {}, []
+    for sid in ids:
+        for stage in CONTRACT:
+            listed |= (read_stamp(run_dir, sid, stage) or {"outputs": {}})["outputs"]
+        problems += [(path.relative_to(run_dir).as_posix(), why)
+                     for path, why in stamp_problems(run_dir, sid, stamped_places(run_dir, sid))]
+    return StampCheck(listed, tuple(problems))
 
 
 def content_problems(run_dir: Path, manifest: dict) -> tuple[str, ...]:

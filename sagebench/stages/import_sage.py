@@ -23,6 +23,7 @@ from sagebench.fileio import staged_dir
 from sagebench.gvln.episodes import read_gvln, rows_from_gvln
 from sagebench.run_layout import CONTRACT, SCENE_FILE, SCENES, require, run_episodes_dir, run_scene_dir
 from sagebench.scene.loader import parse_spec
+from sagebench.stamps import check_reads
 
 SHARD_BYTES = 128 * 2**20
 OPTIONS = {"--goal-radius": "goal_radius", "--split": "split"}
@@ -61,10 +62,11 @@ class SageImport:
 def import_sage_episodes(path: Path, run_dir: Path, config: SageImportConfig = SageImportConfig(), *,
                          scene_id: str | None = None) -> SageImport:
     """Read the GVLN file `path` and write its episodes into the run for their scene (`config` for what the
-    file does not say)."""
+    file does not say); the scene's scene.json must be the one build-scene stamped."""
     scene = read_gvln(path)
     sid = scene_id or _scene_for(scene.scene_name, Path(run_dir), path)
     require(CONTRACT["import_sage"].reads, run_dir, sid)
+    check_reads("import_sage", run_dir, sid)
     spec_path = run_scene_dir(run_dir, sid) / SCENE_FILE
     spec = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)
     rows, skipped = rows_from_gvln(scene, spec, goal_radius=config.goal_radius, split=config.split)

@@ -29,6 +29,7 @@ from sagebench.run_layout import (
 )
 from sagebench.scene.loader import parse_spec
 from sagebench.splats.ply import read_ply
+from sagebench.stamps import check_stamped, stamped_places
 from sagebench.validation.checks import base_action_executable, judge
 from sagebench.validation.config import ValidateConfig
 from sagebench.validation.frames import FrameCheck, pick_frames, spot_checks
@@ -71,20 +72,27 @@ class SceneValidation:
 
 
 def validate_run(run_dir: Path, config: ValidateConfig = ValidateConfig(), *, scene_id: str | None = None,
-                 against_manifest: bool = True) -> list[SceneValidation]:
-    """Validate every scene of the run (or `scene_id`); inputs are checked for all scenes before any write: present,
-    the USD stage whole, and (`against_manifest`, when the run has a manifest.json) every file the manifest lists
-    for the scene unchanged. `sagebench run` validates before it writes its manifest, so it passes False."""
+                 against_records: bool = True) -> list[SceneValidation]:
+    """Validate every scene of the run (or `scene_id`); the inputs of all scenes are checked (check_inputs)
+    before any write. `sagebench run` validates before it writes its manifest, and its stamps vouch for the
+    inputs, so it passes `against_records` False."""
     run_dir = Path(run_dir)
     ids = run_scenes(run_dir, scene_id, having="episodes")
     for sid in ids:
-        require(CONTRACT["validate"].reads, run_dir, sid)
-        if against_manifest:
-            check_listed(run_dir, [f"{EPISODES}/{sid}/", f"{SCENES}/{sid}/"])
-        spec_path = run_scene_dir(run_dir, sid) / SCENE_FILE
-        spec = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)
-        check_stage(run_scene_dir(run_dir, sid), {o.instance_id: o.category for o in spec.objects})
+        check_inputs(run_dir, sid, against_records=against_records)
     return [validate_scene(run_dir, sid, config) for sid in ids]
+
+
+def check_inputs(run_dir: Path, scene_id: str, *, against_records: bool = True) -> None:
+    """What validate reads for the scene is present and the USD stage whole; with `against_records`, every file
+    the run's manifest.json lists for the scene is unchanged, or when it lists none (a run made stage by stage
+    has no manifest), every file the scene's stamps list but validate's own outputs, which it replaces."""
+    require(CONTRACT["validate"].reads, run_dir, scene_id)
+    if against_records and not check_listed(run_dir, [f"{EPISODES}/{scene_id}/", f"{SCENES}/{scene_id}/"]):
+        check_stamped(run_dir, scene_id, stamped_places(run_dir, scene_id, besides="validate"))
+    spec_path = run_scene_dir(run_dir, scene_id) / SCENE_FILE
+    spec = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)
+    check_stage(run_scene_dir(run_dir, scene_id), {o.instance_id: o.category for o in spec.objects})
 
 
 def validate_scene(run_dir: Path, scene_id: str, config: ValidateConfig) -> SceneValidation:

@@ -2,7 +2,8 @@
 recorded sha256 and, for Parquet, holds the recorded rows. validate checks what it reads this way before it
 replays anything, so a deleted or byte-flipped shard fails instead of passing on what is left.
 
-The manifest is `sagebench run`'s (pipeline/manifest.py); a run directory without one has nothing to check.
+The manifest is `sagebench run`'s (pipeline/manifest.py); a run made stage by stage has none, and validate checks
+its stamps instead (sagebench.stamps).
 """
 
 from __future__ import annotations
