@@ -35,19 +35,21 @@ figcaption {{ color: #555; }}
 """
 
 # sorting any table.sortable by a header click (numbers by data-v), and the split/type filter of scene pages
-JS = """document.querySelectorAll('table.sortable th').forEach((th, i) => th.addEventListener('click', () => {
-  const body = th.closest('table').tBodies[0];
-  const up = th.dataset.dir !== 'up';
+JS = """document.querySelectorAll('table.sortable th').forEach((th) => th.addEventListener('click', () => {
+  const body = th.closest('table').tBodies[0], i = th.cellIndex, up = th.dataset.dir !== 'up';
   th.dataset.dir = up ? 'up' : 'down';
-  const key = (row) => { const c = row.cells[i]; return c.dataset.v !== undefined ? parseFloat(c.dataset.v) : c.textContent; };
-  const rows = Array.from(body.rows).sort((a, b) => { const x = key(a), y = key(b); return (x < y ? -1 : x > y ? 1 : 0) * (up ? 1 : -1); });
-  rows.forEach((r) => body.appendChild(r));
+  const key = (row) => {
+    const c = row.cells[i];
+    return c.dataset.v !== undefined ? parseFloat(c.dataset.v) : c.textContent;
+  };
+  const order = (a, b) => { const x = key(a), y = key(b); return (x < y ? -1 : x > y ? 1 : 0) * (up ? 1 : -1); };
+  Array.from(body.rows).sort(order).forEach((r) => body.appendChild(r));
 }));
 function applyFilter() {
   const split = document.getElementById('split').value, type = document.getElementById('type').value;
   document.querySelectorAll('[data-split]').forEach((el) => {
-    const shown = (!split || el.dataset.split.split(' ').includes(split)) && (!type || el.dataset.types.split(' ').includes(type));
-    el.classList.toggle('off', !shown);
+    const has = (values, v) => !v || values.split(' ').includes(v);
+    el.classList.toggle('off', !(has(el.dataset.split, split) && has(el.dataset.types, type)));
   });
 }
 document.querySelectorAll('select.filter').forEach((s) => s.addEventListener('change', applyFilter));
