@@ -54,11 +54,13 @@ def _defaults_from(settings: str, options: str = "OPTIONS") -> type[typer.core.T
 RENDERER_HELP = "Renderer: cpu (the reference), gsplat (CUDA GPU, pip install 'sagebench[gpu]') or auto (gsplat when it can run here)."
 
 
-def existing(path: Path | None) -> Path | None:
+def existing(path: Path | list[Path] | None) -> Path | list[Path] | None:
     """The callback of every input path a command reads (its arguments, --run, --config, --predictions,
-    --furniture): one that does not exist is the error, before anything else runs or is written."""
-    if path is not None and not path.exists():
-        raise ConfigError("does not exist", path=path)
+    --furniture; each path of an option given many times): one that does not exist is the error, before anything
+    else runs or is written."""
+    for p in path if isinstance(path, list) else [path]:
+        if p is not None and not p.exists():
+            raise ConfigError("does not exist", path=p)
     return path
 
 
@@ -755,7 +757,7 @@ def report_cmd(
     out: Annotated[Path, typer.Option("--out", help="Folder of the report: new, empty or an earlier report, outside "
                                                      "RUN.")],
     predictions: Annotated[list[Path] | None, typer.Option(
-        "--predictions", callback=lambda paths: [existing(p) for p in paths or []],
+        "--predictions", callback=existing,
         help="Agent predictions (JSON Lines) to show and compare; repeat for more agents.")] = None,
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene (default: every scene).")] = None,
     no_views: Annotated[bool, typer.Option("--no-views", help="Leave out the start and goal views (nothing is "
