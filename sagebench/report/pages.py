@@ -69,7 +69,7 @@ def overview_page(run: RunFacts, agents: Sequence[Agent]) -> str:
 def _scenes_table(run: RunFacts) -> str:
     rows = []
     for s in run.scenes:
-        splits = ", ".join(sorted({r["split"] or "none" for r in s.rows}))
+        splits = ", ".join(sorted({r["split"] for r in s.rows}))
         passed = sum(bool(v["passed"]) for v in s.validation.values())
         checked = f"{passed} of {len(s.validation)} passed" if s.validation else "not validated"
         rows.append(f'<td><a href="{scene_href("", s.scene_id)}">{esc(s.scene_id)}</a></td>'
@@ -80,8 +80,8 @@ def _scenes_table(run: RunFacts) -> str:
 
 def _counts_table(rows: list[dict]) -> str:
     """Episodes by instruction level and type (rows) and split (columns)."""
-    splits = sorted({r["split"] or "none" for r in rows})
-    count = Counter((r["instruction_level"] or "none", r["instruction_type"] or "none", r["split"] or "none")
+    splits = sorted({r["split"] for r in rows})
+    count = Counter((r["instruction_level"], r["instruction_type"], r["split"])
                     for r in rows)
     kinds = sorted({(lv, t) for lv, t, _ in count})
     body = [f"<td>{esc(lv)}</td><td>{esc(t)}</td>" + "".join(f'<td class="n">{count[(lv, t, s)]}</td>' for s in splits)
@@ -158,8 +158,8 @@ def scene_page(scene: SceneFacts, frame: MapFrame, agents: Sequence[Agent]) -> s
                      f'<polyline class="reference" points="{frame.points(path)}"/>'
                      + marker(frame, rows[0]["start_position"], "start") + marker(frame, rows[0]["goal_position"],
                                                                                   "goal") + "</g>")
-    splits = sorted({r["split"] or "none" for r in scene.rows})
-    types = sorted({r["instruction_type"] or "none" for r in scene.rows})
+    splits = sorted({r["split"] for r in scene.rows})
+    types = sorted({r["instruction_type"] for r in scene.rows})
     filters = (f"<p>Show split {_select('split', splits)} and instruction type {_select('type', types)}</p>")
     head = ["episode", "trajectory", "split", "level", "type", "instruction", "validation",
             *(f"{a.name} {LABELS[m]}" for a in agents for m in ("sr", "ne"))]
@@ -174,8 +174,8 @@ def scene_page(scene: SceneFacts, frame: MapFrame, agents: Sequence[Agent]) -> s
 
 
 def _filter_attrs(rows: list[dict]) -> str:
-    splits = " ".join(sorted({r["split"] or "none" for r in rows}))
-    types = " ".join(sorted({r["instruction_type"] or "none" for r in rows}))
+    splits = " ".join(sorted({r["split"] for r in rows}))
+    types = " ".join(sorted({r["instruction_type"] for r in rows}))
     return f'data-split="{esc(splits)}" data-types="{esc(types)}"'
 
 

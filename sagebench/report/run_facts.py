@@ -11,6 +11,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from sagebench.episodes.card import card_licence, scene_licences, size_category
+from sagebench.episodes.episode import NO_LEVEL
 from sagebench.episodes.shards import read_episodes
 from sagebench.episodes.splits import SPLITS
 from sagebench.errors import DataError
@@ -73,10 +74,13 @@ def card_facts(run_dir: Path, scenes: list[SceneFacts]) -> dict[str, str]:
 
 
 def _rows(run_dir: Path, sid: str) -> list[dict]:
+    """The scene's episode rows; a row without a split, level or type (bare trajectories, shards older than the
+    split column) has NO_LEVEL there, as scoring groups it."""
     try:
-        return read_episodes(run_episodes_dir(run_dir, sid)).to_pylist()
+        rows = read_episodes(run_episodes_dir(run_dir, sid)).to_pylist()
     except (OSError, pa.ArrowException) as err:
         raise DataError(f"cannot read episode shards: {err}", path=run_episodes_dir(run_dir, sid)) from None
+    return [r | {k: r.get(k) or NO_LEVEL for k in ("split", "instruction_level", "instruction_type")} for r in rows]
 
 
 def _validation(run_dir: Path, sid: str) -> dict[str, dict]:
