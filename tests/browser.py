@@ -25,6 +25,13 @@ from pathlib import Path
 CHROMIUM = ("chromium", "chromium-browser", "google-chrome")
 
 
+def _above_4(fd: int) -> int:
+    """`fd` moved to a number above 4, so that setting fds 3 and 4 in the child cannot overwrite it."""
+    moved = fcntl.fcntl(fd, fcntl.F_DUPFD_CLOEXEC, 10)
+    os.close(fd)
+    return moved
+
+
 def find_chromium() -> str | None:
     return next((p for p in map(shutil.which, CHROMIUM) if p), None)
 
@@ -42,18 +49,16 @@ class Browser:
         self._profile = tempfile.mkdtemp(prefix="sagebench-chromium-")
         to_chrome_r, self._to_chrome = os.pipe()
         self._from_chrome, from_chrome_w = os.pipe()
-
-        def at_3_and_4() -> None:  # in the child: its end of each pipe at fds 3 and 4, as Chromium expects
-            a, b = fcntl.fcntl(to_chrome_r, fcntl.F_DUPFD, 10), fcntl.fcntl(from_chrome_w, fcntl.F_DUPFD, 10)
-            os.dup2(a, 3)
-            os.dup2(b, 4)
-
+        to_chrome_r, from_chrome_w = (_above_4(fd) for fd in (to_chrome_r, from_chrome_w))
+        args = ["--headless", "--remote-debugging-pipe", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                "--no-first-run", "--no-default-browser-check", "--disable-extensions", "--mute-audio",
+                f"--user-data-dir={self._profile}", "about:blank"]
+        # bash moves Chromium's ends of the pipes to fds 3 and 4 as it becomes Chromium (no Python between fork
+        # and exec)
         self._proc = subprocess.Popen(
-            [exe, "--headless", "--remote-debugging-pipe", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-             "--no-first-run", "--no-default-browser-check", "--disable-extensions", "--mute-audio",
-             f"--user-data-dir={self._profile}", "about:blank"],
+            ["bash", "-c", f'exec "$0" "$@" 3<&{to_chrome_r} 4>&{from_chrome_w}', exe, *args],
             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-            preexec_fn=at_3_and_4, close_fds=False)
+            pass_fds=(to_chrome_r, from_chrome_w))
         os.close(to_chrome_r)
         os.close(from_chrome_w)
         return self

@@ -5,7 +5,6 @@ facing the way it arrives."""
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
-
 from pathlib import Path
 
 from sagebench.stages.render import RenderConfig, jpeg_bytes, render_views

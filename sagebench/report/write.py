@@ -21,7 +21,7 @@ from sagebench.render.backends import RendererChoice
 from sagebench.report import pages
 from sagebench.report.agents import Agent, score_agents
 from sagebench.report.html import CSS, CSS_FILE, JS, JS_FILE
-from sagebench.report.run_facts import RunFacts, read_run
+from sagebench.report.run_facts import RunFacts, SceneFacts, read_run
 from sagebench.report.svg import map_frame
 from sagebench.report.views import render_thumbnails, start_and_goal
 from sagebench.stages.render import RenderConfig
@@ -102,7 +102,7 @@ def report_files(run: RunFacts, agents: list[Agent], config: ReportConfig) -> di
     return files
 
 
-def _views(run_dir: Path, scene, config: ReportConfig) -> dict[str, bytes]:  # noqa: ANN001 - a SceneFacts
+def _views(run_dir: Path, scene: SceneFacts, config: ReportConfig) -> dict[str, bytes]:
     """The start and goal view of each of the scene's trajectories, by file name."""
     poses = {}
     for tid, rows in scene.trajectories().items():
