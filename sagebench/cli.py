@@ -5,8 +5,10 @@ Every SagebenchError becomes one line on stderr and exit status 2, here and nowh
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated
 
@@ -52,11 +54,13 @@ def _defaults_from(settings: str, options: str = "OPTIONS") -> type[typer.core.T
 RENDERER_HELP = "Renderer: cpu (the reference), gsplat (CUDA GPU, pip install 'sagebench[gpu]') or auto (gsplat when it can run here)."
 
 
-def existing(path: Path | None) -> Path | None:
+def existing(path: Path | list[Path] | None) -> Path | list[Path] | None:
     """The callback of every input path a command reads (its arguments, --run, --config, --predictions,
-    --furniture): one that does not exist is the error, before anything else runs or is written."""
-    if path is not None and not path.exists():
-        raise ConfigError("does not exist", path=path)
+    --furniture; each path of an option given many times): one that does not exist is the error, before anything
+    else runs or is written."""
+    for p in path if isinstance(path, list) else [path]:
+        if p is not None and not p.exists():
+            raise ConfigError("does not exist", path=p)
     return path
 
 
@@ -708,6 +712,9 @@ def evaluate_cmd(
         float | None, typer.Option(help="Largest distance of the first pose from the episode's start, m.")
     ] = None,
     workers: Annotated[int | None, typer.Option(help="Threads replaying poses for collision intensity.")] = None,
+    visualize: Annotated[Path | None, typer.Option(
+        "--visualize", help="Also draw one picture per scored episode into this folder: new, empty or an earlier "
+                            "--visualize output, outside RUN.")] = None,
 ) -> None:
     """Score agent predictions: SR, OSR, SPL, NE, nDTW, SDTW, CSR, ICP, PS.
 
@@ -724,19 +731,82 @@ def evaluate_cmd(
     exactly the episodes the rollout was asked to run (one without a prediction, such as one the policy
     failed, scores the worst value of every metric), and prints the observations the agent had.
 
+    With --visualize it writes VISUALIZE/trajectory_visualization_<scene>_<episode>.png per scored episode (the
+    map, the reference path, the agent's path with the steps that touched something, start, goal and goal
+    radius, the instruction and the metrics) and VISUALIZE/pictures.json (the predictions drawn, each
+    episode's file).
+
     Unknown or duplicate episode ids, and episodes without a prediction (unless --allow-missing), are
     errors (exit status 2, nothing written).
     """
-    from sagebench.stages.evaluate import evaluate, make_config
+    from sagebench.evaluation.pictures import PICTURES_INDEX
+    from sagebench.stages.evaluate import draw_pictures, evaluate, make_config
 
     config = make_config(allow_missing=allow_missing, all_episodes=all_episodes, start_tolerance=start_tolerance,
                          workers=workers)
-    result = evaluate(run_dir, predictions, config, scene_id=scene, split=split, out=out)
+    with (_claimed_folder(visualize, run_dir, "evaluate --visualize", PICTURES_INDEX, "--visualize")
+          if visualize is not None else contextlib.nullcontext()):
+        result = evaluate(run_dir, predictions, config, scene_id=scene, split=split, out=out)
+        pictures = draw_pictures(run_dir, result, visualize) if visualize is not None else []
     typer.echo(result.table())
     if result.missing:
         typer.echo(f"{len(result.missing)} episodes had no prediction and were scored as failures")
     if out is not None:
         typer.echo(f"wrote {out}")
+    if visualize is not None:
+        typer.echo(f"wrote {len(pictures)} pictures into {visualize}")
+
+
+@contextlib.contextmanager
+def _claimed_folder(out: Path, run_dir: Path, command: str, marker: str, option: str) -> Iterator[Path]:
+    """run_folder.claim_export_dir for a folder that `option` names: its refusals name that option, not --out."""
+    from sagebench.run_folder import claim_export_dir
+
+    with contextlib.ExitStack() as stack:
+        try:
+            stack.enter_context(claim_export_dir(out, run_dir, command, marker))
+        except ConfigError as err:
+            raise ConfigError(err.detail.replace("--out", option), path=err.path, field=option) from None
+        yield out
+
+
+@app.command("report", cls=_defaults_from("sagebench.report.write:ReportConfig"))
+def report_cmd(
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN", callback=existing,
+                                            help="Run directory with episodes/<id>/ and scenes/<id>/ (build-scene, "
+                                                 "gen-trajectories).")],
+    out: Annotated[Path, typer.Option("--out", help="Folder of the report: new, empty or an earlier report, outside "
+                                                     "RUN.")],
+    predictions: Annotated[list[Path] | None, typer.Option(
+        "--predictions", callback=existing,
+        help="Agent predictions (JSON Lines) to show and compare; repeat for more agents.")] = None,
+    scene: Annotated[str | None, typer.Option("--scene", help="Only this scene (default: every scene).")] = None,
+    no_views: Annotated[bool, typer.Option("--no-views", help="Leave out the start and goal views (nothing is "
+                                                               "rendered).")] = False,
+    renderer: Annotated[str | None, typer.Option(help=RENDERER_HELP)] = None,
+) -> None:
+    """Write a static HTML report of a run and of agents' predictions: open OUT/index.html in a browser (no server,
+    no network).
+
+    Pages: the overview (scenes, episodes by split and instruction type, validation pass rates and failures by
+    reason, the dataset card's facts, the agents' means), a page per scene (its map with every trajectory,
+    filtered by split and type, and its episodes) and a page per episode (the instruction, the path on the map,
+    the start and goal views, validate's result and, with predictions, each agent's path, contact per step and
+    metrics); with predictions also OUT/agents.html, every episode's metrics side by side, sortable.
+
+    Reads RUN/episodes/<id>/, RUN/scenes/<id>/ (topdown.npz, topdown.png, and scene.json and gaussians.ply for
+    the views), RUN/validation/<id>/ and RUN/reports/<id>/ where validate wrote them, RUN/manifest.json, and each
+    PREDICTIONS as evaluate reads it (episodes without a prediction are shown as such).
+
+    Writes OUT/index.html, agents.html, scenes/, episodes/, img/ (the maps and the views), report.css, report.js
+    and report.json (what the report shows, its files). OUT must be new, empty or an earlier report, outside RUN.
+    """
+    from sagebench.report.write import REPORT_INDEX, make_config, write_report
+
+    config = make_config(views=False if no_views else None, renderer=renderer)
+    with _claimed_folder(out, run_dir, "report", REPORT_INDEX, "--out"):
+        for line in write_report(run_dir, predictions or [], out, config, scene_id=scene).lines():
+            typer.echo(line)
 
 
 @app.command("baseline", cls=_defaults_from("sagebench.stages.rollout:BaselineConfig", "BASELINE_OPTIONS"))

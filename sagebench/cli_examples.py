@@ -84,6 +84,14 @@ EXAMPLES: dict[str, tuple[tuple[str, str], ...]] = {
     "evaluate": (
         ("sagebench evaluate --run out/demo --predictions straight.jsonl --out scores.json",
          "Its SR, SPL, nDTW, CSR, ICP, ... overall, per level, type and split, printed and written as JSON."),
+        ("sagebench evaluate --run out/demo --predictions straight.jsonl --visualize out/pictures",
+         "The same scores, and one picture per episode in out/pictures/: the map, both paths, where the agent "
+         "touched something, the instruction and the metrics."),
+    ),
+    "report": (
+        ("sagebench report out/demo --predictions out/demo/baselines/oracle.jsonl --predictions straight.jsonl "
+         "--out out/report",
+         "The demo run and both agents as web pages: open out/report/index.html in a browser."),
     ),
     "rollout": (
         ("sagebench rollout --run out/demo --policy random --out random.jsonl --episodes 6",

@@ -188,3 +188,31 @@ def _remove(path: Path) -> None:
         shutil.rmtree(path, ignore_errors=True)
     else:
         path.unlink(missing_ok=True)
+
+
+def listed_files(index: Path, key: str) -> set[str]:
+    """The files an earlier output's index (a JSON object) lists under `key` (a list of names, or an object whose
+    values are names), relative to the index's folder: those `remove_unlisted` may remove. A name that is absolute,
+    leaves the folder or has a hidden part is left out; an unreadable index lists nothing."""
+    try:
+        listed = json.loads(Path(index).read_text(encoding="utf-8")).get(key, [])
+    except (OSError, ValueError, AttributeError):
+        return set()
+    names = listed.values() if isinstance(listed, dict) else listed if isinstance(listed, list) else []
+    return {n for n in names if isinstance(n, str) and n and not n.startswith("/") and "\\" not in n
+            and not any(part in ("", "..") or part.startswith(".") for part in n.split("/"))}
+
+
+def remove_unlisted(folder: Path, earlier: Iterable[str], now: Iterable[str]) -> None:
+    """Remove the files of an earlier output in `folder` (`earlier`, from `listed_files`) that the new one (`now`)
+    does not have, and the folders that leaves empty: a folder written again shows one output, never a mix."""
+    folder = Path(folder)
+    for name in sorted(set(earlier) - set(now), reverse=True):
+        path = folder / name
+        if path.is_file() and not path.is_symlink():
+            path.unlink()
+        for parent in path.parents:
+            if parent == folder or folder not in parent.parents:
+                break
+            with contextlib.suppress(OSError):
+                parent.rmdir()

@@ -108,6 +108,8 @@ CONTRACT: dict[str, StageFiles] = {
     "export_sage": StageFiles(reads=(Place("episodes"), Place("scene", SCENE_FILE))),  # writes its own directory
     "import_sage": StageFiles(reads=(Place("scene", SCENE_FILE),), writes=(Place("episodes"),)),  # and a GVLN file
     "rollout": StageFiles(reads=(Place("episodes"), Place("scene", TOPDOWN), Place("scene", GAUSSIANS), *REPLAY_MODEL)),
+    # writes its own directory; reads validate's results, evaluate's inputs and the Gaussians (views) when there
+    "report": StageFiles(reads=(Place("episodes"), Place("scene", TOPDOWN), Place("scene", TOPDOWN_PNG))),
 }
 
 OUTPUT_ROOTS = tuple(sorted({_RUN_ROOTS[p.root] for s in CONTRACT.values() for p in s.writes}))

@@ -164,11 +164,12 @@ def test_every_input_path_is_checked_by_the_one_existing_helper():
                                                                   "--out", "{out}"],
     ["rollout", "--run", "{nope}", "--out", "{out}"], ["export-training", "{nope}", "--out", "{out}"],
     ["import-interiorgs", "{nope}", "--out", "{out}"], ["export-sage", "{nope}", "--out", "{out}"],
-    ["import-sage-episodes", "{nope}", "--run", "{nope}"],
+    ["import-sage-episodes", "{nope}", "--run", "{nope}"], ["report", "{nope}", "--out", "{out}"],
+    ["report", "{tmp}", "--predictions", "{tmp}", "--predictions", "{nope}", "--out", "{out}"],
 ])
 def test_a_path_that_does_not_exist_is_the_one_error_and_nothing_is_written(run_cli, tmp_path, argv):
     nope = tmp_path / "typo" / "runs" / "r1"
-    code, out, err = run_cli(*[a.format(nope=nope, out=tmp_path / "out") for a in argv])
+    code, out, err = run_cli(*[a.format(nope=nope, out=tmp_path / "out", tmp=tmp_path) for a in argv])
     assert (code, out, err) == (2, "", f"error: {nope}: does not exist\n")
     assert sorted(p.name for p in tmp_path.iterdir()) == []
 

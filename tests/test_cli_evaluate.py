@@ -213,3 +213,87 @@ def test_traces_that_scraped_walls_get_a_derived_icp_well_above_0(demo_eval_run,
     sim = json.loads(measured.read_text())["overall"]["icp"]
     assert res["overall"]["icp"] >= 0.75 * sim and sim > 0.05
     assert f"ICP from c(t) derived in {len(rows)} episodes" in stdout and "within 0.01 m of a collider" in stdout
+
+
+def _hashes(root: Path) -> dict[str, str]:
+    """sha256 of every file under `root` by relative path (the lock file left out)."""
+    import hashlib
+
+    return {p.relative_to(root).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file() and p.name != ".sagebench.lock"}
+
+
+def _contact_pixels(png: Path, map_rows: int) -> int:
+    """Pixels of the contact colour on the map part of an episode picture (the legend has a swatch of it too)."""
+    import cv2
+
+    from sagebench.episodes.picture import CONTACT, HEADER_PX
+
+    img = cv2.cvtColor(cv2.imread(str(png)), cv2.COLOR_BGR2RGB)[HEADER_PX:HEADER_PX + map_rows]
+    return int((img == np.array(CONTACT, np.uint8)).all(axis=2).sum())
+
+
+def test_visualize_draws_each_scored_episode_with_its_contact_steps(demo_eval_run, oracle, tmp_path, run_cli):
+    from sagebench.episodes.picture import scale_for
+    from sagebench.evaluation.pictures import MAX_SIZE_PX
+    from sagebench.topdown.grid_file import read_topdown_grids
+
+    rows = _lines(oracle)
+    # the first episode's agent touched something at its second pose; the others never did
+    bumped = rows[0] | {"collision_intensity": [0.0, 0.6] + [0.0] * (len(rows[0]["poses"]) - 2)}
+    pred = _write(tmp_path / "agent.jsonl", [bumped, *rows[1:]])
+    pics = tmp_path / "pictures"
+    code, stdout, err = run_cli("evaluate", "--run", demo_eval_run, "--predictions", pred, "--visualize", pics)
+    assert code == 0, err
+    assert stdout.splitlines()[-1] == f"wrote {len(rows)} pictures into {pics}"
+    index = json.loads((pics / "pictures.json").read_text())
+    assert index["predictions"]["file"] == "agent.jsonl"
+    assert index["pictures"] == {r["episode_id"]: f"trajectory_visualization_{SCENE}_{r['episode_id']}.png"
+                                 for r in rows}
+    assert sorted(p.name for p in pics.iterdir() if not p.name.startswith(".")) == sorted(
+        [*index["pictures"].values(), "pictures.json"])
+    shape = read_topdown_grids(demo_eval_run / "scenes" / SCENE / "topdown.npz").navigable.shape
+    map_rows = shape[0] * scale_for(shape, MAX_SIZE_PX)
+    red = {eid: _contact_pixels(pics / name, map_rows) for eid, name in index["pictures"].items()}
+    assert red.pop(rows[0]["episode_id"]) > 20 and set(red.values()) == {0}
+    before = _hashes(pics)
+    assert run_cli("evaluate", "--run", demo_eval_run, "--predictions", pred, "--visualize", pics)[0] == 0
+    assert _hashes(pics) == before  # an earlier --visualize output is written again, the same bytes
+
+
+def test_visualize_again_removes_only_the_pictures_it_drew_before(demo_eval_run, oracle, tmp_path, run_cli):
+    pics = tmp_path / "pictures"
+    pics.mkdir()
+    gone = "trajectory_visualization_other_0123.png"
+    (pics / "pictures.json").write_text(json.dumps({"pictures": {"0123": gone, "x": "../outside.png"}}))
+    for name in (gone, "notes.txt"):
+        (pics / name).write_text("earlier")
+    (tmp_path / "outside.png").write_text("the user's")
+    assert run_cli("evaluate", "--run", demo_eval_run, "--predictions", oracle, "--visualize", pics)[0] == 0
+    assert not (pics / gone).exists() and (pics / "notes.txt").read_text() == "earlier"
+    assert (tmp_path / "outside.png").read_text() == "the user's"
+    assert len(list(pics.glob("trajectory_visualization_*.png"))) == len(_lines(oracle))
+
+
+@pytest.mark.parametrize("where, message", [
+    ("run/pictures", "error: --visualize: {pics} lies inside the run {run}: give a folder outside it"),
+    ("mine", "error: --visualize: {pics} is not empty and holds no evaluate --visualize output; use a new "
+             "--visualize"),
+])
+def test_visualize_refuses_a_folder_it_may_not_write_and_writes_nothing(demo_eval_run, oracle, tmp_path, run_cli,
+                                                                         where, message):
+    run = tmp_path / "run"
+    shutil.copytree(demo_eval_run, run)
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "thesis.tex").write_text("the user's")
+    pics, out = tmp_path / where, tmp_path / "r.json"
+    before = _hashes(tmp_path)
+    code, stdout, err = run_cli("evaluate", "--run", run, "--predictions", oracle, "--out", out, "--visualize", pics)
+    assert (code, stdout) == (2, "") and err == message.format(pics=pics, run=run) + "\n"
+    assert _hashes(tmp_path) == before and not out.exists() and (where == "mine") == pics.exists()
+
+
+def test_bad_predictions_with_visualize_create_no_folder(demo_eval_run, oracle, tmp_path, run_cli):
+    pred = _write(tmp_path / "bad.jsonl", _lines(oracle)[1:])  # an episode without a prediction
+    code, _, err = run_cli("evaluate", "--run", demo_eval_run, "--predictions", pred, "--visualize", tmp_path / "p")
+    assert code == 2 and "pass --allow-missing" in err and not (tmp_path / "p").exists()

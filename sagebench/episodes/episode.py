@@ -1,4 +1,5 @@
-"""One episode row as scoring and the closed loop use it: start, goal, reference path, level, type and split."""
+"""One episode row as scoring and the closed loop use it: start, goal, reference path, level, type, split and
+instruction."""
 
 from __future__ import annotations
 
@@ -24,3 +25,4 @@ class Episode:
     geodesic_distance: float
     reference_path: np.ndarray  # [M, 4] x, y, z, yaw
     split: str = NO_LEVEL  # train / val_seen / val_unseen / test; NO_LEVEL for runs made before splits
+    instruction: str = ""  # instruction_text ("" for a bare trajectory): the caption of the episode's picture

@@ -64,7 +64,7 @@ def load_episodes(run_dir: Path, scene_id: str | None = None) -> list[Episode]:
         except (OSError, pa.ArrowException) as err:
             raise DataError(f"cannot read episode shards: {err}", path=episodes_dir) from None
         columns = ["episode_id", "scene_id", "instruction_level", "instruction_type", "start_position", "start_yaw",
-                   "goal_position", "goal_radius", "geodesic_distance", "reference_path"]
+                   "goal_position", "goal_radius", "geodesic_distance", "reference_path", "instruction_text"]
         for row in table.select(columns + (["split"] if "split" in table.column_names else [])).to_pylist():
             out.append(episode_from_row(row, episodes_dir))
     return out
@@ -81,4 +81,4 @@ def episode_from_row(row: dict, where: Path) -> Episode:
         start=np.asarray(row["start_position"], dtype=np.float64), start_yaw=float(row["start_yaw"]),
         goal=np.asarray(row["goal_position"], dtype=np.float64), goal_radius=float(row["goal_radius"]),
         geodesic_distance=float(row["geodesic_distance"]), reference_path=path,
-        split=row.get("split") or NO_LEVEL)
+        split=row.get("split") or NO_LEVEL, instruction=row.get("instruction_text") or "")

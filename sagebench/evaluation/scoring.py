@@ -8,7 +8,7 @@ any navigable cell (NE_STRAIGHT the largest straight distance to one), so a miss
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -31,6 +31,8 @@ class EpisodeScore:
     metrics: EpisodeMetrics
     missing: bool  # no prediction: scored as a failure
     icp_source: str  # where c(t) came from: one of ICP_SOURCES, "missing" without a prediction
+    prediction: Prediction | None = field(default=None, compare=False)  # what the agent did (None: missing)
+    intensity: np.ndarray | None = field(default=None, compare=False)  # [T] the c(t) scored (the pictures mark it)
 
     @property
     def replayed(self) -> bool:
@@ -60,7 +62,7 @@ def score_episodes(episodes: Sequence[Episode], matched: Mapping[str, Prediction
         source = icp_source(p)
         c = derived[e.episode_id] if source == "derived" else np.asarray(p.collision_intensity, dtype=np.float64)
         scores.append(EpisodeScore(e, score_prediction(e, p, c, config, on_foot=maps[e.scene_id].field(e.goal)),
-                                   missing=False, icp_source=source))
+                                   missing=False, icp_source=source, prediction=p, intensity=c))
     return scores
 
 

@@ -3,7 +3,7 @@
 Reads RUN/episodes/<id>/part-*.parquet and the predictions file; for predictions without collision_intensity
 also RUN/scenes/<id>/scene.json and scene.xml (export-usd), whose colliders the poses are replayed against.
 Writes the results JSON (when asked): means overall, per instruction level and per type, the metrics of every
-episode, the ids of missing episodes and the settings.
+episode, the ids of missing episodes and the settings; with --visualize, one picture per scored episode.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from sagebench.episodes.load import load_episodes
 from sagebench.episodes.splits import SPLITS
 from sagebench.errors import ConfigError, DataError
 from sagebench.evaluation.intensity import ICP_NOTE, STEP_REPLAY, derive_intensity
+from sagebench.evaluation.pictures import write_pictures
 from sagebench.evaluation.predictions import Prediction, match_episodes, read_predictions
 from sagebench.evaluation.record import RolloutRecord, read_record, record_path
 from sagebench.evaluation.scoring import (
@@ -235,3 +236,11 @@ def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = Evaluate
     if out is not None:
         write_json(Path(out), result.to_json())
     return result
+
+
+def draw_pictures(run_dir: Path, result: Evaluation, out_dir: Path) -> list[Path]:
+    """evaluate --visualize: one picture of every scored episode into `out_dir`, on its scene's map."""
+    scenes = sorted({s.episode.scene_id for s in result.scores})
+    grids = {sid: read_topdown_grids(run_scene_dir(run_dir, sid) / TOPDOWN) for sid in scenes}
+    drawn = {"file": result.predictions.name, "sha256": result.predictions_sha256}
+    return write_pictures(result.scores, grids, out_dir, drawn)

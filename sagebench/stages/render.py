@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import io
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
@@ -63,6 +64,12 @@ def render_view(run_dir: Path, scene_id: str, pose: tuple[float, float, float], 
                 needs: tuple[str, ...] = ("rgb",)) -> Frame:
     """Render RUN/scenes/<scene_id>'s Gaussians from the agent camera at `pose` (x, y, yaw); `needs` names the
     images wanted (rgb, depth, instance), which decides what `auto` may pick."""
+    return render_views(run_dir, scene_id, [pose], config, needs=needs)[0]
+
+
+def render_views(run_dir: Path, scene_id: str, poses: Sequence[tuple[float, float, float]], config: RenderConfig, *,
+                 needs: tuple[str, ...] = ("rgb",)) -> list[Frame]:
+    """render_view of every pose, the Gaussians read once (the report's start and goal views)."""
     from sagebench.splats.ply import read_ply
 
     scene_dir = run_scene_dir(run_dir, scene_id)
@@ -71,19 +78,27 @@ def render_view(run_dir: Path, scene_id: str, pose: tuple[float, float, float], 
         if not path.is_file():
             raise DataError(f"missing; run `sagebench build-scene ... --out {run_dir}` first", path=path)
     spec = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)
-    x, y, yaw = pose
-    cam = agent_camera(x, y, yaw, floor_z=spec.floor_height, camera_height=config.camera.height,
-                       pitch_deg=config.pitch_deg, hfov_deg=config.camera.hfov_deg, width=config.width,
-                       height=config.height)
-    return open_renderer(read_ply(ply_path), config.renderer, needs=needs).render([cam])[0]
+    cams = [agent_camera(x, y, yaw, floor_z=spec.floor_height, camera_height=config.camera.height,
+                         pitch_deg=config.pitch_deg, hfov_deg=config.camera.hfov_deg, width=config.width,
+                         height=config.height) for x, y, yaw in poses]
+    return open_renderer(read_ply(ply_path), config.renderer, needs=needs).render(cams) if cams else []
 
 
 def png_bytes(rgb: np.ndarray) -> bytes:
     """[H, W, 3] float colour -> PNG bytes (clipped to [0, 1], 8 bits)."""
+    return _encoded(rgb, ".png")
+
+
+def jpeg_bytes(rgb: np.ndarray, quality: int = 85) -> bytes:
+    """[H, W, 3] float colour -> JPEG bytes (clipped to [0, 1], 8 bits): a small view (the report's)."""
+    return _encoded(rgb, ".jpg", [cv2.IMWRITE_JPEG_QUALITY, quality])
+
+
+def _encoded(rgb: np.ndarray, ext: str, params: list[int] | None = None) -> bytes:
     bgr = (np.clip(rgb, 0.0, 1.0)[:, :, ::-1] * 255.0 + 0.5).astype(np.uint8)
-    ok, buf = cv2.imencode(".png", bgr)
+    ok, buf = cv2.imencode(ext, bgr, params or [])
     if not ok:
-        raise RuntimeError("PNG encoding failed")
+        raise RuntimeError(f"{ext} encoding failed")
     return buf.tobytes()
 
 

@@ -25,6 +25,7 @@ DOOR: dict[str, RGB] = {"open": (40, 160, 60), "ajar": (235, 150, 30), "closed":
 TINT = 0.45  # weight of the navigable colour over the floor
 TARGET_PX = 1000  # the map's longer side, roughly
 LEGEND_W = 230
+MAP_TOP = 30  # the title strip above the map
 FONT = cv2.FONT_HERSHEY_SIMPLEX
 
 
@@ -39,7 +40,7 @@ def render_topdown(td: Topdown) -> bytes:
     """PNG bytes of the maps build-scene computed."""
     sem = td.semantic
     h, w = td.grid.shape
-    scale = int(np.clip(round(TARGET_PX / max(h, w)), 2, 8))
+    scale = map_scale(h, w)
 
     # colour per instance id, then per cell
     n_ids = int(max(i.instance_id for i in sem.instances)) + 1
@@ -81,8 +82,8 @@ def render_topdown(td: Topdown) -> bytes:
     items += [(f"door ({s})", c) for s, c in DOOR.items()]
     items += sorted(legend.items())
     panel_h = max(big.shape[0], 40 + 20 * len(items))
-    canvas = np.full((panel_h + 30, big.shape[1] + LEGEND_W, 3), 255, np.uint8)
-    canvas[30 : 30 + big.shape[0], : big.shape[1]] = big
+    canvas = np.full((panel_h + MAP_TOP, big.shape[1] + LEGEND_W, 3), 255, np.uint8)
+    canvas[MAP_TOP : MAP_TOP + big.shape[0], : big.shape[1]] = big
     cv2.putText(canvas, f"{sem.scene_id}  {w}x{h} cells @ {td.grid.resolution:g} m", (6, 20), FONT, 0.5,
                 (0, 0, 0), 1, cv2.LINE_AA)
     x0 = big.shape[1] + 12
@@ -95,6 +96,22 @@ def render_topdown(td: Topdown) -> bytes:
     if not ok:
         raise RuntimeError("PNG encoding failed")
     return data.tobytes()
+
+
+def map_scale(h: int, w: int) -> int:
+    """Pixels per cell of topdown.png's map for an [H, W] grid."""
+    return int(np.clip(round(TARGET_PX / max(h, w)), 2, 8))
+
+
+def map_pixels(xy: np.ndarray, h: int, scale: int, resolution: float, origin: tuple[float, float],
+               top: int = 0) -> np.ndarray:
+    """World (x, y) [N, 2] -> (column, row) [N, 2] in a picture of an [H, W] map drawn `scale` pixels per cell,
+    north up, starting `top` pixels below the picture's top edge (topdown.png: MAP_TOP): where every picture of a
+    map puts a point (paths.png, the episode pictures, the report's paths over topdown.png)."""
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    col = (xy[:, 0] - origin[0]) / resolution
+    row_from_top = h - (xy[:, 1] - origin[1]) / resolution
+    return np.column_stack([col * scale, row_from_top * scale + top])
 
 
 def _scale_bar(img: np.ndarray, metres_per_px: float) -> None:
