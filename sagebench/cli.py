@@ -54,9 +54,15 @@ RENDERER_HELP = "Renderer: cpu (the reference), gsplat (CUDA GPU, pip install 's
 
 def existing(path: Path | None) -> Path | None:
     """The callback of every input path a command reads (its arguments, --run, --config, --predictions,
-    --furniture): one that does not exist is the error, before anything else runs or is written."""
+    --furniture): one that does not exist, or is a FIFO or device (a read that would block or never end), is the
+    error, before anything else runs or is written."""
+    from sagebench.input_files import special_kind
+
     if path is not None and not path.exists():
         raise ConfigError("does not exist", path=path)
+    kind = None if path is None else special_kind(path)
+    if kind is not None:
+        raise ConfigError(f"is {kind}, not a file or folder: sagebench reads inputs from regular files only", path=path)
     return path
 
 
@@ -598,7 +604,9 @@ def import_sage_episodes_cmd(
     Instruction types map to sagebench's (Attribute-based -> Attribute_Based, Area-based -> Area_Based, Default
     -> Single_Goal); instructions of a type with no goal (Goal-less) are left out and counted.
 
-    Reads FILE and RUN/scenes/<id>/scene.json.
+    Reads FILE and RUN/scenes/<id>/scene.json and topdown.npz. Values are checked as generated episodes are
+    (radii > 0, the scene's instances and rooms, unique ids, paths of 2 or more points on the navigable map,
+    non-empty instructions); a path point at most 0.5 m off the navigable map is moved onto it and counted.
 
     Writes RUN/episodes/<id>/part-<split>-NNNNN.parquet, replacing that scene's episodes.
     """

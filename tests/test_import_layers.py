@@ -19,7 +19,7 @@ LAYERS = {
     "cli": 4, "cli_examples": 4, "__main__": 4, "schemas": 4,  # schemas gathers every model, the run config's included
     "pipeline": 3,
     "stages": 2,
-    "scene": 0, "fileio": 0, "errors": 0, "config": 0, "ui": 0, "run_layout": 0, "__init__": 0,
+    "scene": 0, "fileio": 0, "input_files": 0, "errors": 0, "config": 0, "ui": 0, "run_layout": 0, "__init__": 0,
 }
 LIBRARY = 1
 NAMES = {4: "cli", 3: "pipeline", 2: "stages", 1: "library", 0: "base"}
