@@ -128,8 +128,6 @@ SAGE_CASES: list[tuple[str, Callable[[dict], Any], str]] = [
                                                         "navigable map of scene 'tiny': no navigable cell within 0.5 m"),
     ("point-in-the-table", _point([-1.0, -1.0, 0.5]), f"{S0}.points[1].position: (-1, -1) is off the navigable map of "
                                                       "scene 'tiny': no navigable cell within 0.5 m"),
-    ("position-nan", _json_with("@p@", "NaN", lambda d, m: d["scenes"][0]["samples"][0]["points"][1]["position"]
-                                .__setitem__(0, m)), f"{S0}.points[1].position[0]: Input should be a finite number"),
     ("one-point-path", _sample(lambda s: s.update(points=s["points"][:1])),
      f"{S0}.points: List should have at least 2 items after validation, not 1"),
     ("episode-ids-all-the-same", _every_instruction(lambda ins: ins["sagebench"].update(episode_id="0" * 16)),
@@ -221,7 +219,7 @@ INPUT_KINDS = {  # an input of another kind than a file -> the command, and its 
 
 def _limited() -> None:
     """The child's memory, bounded: a command that reads /dev/zero whole fails fast instead of filling the machine."""
-    resource.setrlimit(resource.RLIMIT_AS, (8 << 30, 8 << 30))
+    resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))
 
 
 @pytest.mark.parametrize("case", list(INPUT_KINDS))
