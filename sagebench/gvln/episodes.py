@@ -15,7 +15,8 @@ of instruction k, starting at the first point's position and rotation, its goal 
 What SAGE-3D's format has no field for (row ids, split, goal radius, instance ids, rooms, level, source, seed)
 goes under a "sagebench" key of the sample or instruction, which SAGE-3D's reader ignores; reading a file
 without it, rows get ids hashed from the scene and SAGE's trajectory id, rooms from the room polygons, instance
-ids from the item names.
+ids from the item names. Read values are checked as generated rows are (rows_from_gvln), and path points are put
+on the scene's navigable map.
 """
 
 from __future__ import annotations
