@@ -250,7 +250,7 @@ def test_a_prediction_off_the_map_is_refused_without_a_numpy_warning(tiny_run, t
                           capture_output=True, text=True, timeout=120)
     n = len(rows[0]["poses"]) - 1
     assert (proc.returncode, proc.stdout, proc.stderr) == (
-        2, "", f"error: {tmp_path / 'pred.jsonl'}:1: poses[{n}]: (1e+308, 1e+308) lies more than 10 m outside the "
+        2, "", f"error: {tmp_path / 'pred.jsonl'}:1: poses[{n}]: (1e+308, 1e+308) lies more than 50 m outside the "
                "scene's map (x -0.1..6.1, y -0.1..4.2 m)\n")
     assert snapshot(tmp_path) == before
 

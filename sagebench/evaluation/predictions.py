@@ -25,7 +25,8 @@ from sagebench.input_files import read_input
 Pose = tuple[float, float, float, float]
 MAX_POSES = 10_000  # per episode: 20 times the simulator's 500-step default; metrics allocate poses x path points
 MAX_LINE_CHARS = 4_000_000  # a line of MAX_POSES poses at full float precision is about 1.5 MB
-POSE_MARGIN_M = 10.0  # how far outside its scene's map a pose may lie: the simulator ends an episode one step past it
+POSE_MARGIN_M = 50.0  # how far outside its scene's map a pose may lie: far past where the simulator ends an episode
+# (one step over the edge) or a step through a wall lands, near enough that no metric overflows
 MAX_YAW = 1e5  # rad either way: an unwrapped heading of 10,000 half turns still fits
 
 
