@@ -56,11 +56,16 @@ RENDERER_HELP = "Renderer: cpu (the reference), gsplat (CUDA GPU, pip install 's
 
 def existing(path: Path | list[Path] | None) -> Path | list[Path] | None:
     """The callback of every input path a command reads (its arguments, --run, --config, --predictions,
-    --furniture; each path of an option given many times): one that does not exist is the error, before anything
-    else runs or is written."""
+    --furniture; each path of an option given many times): one that does not exist, or is a FIFO or device (a read
+    that would block or never end), is the error, before anything else runs or is written."""
+    from sagebench.input_files import special_kind
+
     for p in path if isinstance(path, list) else [path]:
         if p is not None and not p.exists():
             raise ConfigError("does not exist", path=p)
+        kind = None if p is None else special_kind(p)
+        if kind is not None:
+            raise ConfigError(f"is {kind}, not a file or folder: sagebench reads inputs from regular files only", path=p)
     return path
 
 
@@ -618,7 +623,9 @@ def import_sage_episodes_cmd(
     Instruction types map to sagebench's (Attribute-based -> Attribute_Based, Area-based -> Area_Based, Default
     -> Single_Goal); instructions of a type with no goal (Goal-less) are left out and counted.
 
-    Reads FILE and RUN/scenes/<id>/scene.json.
+    Reads FILE and RUN/scenes/<id>/scene.json and topdown.npz. Values are checked as generated episodes are
+    (radii > 0, the scene's instances and rooms, unique ids, paths of 2 or more points on the navigable map,
+    non-empty instructions); a path point at most 0.5 m off the navigable map is moved onto it and counted.
 
     Writes RUN/episodes/<id>/part-<split>-NNNNN.parquet, replacing that scene's episodes, and the stamp
     RUN/.stamps/<id>/import_sage.json in place of gen-trajectories'. Refuses (exit 2) a scene.json that

@@ -106,7 +106,8 @@ CONTRACT: dict[str, StageFiles] = {
     "render": StageFiles(reads=(Place("scene", SCENE_FILE), Place("scene", GAUSSIANS))),
     "export_vlnce": StageFiles(reads=(Place("episodes"), *NORMALISED_SCENE)),  # writes its own directory
     "export_sage": StageFiles(reads=(Place("episodes"), Place("scene", SCENE_FILE))),  # writes its own directory
-    "import_sage": StageFiles(reads=(Place("scene", SCENE_FILE),), writes=(Place("episodes"),)),  # and a GVLN file
+    "import_sage": StageFiles(reads=(Place("scene", SCENE_FILE), Place("scene", TOPDOWN)),  # and a GVLN file
+                              writes=(Place("episodes"),)),
     "rollout": StageFiles(reads=(Place("episodes"), Place("scene", TOPDOWN), Place("scene", GAUSSIANS), *REPLAY_MODEL)),
     # writes its own directory; reads validate's results, evaluate's inputs and the Gaussians (views) when there
     "report": StageFiles(reads=(Place("episodes"), Place("scene", TOPDOWN), Place("scene", TOPDOWN_PNG))),

@@ -19,6 +19,7 @@ from sagebench.scene.assets import CATALOGUE, table
 from sagebench.scene.loader import load_scene
 from sagebench.splats.ply import read_ply
 from sagebench.topdown.raster import Grid
+from test_fuzz_inputs import snapshot
 
 
 def _label_of(scene_dir: Path) -> dict[int, int]:
@@ -139,7 +140,20 @@ def _labels_edit(fn):
     return edit
 
 
+def _ins_id_of_5000_digits(path: Path) -> None:
+    labels = json.loads(path.read_text())
+    labels[3]["ins_id"] = "@"
+    path.write_text(json.dumps(labels).replace('"@"', "9" * 5000))  # json.dumps cannot write such an int itself
+
+
 @pytest.mark.parametrize(("name", "edit", "message"), [
+    ("labels.json", _ins_id_of_5000_digits,
+     "{d}/labels.json: malformed JSON: Exceeds the limit (4300 digits) for integer string conversion: value has 5000 "
+     "digits"),
+    ("labels.json", _labels_edit(lambda labels: labels[3].__setitem__("label", "x" * 100_000)),
+     "{d}/labels.json: [3].label: String should have at most 128 characters"),
+    ("labels.json", _labels_edit(lambda labels: labels[3].__setitem__("label", "chair\nleg")),
+     "{d}/labels.json: [3].label: String should match pattern '^[^\\x00-\\x1f\\x7f]*$'"),
     (None, lambda d: (d / "labels.json").unlink(),
      "{d}: missing labels.json (an InteriorGS scene folder holds 3dgs_compressed.ply, labels.json, structure.json, "
      "occupancy.png, occupancy.json)"),
@@ -158,10 +172,11 @@ def _labels_edit(fn):
 ])
 def test_bad_folders_get_one_line_and_nothing_is_written(interiorgs_demo, run_cli, tmp_path, name, edit, message):
     folder = _broken(interiorgs_demo[0], tmp_path, name, edit)
+    before = snapshot(tmp_path)
     code, out, err = run_cli("import-interiorgs", folder, "--out", tmp_path / "out")
     assert (code, out) == (2, "")
     assert err == f"error: {message.format(d=folder)}\n"
-    assert not (tmp_path / "out").exists()
+    assert not (tmp_path / "out").exists() and snapshot(tmp_path) == before
 
 
 def test_labels_holding_no_gaussians_and_a_disagreeing_occupancy_map_are_warnings(interiorgs_demo, run_cli, tmp_path):

@@ -155,7 +155,7 @@ def test_sage_bench_s_own_episodes_run_in_the_closed_loop(demo_eval_run, exporte
      "{f}: scenes[0].samples[0].points[0].rotation: rotation [0.0, 0.0, 0.3, 0.95] turns about z: a trajectory in "
      "SAGE-3D's 2D map frame, not yet moved into its 3D frame by trajectory_2d_to_3d.py"),
     (lambda d: d["scenes"][0]["samples"][1].__setitem__("points", []),
-     "{f}: scenes[0].samples[1].points: List should have at least 1 item after validation, not 0"),
+     "{f}: scenes[0].samples[1].points: List should have at least 2 items after validation, not 0"),
     (lambda d: d.__setitem__("scenes", []), "{f}: scenes: List should have at least 1 item after validation, not 0"),
     (lambda d: d["scenes"][0].__setitem__("scene_name", "839920"),
      "{f}: scene_name: the file is for scene '839920', and {run}/scenes has no scene of that name; name the scene "

@@ -11,18 +11,23 @@ marks c(t) that `sagebench rollout` measured (absent: the agent's own report).
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Annotated, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from sagebench.errors import DataError, field_path, first_error
 from sagebench.fileio import write_text
+from sagebench.input_files import read_input
 
 Pose = tuple[float, float, float, float]
 MAX_POSES = 10_000  # per episode: 20 times the simulator's 500-step default; metrics allocate poses x path points
 MAX_LINE_CHARS = 4_000_000  # a line of MAX_POSES poses at full float precision is about 1.5 MB
+POSE_MARGIN_M = 50.0  # how far outside its scene's map a pose may lie: far past where the simulator ends an episode
+# (one step over the edge) or a step through a wall lands, near enough that no metric overflows
+MAX_YAW = 1e5  # rad either way: an unwrapped heading of 10,000 half turns still fits
 
 
 class Prediction(BaseModel):
@@ -76,16 +81,32 @@ def read_predictions(path: Path, *, allow_empty: bool = False) -> list[tuple[int
     """(line number, prediction) for every non-blank line of a JSON Lines file, in file order; an empty file is
     a DataError unless `allow_empty` (a rollout whose policy failed every episode)."""
     path = Path(path)
+    if not path.exists():
+        raise DataError("no such file", path=path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise DataError("no such file", path=path) from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise DataError(f"cannot read: {err}", path=path) from None
+        text = read_input(path).decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise DataError(f"cannot read: not UTF-8 text ({err.reason})", path=path) from None
     rows = [(n, parse_line(t, path, n)) for n, t in enumerate(text.splitlines(), start=1) if t.strip()]
     if not rows and not allow_empty:
         raise DataError("no predictions (the file is empty)", path=path)
     return rows
+
+
+def check_on_map(rows: Sequence[tuple[int, Prediction]], bounds_of: Callable[[str], tuple[float, float, float, float]],
+                 path: Path) -> None:
+    """A DataError at the first pose whose (x, y) lies more than POSE_MARGIN_M outside the map (x0, y0, x1, y1) of
+    its episode's scene, or whose yaw is past MAX_YAW: no agent there stands so, and scoring would overflow."""
+    m = POSE_MARGIN_M
+    for n, p in rows:
+        x0, y0, x1, y1 = bounds_of(p.episode_id)
+        x, y, yaw = np.asarray(p.poses, dtype=np.float64)[:, [0, 1, 3]].T
+        off = (x < x0 - m) | (x > x1 + m) | (y < y0 - m) | (y > y1 + m)
+        if (off | (np.abs(yaw) > MAX_YAW)).any():
+            k = int(np.argmax(off | (np.abs(yaw) > MAX_YAW)))
+            what = (f"({x[k]:g}, {y[k]:g}) lies more than {m:g} m outside the scene's map (x {x0:g}..{x1:g}, "
+                    f"y {y0:g}..{y1:g} m)" if off[k] else f"yaw {yaw[k]:g} rad is past {MAX_YAW:g} either way")
+            raise DataError(what, path=f"{path}:{n}", field=f"poses[{k}]")
 
 
 def match_episodes(rows: Sequence[tuple[int, Prediction]], episode_ids: Iterable[str], path: Path, *,

@@ -15,7 +15,8 @@ of instruction k, starting at the first point's position and rotation, its goal 
 What SAGE-3D's format has no field for (row ids, split, goal radius, instance ids, rooms, level, source, seed)
 goes under a "sagebench" key of the sample or instruction, which SAGE-3D's reader ignores; reading a file
 without it, rows get ids hashed from the scene and SAGE's trajectory id, rooms from the room polygons, instance
-ids from the item names.
+ids from the item names. Read values are checked as generated rows are (rows_from_gvln), and path points are put
+on the scene's navigable map.
 """
 
 from __future__ import annotations
@@ -23,17 +24,22 @@ from __future__ import annotations
 import hashlib
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import shapely
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import (
+    AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, field_validator, model_validator,
+)
 
 from sagebench.episodes.ids import episode_id
+from sagebench.episodes.splits import Split
 from sagebench.errors import DataError, first_error
 from sagebench.gvln.frame import SAGE_Z, sage_rotation, to_sage_xy, wrap, yaw_from_sage_rotation
+from sagebench.input_files import read_json
+from sagebench.metrics.on_foot import NavigableMap
 from sagebench.scene.model import SceneSpec
 
 ITEM_KINDS = ("object", "door", "window")
@@ -110,7 +116,23 @@ def _sample(row: dict[str, Any], names: dict[int, str], floor: float) -> dict[st
 
 # ---------------------------------------------------------------- reading
 
+SNAP_M = 0.5  # a path point off the navigable map moves to the nearest navigable cell this near; farther, it is refused
 Finite = Annotated[float, Field(allow_inf_nan=False)]
+Hex16 = Annotated[str, Field(pattern=r"^[0-9a-f]{16}$")]  # a trajectory or episode id as sagebench makes them
+Name = Annotated[str, Field(min_length=1, max_length=256, pattern=r"^[^\x00-\x1f\x7f]+$")]
+InstanceId = Annotated[int, Field(ge=1, le=2**31 - 1)]  # the episode shard's int32
+LEVEL_OF_TYPE = {kind: level for level, kind in FROM_SAGE_TYPE.values()}  # sagebench's instruction types
+
+
+def _said(text: str) -> str:
+    if not text.strip():
+        raise ValueError("an empty instruction")
+    return text
+
+
+def _as_instruction(item: Any) -> Any:
+    """An instruction given as a bare string (SAGE-3D's older files) as the object it stands for."""
+    return {"generated_instruction": item} if isinstance(item, str) else item
 
 
 class _Model(BaseModel):
@@ -136,19 +158,49 @@ class _Point(_Model):
         return v
 
 
+class _InstructionExtra(_Model):
+    """An instruction's "sagebench" entry, as gvln_document writes it."""
+
+    episode_id: Hex16 | None = None
+    instruction_level: Literal["low", "high"] | None = None
+    instruction_type: Literal[tuple(LEVEL_OF_TYPE)] | None = None  # type: ignore[valid-type]
+    instruction_source: Name | None = None
+
+    @model_validator(mode="after")
+    def _level_of_type(self) -> _InstructionExtra:
+        kind = self.instruction_type
+        if kind is not None and self.instruction_level not in (None, LEVEL_OF_TYPE[kind]):
+            raise ValueError(f"instruction_level {self.instruction_level!r}, but {kind} is a "
+                             f"{LEVEL_OF_TYPE[kind]}-level type")
+        return self
+
+
 class _Instruction(_Model):
     instruction_type: str = ""
     start: str = ""
     end: str = ""
-    generated_instruction: str = ""
-    sagebench: dict[str, Any] | None = None
+    generated_instruction: Annotated[str, AfterValidator(_said)]
+    sagebench: _InstructionExtra | None = None
+
+
+class _SampleExtra(_Model):
+    """A sample's "sagebench" entry, as gvln_document writes it: checked as the rows it becomes are when generated."""
+
+    trajectory_id: Hex16 | None = None
+    goal_radius: Annotated[float, Field(gt=0, allow_inf_nan=False)] | None = None
+    start_instance_id: InstanceId | None = None
+    goal_instance_id: InstanceId | None = None
+    start_room: Name | None = None
+    goal_room: Name | None = None
+    split: Split | None = None  # the --split type: part of the shards' file names
+    seed: Annotated[int, Field(ge=0, le=2**63 - 1)] | None = None
 
 
 class _Sample(_Model):
     trajectory_id: str | int = "0"
-    instructions: list[_Instruction | str] = Field(default_factory=list)
-    points: Annotated[list[_Point], Field(min_length=1)]
-    sagebench: dict[str, Any] | None = None
+    instructions: list[Annotated[_Instruction, BeforeValidator(_as_instruction)]] = Field(default_factory=list)
+    points: Annotated[list[_Point], Field(min_length=2, description="A path: its start and goal at least.")]
+    sagebench: _SampleExtra | None = None
 
 
 class _Scene(_Model):
@@ -162,20 +214,14 @@ class _File(_Model):
 
 @dataclass(frozen=True)
 class GvlnScene:
+    path: Path
     scene_name: str
     samples: tuple[_Sample, ...]
 
 
 def read_gvln(path: Path) -> GvlnScene:
     """The first scene of a GVLN file (the only one SAGE-3D's adapter reads), checked."""
-    import json
-
-    try:
-        raw = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as err:
-        raise DataError(f"cannot read: {getattr(err, 'strerror', None) or err}", path=path) from None
-    except json.JSONDecodeError as err:
-        raise DataError(f"malformed JSON at line {err.lineno}, column {err.colno}: {err.msg}", path=path) from None
+    raw = read_json(path)
     try:
         doc = _File.model_validate(raw)
     except ValidationError as err:
@@ -189,72 +235,116 @@ def read_gvln(path: Path) -> GvlnScene:
                 raise DataError(f"rotation {point.rotation} turns about z: a trajectory in SAGE-3D's 2D map frame, "
                                 "not yet moved into its 3D frame by trajectory_2d_to_3d.py", path=path,
                                 field=f"scenes[0].samples[{i}].points[{j}].rotation")
-    return GvlnScene(scene.scene_name, tuple(scene.samples))
+    return GvlnScene(Path(path), scene.scene_name, tuple(scene.samples))
 
 
-def rows_from_gvln(scene: GvlnScene, spec: SceneSpec, *, goal_radius: float, split: str
-                   ) -> tuple[list[dict[str, Any]], Counter[str]]:
-    """sagebench episode rows of the scene `spec` for every sample and instruction of `scene`, and the counts of
-    instructions left out by type (types with no goal sagebench can score, e.g. SAGE-3D's "Goal-less")."""
-    floor = spec.floor_height
+@dataclass
+class GvlnRows:
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    skipped: Counter[str] = field(default_factory=Counter)  # instructions left out, by type (no goal to score)
+    snapped: int = 0  # path points moved onto the navigable map (within SNAP_M)
+
+
+def rows_from_gvln(scene: GvlnScene, spec: SceneSpec, navmap: NavigableMap, *, goal_radius: float,
+                   split: str) -> GvlnRows:
+    """sagebench episode rows of the scene `spec` for every sample and instruction of `scene`, checked as generated
+    rows are: instances and rooms of the scene, path points on its navigable map `navmap` (or moved onto it from at
+    most SNAP_M away), trajectory and episode ids unique. Instructions of types with no goal sagebench can score
+    (e.g. SAGE-3D's "Goal-less") are left out and counted."""
     by_name = {name: iid for iid, name in item_names(spec).items()}
     rooms = [(r.id, shapely.Polygon(r.polygon)) for r in spec.rooms]
     room_of_object = {o.instance_id: o.room_id for o in spec.objects}
-    skipped: Counter[str] = Counter()
-    rows = []
-    for sample in scene.samples:
-        extra = sample.sagebench or {}
-        path = _reference_path(sample, floor)
-        tid = extra.get("trajectory_id") or hashlib.sha256(
+    out, trajectories, episodes = GvlnRows(), {}, {}
+    for i, sample in enumerate(scene.samples):
+        where = f"scenes[0].samples[{i}]"
+        extra = sample.sagebench or _SampleExtra()
+        fields = extra.model_fields_set
+        _check_names(extra, spec, scene.path, where)
+        path, moved = _reference_path(sample, spec, navmap, scene.path, where)
+        out.snapped += moved
+        tid = extra.trajectory_id or hashlib.sha256(
             f"{spec.scene_id}|sage|{sample.trajectory_id}".encode()).hexdigest()[:16]
-        instructions = [i if isinstance(i, _Instruction) else _Instruction(generated_instruction=i)
-                        for i in sample.instructions]
-        first = instructions[0] if instructions else _Instruction()
-        start_id = extra["start_instance_id"] if "start_instance_id" in extra else by_name.get(first.start)
-        goal_id = extra["goal_instance_id"] if "goal_instance_id" in extra else by_name.get(first.end)
+        given = ("sagebench.trajectory_id", tid) if extra.trajectory_id else ("trajectory_id", sample.trajectory_id)
+        _unique("trajectory", tid, given[1], trajectories, scene.path, f"{where}.{given[0]}")
+        start, end = (sample.instructions[0].start, sample.instructions[0].end) if sample.instructions else ("", "")
+        start_id = extra.start_instance_id if "start_instance_id" in fields else by_name.get(start)
+        goal_id = extra.goal_instance_id if "goal_instance_id" in fields else by_name.get(end)
         base = {
             "trajectory_id": tid, "scene_id": spec.scene_id,
             "start_instance_id": start_id, "goal_instance_id": goal_id,
-            "start_room": extra["start_room"] if "start_room" in extra else
+            "start_room": extra.start_room if "start_room" in fields else
             (room_of_object.get(start_id) or _room_at(path[0], rooms)),
-            "goal_room": extra["goal_room"] if "goal_room" in extra else
+            "goal_room": extra.goal_room if "goal_room" in fields else
             (room_of_object.get(goal_id) or _room_at(path[-1], rooms)),
             "start_position": path[0, :3].tolist(), "start_yaw": float(path[0, 3]),
-            "goal_position": path[-1, :3].tolist(), "goal_radius": float(extra.get("goal_radius") or goal_radius),
+            "goal_position": path[-1, :3].tolist(), "goal_radius": extra.goal_radius or goal_radius,
             "reference_path": path.tolist(),
             "geodesic_distance": float(np.linalg.norm(np.diff(path[:, :2], axis=0), axis=1).sum()),
-            "seed": int(extra.get("seed") or 0), "split": extra.get("split") or split,
+            "seed": extra.seed or 0, "split": extra.split or split,
         }
-        if not instructions:
-            rows.append({**base, "episode_id": episode_id(tid, "none", "", 0), "instruction_level": None,
-                         "instruction_type": None, "instruction_text": None, "instruction_source": None})
-        counts: Counter[tuple[str, str]] = Counter()
-        for ins in instructions:
-            own = ins.sagebench or {}
-            if "instruction_type" in own:
-                level, kind = own["instruction_level"], own["instruction_type"]
-            elif ins.instruction_type in FROM_SAGE_TYPE:
-                level, kind = FROM_SAGE_TYPE[ins.instruction_type]
-            else:
-                skipped[ins.instruction_type or "(no type)"] += 1
-                continue
-            k = counts[(level, kind)]
-            counts[(level, kind)] += 1
-            rows.append({**base, "episode_id": own.get("episode_id") or episode_id(tid, level, kind, k),
-                         "instruction_level": level, "instruction_type": kind,
+        if not sample.instructions:
+            out.rows.append({**base, "episode_id": episode_id(tid, "none", "", 0), "instruction_level": None,
+                             "instruction_type": None, "instruction_text": None, "instruction_source": None})
+        _instruction_rows(sample, base, out, episodes, scene.path, where)
+    return out
+
+
+def _instruction_rows(sample: _Sample, base: dict[str, Any], out: GvlnRows, episodes: dict[str, str], path: Path,
+                      where: str) -> None:
+    """One row per instruction of a type sagebench scores, appended to `out` (the others counted there)."""
+    counts: Counter[tuple[str, str]] = Counter()
+    for k, ins in enumerate(sample.instructions):
+        own = ins.sagebench or _InstructionExtra()
+        if own.instruction_type is not None:
+            level, kind = LEVEL_OF_TYPE[own.instruction_type], own.instruction_type
+        elif ins.instruction_type in FROM_SAGE_TYPE:
+            level, kind = FROM_SAGE_TYPE[ins.instruction_type]
+        else:
+            out.skipped[ins.instruction_type or "(no type)"] += 1
+            continue
+        eid = own.episode_id or episode_id(base["trajectory_id"], level, kind, counts[(level, kind)])
+        counts[(level, kind)] += 1
+        _unique("episode", eid, eid, episodes, path,
+                f"{where}.instructions[{k}]" + (".sagebench.episode_id" if own.episode_id else ""))
+        out.rows.append({**base, "episode_id": eid, "instruction_level": level, "instruction_type": kind,
                          "instruction_text": ins.generated_instruction,
-                         "instruction_source": own.get("instruction_source") or SAGE_SOURCE})
-    return rows, skipped
+                         "instruction_source": own.instruction_source or SAGE_SOURCE})
 
 
-def _reference_path(sample: _Sample, floor: float) -> np.ndarray:
-    """[M, 4] world waypoints [x, y, floor, yaw]: each point's own heading, the last one keeping the one before."""
+def _check_names(extra: _SampleExtra, spec: SceneSpec, path: Path, where: str) -> None:
+    """The instances and rooms a sample's "sagebench" entry names are the scene's."""
+    ids, rooms = {o.instance_id for o in spec.objects}, {r.id for r in spec.rooms}
+    for key, known, what in (("start_instance_id", ids, "an instance"), ("goal_instance_id", ids, "an instance"),
+                             ("start_room", rooms, "a room"), ("goal_room", rooms, "a room")):
+        value = getattr(extra, key)
+        if value is not None and value not in known:
+            raise DataError(f"{value!r} is not {what} of scene {spec.scene_id!r}", path=path,
+                            field=f"{where}.sagebench.{key}")
+
+
+def _unique(what: str, key: str, shown: str | int, seen: dict[str, str], path: Path, field_: str) -> None:
+    """Note where the `what` ("trajectory", "episode") id `key` comes from (`field_`, where the file says `shown`);
+    a DataError when it came before."""
+    if key in seen:
+        raise DataError(f"{what} id {shown!r} again (first at {seen[key]}): each {what} has its own id", path=path,
+                        field=field_)
+    seen[key] = field_
+
+
+def _reference_path(sample: _Sample, spec: SceneSpec, navmap: NavigableMap, path: Path, where: str
+                    ) -> tuple[np.ndarray, int]:
+    """[M, 4] world waypoints [x, y, floor, yaw] on the navigable map (each point's own heading, the last one keeping
+    the one before), and the number of points moved onto the map; a point farther off is a DataError."""
     pts = sample.points
-    xy = to_sage_xy(np.array([p.position[:2] for p in pts], dtype=np.float64))
+    xy, moved = navmap.place(to_sage_xy(np.array([p.position[:2] for p in pts], dtype=np.float64)))
+    off = np.flatnonzero(np.isnan(xy[:, 0]))
+    if len(off):
+        x, y = pts[off[0]].position[:2]
+        raise DataError(f"({x:g}, {y:g}) is off the navigable map of scene {spec.scene_id!r}: no navigable cell "
+                        f"within {SNAP_M:g} m", path=path, field=f"{where}.points[{off[0]}].position")
     yaws = [yaw_from_sage_rotation(p.rotation) for p in pts]
-    if len(pts) > 1:
-        yaws[-1] = yaws[-2]  # SAGE-3D resets the last point's rotation
-    return np.column_stack([xy, np.full(len(pts), floor), [wrap(y) for y in yaws]])
+    yaws[-1] = yaws[-2]  # SAGE-3D resets the last point's rotation
+    return np.column_stack([xy, np.full(len(pts), spec.floor_height), [wrap(y) for y in yaws]]), int(moved.sum())
 
 
 def _room_at(point: np.ndarray, rooms: list[tuple[str, shapely.Polygon]]) -> str | None:

@@ -15,16 +15,16 @@ problem is one DataError naming the file and the field.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, field_validator
 
 from sagebench.errors import DataError, first_error
+from sagebench.input_files import read_json
 
 PLY_FILES = ("3dgs_compressed.ply", "3dgs.ply")  # looked for in this order
 LABELS = "labels.json"
@@ -36,6 +36,8 @@ FREE, OCCUPIED, UNKNOWN = 255, 0, 127  # occupancy.png values
 SIZE_SLACK_PX = 1.5  # occupancy.json's extent / scale may differ from the image size by this much (rounding)
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
+LABEL_MAX = 128  # characters of a label or ins_id: a label names the object's category and its mesh files
+Word = Annotated[str, Field(max_length=LABEL_MAX, pattern=r"^[^\x00-\x1f\x7f]*$")]  # one line, as scene.json's names
 
 
 class _Model(BaseModel):
@@ -48,9 +50,13 @@ class _Corner(_Model):
     z: Finite
 
 
+def _int_as_text(value: Any) -> Any:
+    return str(value) if isinstance(value, int) and not isinstance(value, bool) else value
+
+
 class _Label(_Model):
-    ins_id: str | int = ""  # SAGE-3D reads it with a default too
-    label: Annotated[str, Field(min_length=1)]
+    ins_id: Annotated[Word, BeforeValidator(_int_as_text)] = ""  # SAGE-3D reads it with a default too
+    label: Annotated[Word, Field(min_length=1)]
     bounding_box: list[_Corner]
 
     @field_validator("bounding_box")
@@ -208,17 +214,6 @@ def read_folder(path: Path) -> InteriorGSFolder:
                                                                                      path / OCCUPANCY_JSON))
 
 
-def _json(path: Path) -> Any:
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as err:
-        raise DataError(f"cannot read: {getattr(err, 'strerror', None) or err}", path=path) from None
-    except json.JSONDecodeError as err:
-        raise DataError(f"malformed JSON at line {err.lineno}, column {err.colno}: {err.msg}", path=path) from None
-    except RecursionError:
-        raise DataError("JSON nested too deeply", path=path) from None
-
-
 def _validated(model: type[BaseModel], raw: Any, path: Path, prefix: str = "") -> Any:
     try:
         return model.model_validate(raw)
@@ -229,7 +224,7 @@ def _validated(model: type[BaseModel], raw: Any, path: Path, prefix: str = "") -
 
 
 def read_labels(path: Path) -> tuple[Label, ...]:
-    raw = _json(path)
+    raw = read_json(path)
     items = raw["labels"] if isinstance(raw, dict) and "labels" in raw else raw
     prefix = "labels" if isinstance(raw, dict) else ""
     if not isinstance(items, list):
@@ -243,7 +238,7 @@ def read_labels(path: Path) -> tuple[Label, ...]:
 
 
 def _structure(path: Path) -> dict[str, tuple]:
-    s = _validated(_Structure, _json(path), path)
+    s = _validated(_Structure, read_json(path), path)
     if not s.rooms:
         raise DataError("no rooms: the floor plan needs at least one room profile", path=path, field="rooms")
     return {
@@ -261,7 +256,7 @@ def read_occupancy(png: Path, meta_path: Path) -> OccupancyMap:
     """occupancy.png and occupancy.json; the JSON's extent must match the image's size."""
     from PIL import Image, UnidentifiedImageError
 
-    meta = _validated(_OccupancyMeta, _json(meta_path), meta_path)
+    meta = _validated(_OccupancyMeta, read_json(meta_path), meta_path)
     if len(meta.min) < 2 or (meta.max is not None and len(meta.max) < 2):
         raise DataError("min and max need at least x and y", path=meta_path, field="min")
     try:

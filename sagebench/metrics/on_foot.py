@@ -97,6 +97,13 @@ class NavigableMap:
         # nearest navigable cell of every cell and its distance (cells, centre to centre)
         self._gap, self._nearest = distance_transform_edt(~self.navigable, return_indices=True)
 
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """x0, y0, x1, y1: the map's extent, m."""
+        h, w = self.navigable.shape
+        x0, y0 = self.origin
+        return x0, y0, x0 + w * self.resolution, y0 + h * self.resolution
+
     def cell_of(self, xy: np.ndarray) -> np.ndarray:
         """[N, 2] (row, col) of the cells holding points [N, 2] (may lie outside the grid)."""
         xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))[:, :2]
@@ -117,6 +124,23 @@ class NavigableMap:
         close = on_nav | (np.linalg.norm(centre - xy_in, axis=1) <= self.snap_radius)
         out[np.flatnonzero(inside)[close]] = near[close]
         return out
+
+    def place(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Points [N, 2] placed on the navigable map: one on a navigable cell as it is, one off it at the centre of
+        the cell it snaps to (within snap_radius), NaN where none is that near; and [N] bool, which were moved.
+        Points are compared with the map's bounds first, so no coordinate, however large, overflows."""
+        xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))[:, :2]
+        x0, y0, x1, y1 = self.bounds
+        inside = np.flatnonzero((xy[:, 0] >= x0) & (xy[:, 0] < x1) & (xy[:, 1] >= y0) & (xy[:, 1] < y1))
+        out, moved = np.full_like(xy, np.nan), np.zeros(len(xy), dtype=bool)
+        own, cells = self.cell_of(xy[inside]), self.snap(xy[inside])
+        found = cells[:, 0] >= 0
+        stays = found & (own == cells).all(axis=1)
+        out[inside[stays]] = xy[inside[stays]]
+        moves = found & ~stays
+        out[inside[moves]] = (cells[moves, ::-1] + 0.5) * self.resolution + np.asarray(self.origin)
+        moved[inside[moves]] = True
+        return out, moved
 
     def clear_to(self, xy: np.ndarray, goal_xy: np.ndarray) -> np.ndarray:
         """[N] bool: the straight segment from each point [N, >=2] to the goal ([2], or one per point [N, 2])

@@ -48,12 +48,9 @@ def open_world(run_dir: Path, scene_id: str, *, replay: ReplayConfig, images: Se
     model = open_replay_model(run_dir, scene_id, replay=replay)
     grids = read_topdown_grids(scene_dir / TOPDOWN)
     navmap = NavigableMap(grids.navigable, grids.resolution, grids.origin, snap_radius=model.agent.radius)
-    h, w = grids.navigable.shape
-    ox, oy = grids.origin
-    bounds = (ox, oy, ox + w * grids.resolution, oy + h * grids.resolution)
     gaussians = pack(read_ply(scene_dir / GAUSSIANS)) if images else None
     drawn = open_renderer(gaussians, renderer, needs=images) if gaussians is not None else None
-    return World(scene_id=scene_id, model=model, navmap=navmap, gaussians=gaussians, renderer=drawn, bounds=bounds)
+    return World(scene_id=scene_id, model=model, navmap=navmap, gaussians=gaussians, renderer=drawn, bounds=navmap.bounds)
 
 
 def run_vocabulary(run_dir: Path) -> Vocabulary:

@@ -17,6 +17,7 @@ from pydantic import ValidationError
 from sagebench.errors import MeshError, SceneError, first_error
 from sagebench.run_layout import SCENE_FILE  # an artist's scene directory and a run's scenes/<id>/ alike
 from sagebench.fileio import hash_file
+from sagebench.input_files import loads_json
 from sagebench.scene.mesh_budget import MAX_MESH_FACES, budget_problem, faces_problem
 from sagebench.scene.checks import check_hinge, check_inside_rooms, check_rooms, check_world_bounds
 from sagebench.scene.model import UNIT_SCALE, Door, Room, SceneObject, SceneSpec, Transform
@@ -52,16 +53,9 @@ def frame_matrix(units: str, up_axis: str) -> np.ndarray:
     return out
 
 
-def parse_spec(text: str, where: Path | str) -> SceneSpec:
-    """Validate scene.json text; every failure is one SceneError naming the field."""
-    try:
-        raw = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise SceneError(f"malformed JSON at line {err.lineno}, column {err.colno}: {err.msg}", path=where) from None
-    except RecursionError:
-        raise SceneError("JSON nested too deeply", path=where) from None
-    except ValueError as err:  # an integer of more than sys.get_int_max_str_digits() digits
-        raise SceneError(f"malformed JSON: {str(err).split(';')[0]}", path=where) from None
+def parse_spec(text: str | bytes, where: Path | str) -> SceneSpec:
+    """Validate scene.json text (or its UTF-8 bytes); every failure is one SceneError naming the field."""
+    raw = loads_json(text, where, SceneError)
     try:
         return SceneSpec.model_validate(raw)
     except ValidationError as err:

@@ -23,7 +23,7 @@ from sagebench.episodes.splits import SPLITS
 from sagebench.errors import ConfigError, DataError
 from sagebench.evaluation.intensity import ICP_NOTE, STEP_REPLAY, derive_intensity
 from sagebench.evaluation.pictures import write_pictures
-from sagebench.evaluation.predictions import Prediction, match_episodes, read_predictions
+from sagebench.evaluation.predictions import Prediction, check_on_map, match_episodes, read_predictions
 from sagebench.evaluation.record import RolloutRecord, read_record, record_path
 from sagebench.evaluation.scoring import (
     DISTANCE_USED, ICP_SOURCES, METRIC_NAMES, EpisodeScore, Summary, score_episodes, summarise_scores,
@@ -228,6 +228,7 @@ def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = Evaluate
     _check_start(by_id, rows, predictions, config.start_tolerance)
     need_replay = sorted({by_id[p.episode_id].scene_id for p in matched.values() if p.collision_intensity is None})
     maps = {sid: read_navigable_map(run_dir, sid) for sid in sorted({e.scene_id for e in episodes})}
+    check_on_map(rows, lambda eid: maps[by_id[eid].scene_id].bounds, predictions)
     models = {sid: open_replay_model(run_dir, sid, replay=config.replay) for sid in need_replay}
     scores = score_episodes(episodes, matched, _derived(models, episodes, matched, config.workers), maps, config.metrics)
     result = Evaluation(scores=scores, summary=summarise_scores(scores), missing=missing, predictions=predictions,

@@ -1,10 +1,12 @@
 """`import-sage-episodes`: SAGE-Bench's GVLN episodes for a scene of a run -> sagebench episode rows, so that SAGE-3D's
 own test episodes run and are scored in sagebench's closed loop (rollout, evaluate).
 
-Reads FILE (a GVLN trajectory file, sagebench.gvln.episodes) and RUN/scenes/<id>/scene.json of the scene it is
-for: the one whose id is its `scene_name` or ends with "_<scene_name>" (an imported InteriorGS scene
-`0001_839920` is SAGE-3D's `839920`), or --scene. Writes RUN/episodes/<id>/part-<split>-NNNNN.parquet, replacing
-that scene's episodes whole (a staged directory renamed into place).
+Reads FILE (a GVLN trajectory file, sagebench.gvln.episodes) and RUN/scenes/<id>/scene.json and topdown.npz of the
+scene it is for: the one whose id is its `scene_name` or ends with "_<scene_name>" (an imported InteriorGS scene
+`0001_839920` is SAGE-3D's `839920`), or --scene. The file's values are checked as generated episodes are (its
+path points on the navigable map, moved onto it from at most SNAP_M away). Writes
+RUN/episodes/<id>/part-<split>-NNNNN.parquet, replacing that scene's episodes whole (a staged directory renamed
+into place).
 """
 
 from __future__ import annotations
@@ -20,10 +22,13 @@ from sagebench.episodes.shards import write_shards
 from sagebench.episodes.splits import Split
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import staged_dir
-from sagebench.gvln.episodes import read_gvln, rows_from_gvln
-from sagebench.run_layout import CONTRACT, SCENE_FILE, SCENES, require, run_episodes_dir, run_scene_dir
+from sagebench.gvln.episodes import SNAP_M, read_gvln, rows_from_gvln
+from sagebench.input_files import read_input
+from sagebench.metrics import NavigableMap
+from sagebench.run_layout import CONTRACT, SCENE_FILE, SCENES, TOPDOWN, require, run_episodes_dir, run_scene_dir
 from sagebench.scene.loader import parse_spec
 from sagebench.stamps import check_reads
+from sagebench.topdown.grid_file import read_topdown_grids
 
 SHARD_BYTES = 128 * 2**20
 OPTIONS = {"--goal-radius": "goal_radius", "--split": "split"}
@@ -49,10 +54,11 @@ class SageImport:
     trajectories: int
     rows: int
     skipped: Counter
+    snapped: int  # path points moved onto the navigable map
 
     def lines(self) -> list[str]:
-        out = [f"import-sage-episodes {self.scene_id}: {self.trajectories} trajectories, {self.rows} episode rows "
-               f"-> {self.out_dir}"]
+        out = [f"import-sage-episodes {self.scene_id}: {self.trajectories} trajectories, {self.rows} episode rows, "
+               f"{self.snapped} path points snapped onto the navigable map (within {SNAP_M:g} m) -> {self.out_dir}"]
         if self.skipped:
             out.append("left out instructions of types with no goal to score: "
                        + ", ".join(f"{k} {v}" for k, v in sorted(self.skipped.items())))
@@ -67,15 +73,17 @@ def import_sage_episodes(path: Path, run_dir: Path, config: SageImportConfig = S
     sid = scene_id or _scene_for(scene.scene_name, Path(run_dir), path)
     require(CONTRACT["import_sage"].reads, run_dir, sid)
     check_reads("import_sage", run_dir, sid)
-    spec_path = run_scene_dir(run_dir, sid) / SCENE_FILE
-    spec = parse_spec(spec_path.read_text(encoding="utf-8"), spec_path)
-    rows, skipped = rows_from_gvln(scene, spec, goal_radius=config.goal_radius, split=config.split)
-    if not rows:
+    scene_dir = run_scene_dir(run_dir, sid)
+    spec = parse_spec(read_input(scene_dir / SCENE_FILE), scene_dir / SCENE_FILE)
+    grids = read_topdown_grids(scene_dir / TOPDOWN)
+    navmap = NavigableMap(grids.navigable, grids.resolution, grids.origin, snap_radius=SNAP_M)
+    got = rows_from_gvln(scene, spec, navmap, goal_radius=config.goal_radius, split=config.split)
+    if not got.rows:
         raise DataError("no episode to import (no sample, or every instruction of a type with no goal)", path=path)
     out = run_episodes_dir(run_dir, sid)
     with staged_dir(out) as tmp:
-        write_shards(rows, tmp, SHARD_BYTES)
-    return SageImport(sid, out, len({r["trajectory_id"] for r in rows}), len(rows), skipped)
+        write_shards(got.rows, tmp, SHARD_BYTES)
+    return SageImport(sid, out, len({r["trajectory_id"] for r in got.rows}), len(got.rows), got.skipped, got.snapped)
 
 
 def _scene_for(name: str, run_dir: Path, path: Path) -> str:

@@ -9,6 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from sagebench.config import AgentConfig
 from sagebench.errors import DataError, first_error
+from sagebench.input_files import read_input
 from sagebench.scene.model import DoorState, Kind
 
 XY = tuple[float, float]
@@ -105,11 +106,17 @@ class SemanticMap(_Model):
 def read_semantic_map(path: Path) -> SemanticMap:
     """A scene's semantic_map.json; a missing or malformed one is a DataError naming the file (and the field)."""
     try:
-        raw = Path(path).read_bytes()
-    except OSError as err:
-        raise DataError(f"cannot read: {err.strerror} (run build-scene first)", path=path) from None
+        raw = read_input(path)
+    except DataError as err:
+        raise DataError(f"{err.detail} (run build-scene first)", path=path) from None
     try:
-        return SemanticMap.model_validate_json(raw)
+        smap = SemanticMap.model_validate_json(raw)
     except ValidationError as err:
         loc, msg, _ = first_error(err)
         raise DataError(msg, path=path, field=loc) from None
+    rooms = {r.room_id for r in smap.rooms}
+    for i, inst in enumerate(smap.instances):
+        if inst.room is not None and inst.room not in rooms:
+            raise DataError(f"room {inst.room!r} is not one of the map's rooms ({', '.join(sorted(rooms)) or 'none'})",
+                            path=path, field=f"instances[{i}].room")
+    return smap
