@@ -115,11 +115,15 @@ OUTPUT_ROOTS = tuple(sorted({_RUN_ROOTS[p.root] for s in CONTRACT.values() for p
 # What each command that writes into a run directory writes there, by top-level name (run_folder.py: under
 # --force the user's files may share the folder, never these names).
 _STAGE_COMMANDS = {"build_scene": "build-scene", "gen_trajectories": "gen-trajectories", "export_usd": "export-usd",
-                   "validate": "validate"}
+                   "validate": "validate", "import_sage": "import-sage-episodes"}
 COMMAND_WRITES: dict[str, tuple[str, ...]] = {
     command: tuple(sorted({_RUN_ROOTS[p.root] for p in CONTRACT[stage].writes})) for stage, command in _STAGE_COMMANDS.items()}
 COMMAND_WRITES["run"] = (*OUTPUT_ROOTS, STAMPS, MANIFEST, DATASET_CARD)
 COMMAND_WRITES["demo"] = (*COMMAND_WRITES["run"], BASELINES, DEMO_INPUT, DEMO_CONFIG)
+# Where in a run the commands that write one file (and its sidecars) may write it: a rollout's predictions and
+# their scores go to baselines/, as the demo's do, under the run's lock (run_folder.claim_output_file).
+FILE_COMMAND_WRITES: dict[str, tuple[str, ...]] = {"baseline": (BASELINES,), "rollout": (BASELINES,),
+                                                   "evaluate": (BASELINES,), "render": ()}
 
 # The names directly inside one scene's directory of each output tree (besides the normalised scene's meshes and
 # hidden entries); fnmatch patterns.
