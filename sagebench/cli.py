@@ -96,6 +96,10 @@ Force = Annotated[bool, typer.Option(
     "--force", help="Write into a folder that also holds files other than a sagebench run's; they are never changed "
                     "(one where the command writes still refuses it).")]
 
+ForceFile = Annotated[bool, typer.Option(
+    "--force", help="Replace an existing OUT (or a file written beside it) that sagebench did not write; never one "
+                    "in a sagebench run or an input.")]
+
 
 def _show_version(value: bool) -> None:
     if value:
@@ -131,16 +135,20 @@ def synth_scene(
     seed: Annotated[int, typer.Option(help="Layout seed; the same seed gives byte-identical files.")] = 0,
     furniture: Annotated[Path | None, typer.Option(
         callback=existing, help="Sweet Home 3D furniture catalogue (directory or .sh3f) whose models replace the procedural pieces.")] = None,
-    force: Annotated[bool, typer.Option("--force", help="Replace OUT whatever it holds.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Replace OUT whatever it holds, unless it is FURNITURE, "
+                                                        "lies inside it or holds it.")] = False,
 ) -> None:
     """Write a procedural apartment in the artist-scene input format.
 
     Reads FURNITURE/PluginFurnitureCatalog.properties and its OBJ/MTL models when given. Writes
     OUT/scene.json and OUT/meshes/*.glb|.ply|.obj; refuses an OUT that is a file or a directory holding
-    anything but an earlier synth scene, unless --force.
+    anything but an earlier synth scene, unless --force, and, even with --force, an OUT that is FURNITURE,
+    lies inside it or holds it, or lies inside a sagebench run.
     """
-    from sagebench.scene.synth import write_synth_scene
+    from sagebench.run_folder import check_scene_out
+    from sagebench.scene.synth import is_synth_scene, write_synth_scene
 
+    check_scene_out(out, "synth-scene", ours=is_synth_scene, force=force, inputs={"--furniture": furniture})
     spec = write_synth_scene(out, seed=seed, furniture=furniture, force=force)
     typer.echo(f"wrote {out} ({len(spec.rooms)} rooms, {len(spec.objects)} objects)")
 
@@ -220,7 +228,8 @@ def import_interiorgs_cmd(
     voxel: Annotated[float | None, typer.Option(help="Voxel side of the object surfaces, m.")] = None,
     min_opacity: Annotated[float | None, typer.Option(help="Summed opacity a voxel needs to be solid.")] = None,
     max_parts: Annotated[int | None, typer.Option(help="Convex parts per object surface at most.")] = None,
-    force: Annotated[bool, typer.Option("--force", help="Replace OUT whatever it holds.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Replace OUT whatever it holds, unless it is SRC or "
+                                                        "COLLISION_USD, lies inside one or holds one.")] = False,
 ) -> None:
     """Turn an InteriorGS scene folder (3D Gaussians and labels, no meshes) into a sagebench scene.
 
@@ -230,8 +239,9 @@ def import_interiorgs_cmd(
     Writes OUT/scene.json, OUT/meshes/*.ply (walls with their openings, floor and ceiling slabs, and each
     object's surface made from its own Gaussians), OUT/gaussians.ply (the Gaussians with instance ids),
     OUT/interiorgs_import.json (shares of Gaussians per outcome, doors, the occupancy agreement) and
-    OUT/occupancy_check.png (occupancy.png against the imported geometry). build-scene and run also take
-    SRC directly.
+    OUT/occupancy_check.png (occupancy.png against the imported geometry). OUT must be new, empty or an
+    earlier import (unless --force), and never SRC or COLLISION_USD, inside one, a folder holding one, or
+    inside a sagebench run. build-scene and run also take SRC directly.
     """
     from sagebench.stages.import_interiorgs import import_interiorgs_scene, make_config
 
@@ -382,6 +392,7 @@ def render_cmd(
     depth_out: Annotated[Path | None, typer.Option("--depth-out", help="Also write depth, float32 .npy, m.")] = None,
     instance_out: Annotated[Path | None, typer.Option("--instance-out", help="Also write instance ids, int32 .npy.")] = None,
     renderer: Annotated[str | None, typer.Option(help=RENDERER_HELP)] = None,
+    force: ForceFile = False,
 ) -> None:
     """Render one view of a built scene's 3D Gaussians (on the CPU unless --renderer says otherwise).
 
@@ -391,15 +402,15 @@ def render_cmd(
     Reads RUN_DIR/scenes/<scene>/scene.json and gaussians.ply.
 
     Writes OUT (PNG), and with --depth-out the expected z-depth (float32 .npy, metres, 0 where nothing
-    was hit) and with --instance-out the instance id per pixel (int32 .npy, 0 = background).
+    was hit) and with --instance-out the instance id per pixel (int32 .npy, 0 = background); never inside a
+    sagebench run, nor over a file sagebench did not write (unless --force).
     """
-    from sagebench.stages.render import make_render_config, parse_pose, render_view, write_frame
+    from sagebench.stages.render import make_render_config, parse_pose, render_files
 
     config = make_render_config(camera_height=camera_height, hfov=hfov, pitch_deg=pitch, width=width, height=height,
                                 renderer=renderer)
-    needs = ("rgb", *(["depth"] if depth_out else []), *(["instance"] if instance_out else []))
-    frame = render_view(run_dir, scene, parse_pose(pose), config, needs=needs)
-    for path in write_frame(frame, out, depth_out=depth_out, instance_out=instance_out):
+    for path in render_files(run_dir, scene, parse_pose(pose), config, out, depth_out=depth_out,
+                             instance_out=instance_out, force=force):
         typer.echo(f"wrote {path}")
 
 
@@ -600,12 +611,15 @@ def export_sage_cmd(
 
     Reads RUN_DIR/episodes/<id>/part-*.parquet and RUN_DIR/scenes/<id>/scene.json.
 
-    Writes OUT/<id>/trajectories_<id>.json per scene.
+    Writes OUT/<id>/trajectories_<id>.json per scene and OUT/sage_export.json (what was exported). OUT must
+    be new, empty or an earlier export-sage output, outside RUN_DIR.
     """
-    from sagebench.stages.export_sage import export_sage
+    from sagebench.run_folder import claim_export_dir
+    from sagebench.stages.export_sage import MARKER, export_sage
 
-    for line in export_sage(run_dir, out, scene_id=scene).lines():
-        typer.echo(line)
+    with claim_export_dir(out, run_dir, "export-sage", MARKER):
+        for line in export_sage(run_dir, out, scene_id=scene).lines():
+            typer.echo(line)
 
 
 @app.command("import-sage-episodes", cls=_defaults_from("sagebench.stages.import_sage:SageImportConfig"))
@@ -617,6 +631,7 @@ def import_sage_episodes_cmd(
         "--scene", help="Scene id in the run (default: the one named by the file's scene_name).")] = None,
     goal_radius: Annotated[float | None, typer.Option(help="Success radius, m, where the file has none (SAGE-3D's).")] = None,
     split: Annotated[str | None, typer.Option(help="Split of the rows where the file has none.")] = None,
+    force: Force = False,
 ) -> None:
     """Turn SAGE-Bench's GVLN episodes for a scene into sagebench episodes, to roll out and evaluate them.
 
@@ -629,14 +644,17 @@ def import_sage_episodes_cmd(
 
     Writes RUN/episodes/<id>/part-<split>-NNNNN.parquet, replacing that scene's episodes, and the stamp
     RUN/.stamps/<id>/import_sage.json in place of gen-trajectories'. Refuses (exit 2) a scene.json that
-    differs from what build-scene's stamp records.
+    differs from what build-scene's stamp records. RUN must be a sagebench run (unless --force), and is locked
+    while it is written.
     """
     from sagebench.pipeline.stage_commands import import_sage_episodes
+    from sagebench.run_folder import claim_run_dir
     from sagebench.stages.import_sage import make_config
 
     config = make_config(goal_radius=goal_radius, split=split)
-    for line in import_sage_episodes(file, run, config, scene_id=scene).lines():
-        typer.echo(line)
+    with claim_run_dir(run, "import-sage-episodes", force=force):
+        for line in import_sage_episodes(file, run, config, scene_id=scene).lines():
+            typer.echo(line)
 
 
 @app.command("run")
@@ -722,6 +740,7 @@ def evaluate_cmd(
     visualize: Annotated[Path | None, typer.Option(
         "--visualize", help="Also draw one picture per scored episode into this folder: new, empty or an earlier "
                             "--visualize output, outside RUN.")] = None,
+    force: ForceFile = False,
 ) -> None:
     """Score agent predictions: SR, OSR, SPL, NE, nDTW, SDTW, CSR, ICP, PS.
 
@@ -732,7 +751,9 @@ def evaluate_cmd(
 
     Prints the means overall, per instruction level, per instruction type and per split, and which
     distance to the goal each metric used (on foot over the navigable map, or straight). Writes OUT
-    (JSON: those means, every episode's metrics, missing episode ids, the settings) when given.
+    (JSON: those means, every episode's metrics, missing episode ids, the settings) when given: never inside a
+    sagebench run but in its baselines/, never over PREDICTIONS or a file sagebench did not write (unless
+    --force).
 
     For the predictions of `sagebench rollout` it also reads PREDICTIONS' stem + _rollout.json and scores
     exactly the episodes the rollout was asked to run (one without a prediction, such as one the policy
@@ -753,7 +774,7 @@ def evaluate_cmd(
                          workers=workers)
     with (_claimed_folder(visualize, run_dir, "evaluate --visualize", PICTURES_INDEX, "--visualize")
           if visualize is not None else contextlib.nullcontext()):
-        result = evaluate(run_dir, predictions, config, scene_id=scene, split=split, out=out)
+        result = evaluate(run_dir, predictions, config, scene_id=scene, split=split, out=out, force=force)
         pictures = draw_pictures(run_dir, result, visualize) if visualize is not None else []
     typer.echo(result.table())
     if result.missing:
@@ -826,6 +847,7 @@ def baseline_cmd(
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene's episodes (default: every scene).")] = None,
     max_actions: Annotated[int | None, typer.Option(help="Actions per episode before it ends unstopped.")] = None,
     workers: Annotated[int | None, typer.Option(help="Threads stepping the MuJoCo agents.")] = None,
+    force: ForceFile = False,
 ) -> None:
     """Run a built-in policy closed-loop over every episode: `rollout --policy AGENT --obs none`.
 
@@ -837,12 +859,12 @@ def baseline_cmd(
     Reads RUN/episodes/<id>/part-*.parquet and RUN/scenes/<id>/scene.json, topdown.npz and scene.xml
     (export-usd). Writes OUT: one JSON line per episode with poses, stopped and the simulator's
     collision_intensity, ready for `sagebench evaluate`, and OUT's stem + _rollout.json (the rollout's record:
-    its episodes, and that the baseline reads the pose and the episode).
+    its episodes, and that the baseline reads the pose and the episode). OUT is claimed as rollout claims it.
     """
     from sagebench.stages.rollout import make_baseline_config, run_baseline
 
     config = make_baseline_config(agent_name=agent, seed=seed, max_actions=max_actions, workers=workers)
-    typer.echo(run_baseline(run_dir, out, config, scene_id=scene).summary())
+    typer.echo(run_baseline(run_dir, out, config, scene_id=scene, force=force).summary())
 
 
 @app.command("rollout", cls=_defaults_from("sagebench.stages.rollout:RolloutConfig"))
@@ -890,6 +912,7 @@ def rollout_cmd(
     batch: Annotated[int | None, typer.Option(help="Episodes stepped together (results do not depend on it).")] = None,
     seed: Annotated[int | None, typer.Option(help="Seed of the episode sample and of the random policy.")] = None,
     renderer: Annotated[str | None, typer.Option(help=RENDERER_HELP)] = None,
+    force: ForceFile = False,
 ) -> None:
     """Run a policy closed-loop in the simulator: it sees rendered views, acts (STOP, MOVE_FORWARD 0.25 m,
     TURN_LEFT / TURN_RIGHT 15 degrees, or continuous v, omega, stop), MuJoCo moves the agent and measures each
@@ -903,6 +926,10 @@ def rollout_cmd(
     "simulator"), OUT's stem + _rollout.json (the episodes asked for, the observations the policy had, the
     episodes the policy failed) and, when rgb is rendered, OUT's stem + _contact_sheet.png (start, middle and
     end views of the first 4 episodes). Exit status 1 when episodes are left to run (--resume runs them).
+
+    OUT is held by this rollout alone (a second rollout into it is refused, naming its pid), lies outside every
+    sagebench run but in its baselines/, and an existing OUT, record or sheet that sagebench did not write is
+    never replaced (unless --force).
     """
     from sagebench.stages.rollout import make_config, run_rollout
 
@@ -912,7 +939,7 @@ def rollout_cmd(
                          policy_retries=policy_retries, policy_encoding=policy_encoding,
                          max_policy_failures=max_policy_failures, workers=workers, threads=threads, batch=batch,
                          seed=seed, resume=resume, renderer=renderer)
-    result = run_rollout(run_dir, out, config, scene_id=scene, resume=resume)
+    result = run_rollout(run_dir, out, config, scene_id=scene, resume=resume, force=force)
     typer.echo(result.summary())
     if not result.complete:
         raise typer.Exit(1)

@@ -125,6 +125,10 @@ COMMAND_WRITES: dict[str, tuple[str, ...]] = {
     for stage, command in STAGE_COMMANDS.items()}
 COMMAND_WRITES["run"] = (*OUTPUT_ROOTS, STAMPS, MANIFEST, DATASET_CARD)
 COMMAND_WRITES["demo"] = (*COMMAND_WRITES["run"], BASELINES, DEMO_INPUT, DEMO_CONFIG)
+# Where in a run the commands that write one file (and its sidecars) may write it: a rollout's predictions and
+# their scores go to baselines/, as the demo's do, under the run's lock (run_folder.claim_output_file).
+FILE_COMMAND_WRITES: dict[str, tuple[str, ...]] = {"baseline": (BASELINES,), "rollout": (BASELINES,),
+                                                   "evaluate": (BASELINES,), "render": ()}
 
 # The names directly inside one scene's directory of each output tree (besides the normalised scene's meshes and
 # hidden entries); fnmatch patterns.

@@ -72,7 +72,9 @@ def render_schemas() -> dict[str, bytes]:
 
 def write_schemas(out: Path) -> list[Path]:
     from sagebench.fileio import write_bytes
+    from sagebench.run_folder import check_place
 
+    check_place(out, "schemas", folder=True)  # never into a run
     written = []
     for name, data in render_schemas().items():
         write_bytes(out / name, data)

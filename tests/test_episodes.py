@@ -99,3 +99,19 @@ def test_paths_png_is_north_up_with_the_path_drawn():
     assert img.shape == (400, 600, 3)
     assert (img[-10:, :, :] < 100).all()  # south strip at the bottom, dark
     assert (img[200, 100:480] != 255).any()  # the path at y = 1 m crosses the middle row
+
+
+@pytest.mark.parametrize("split", ["../../../other/episodes/s/part-train", "", "tr\nain", "train/x"])
+def test_a_split_that_is_not_a_split_name_never_names_a_file(split, tmp_path):
+    """import-sage-episodes took a split from its file into the shard's name: `../../..` wrote another run's
+    shard, and "" or a newline made odd names. The writer is the last line of defence: nothing is written."""
+    from sagebench.errors import DataError
+
+    out = tmp_path / "run" / "episodes" / "s"
+    out.mkdir(parents=True)
+    with pytest.raises(DataError) as err:
+        write_shards([_row(0), _row(1, split=split)], out, shard_bytes=2**27)
+    assert str(err.value) == f"{out}: split: split {split!r} is not one of train, val_seen, val_unseen, test; " \
+                             "no shard was written"
+    assert [p.relative_to(tmp_path).as_posix() for p in sorted(tmp_path.rglob("*"))] == [
+        "run", "run/episodes", "run/episodes/s"]

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 from test_fuzz_inputs import snapshot, tiny_run, tiny_scene  # noqa: F401 - fixtures
-from test_fuzz_safety import _toml, refused
+from test_fuzz_safety import TOML, _toml, made_run, refused  # noqa: F401 - fixtures
 
 def _writers(scene: Path, out: Path, config: Path) -> dict[str, list]:
     """Every command that writes into a run directory, aimed at `out`."""
@@ -34,6 +34,9 @@ def _writers(scene: Path, out: Path, config: Path) -> dict[str, list]:
         "validate-force": ["validate", out, "--frames-per-scene", "0", "--force"],
         "demo": ["demo", "--out", out],
         "demo-force": ["demo", "--out", out, "--force"],
+        # the claim comes first: any existing FILE will do (the config), it is read only once the run is claimed
+        "import-sage-episodes": ["import-sage-episodes", config, "--run", out, "--scene", "tiny"],
+        "import-sage-episodes-force": ["import-sage-episodes", config, "--run", out, "--scene", "tiny", "--force"],
     }
 
 
@@ -173,12 +176,12 @@ def test_an_out_that_is_a_file_is_one_line(make, expect, tiny_scene, run_cli, tm
 
 
 def _exporter(name: str, run: Path, out: Path) -> list:
-    return {"export-vlnce": ["export-vlnce", run, "--out", out],
+    return {"export-vlnce": ["export-vlnce", run, "--out", out], "export-sage": ["export-sage", run, "--out", out],
             "export-training": ["export-training", run, "--out", out, "--renderer", "cpu", "--width", "16",
                                 "--height", "16"]}[name]
 
 
-EXPORTERS = ["export-vlnce", "export-training"]
+EXPORTERS = ["export-vlnce", "export-training", "export-sage"]
 EXPORT_OUTS = {  # where OUT is (the run copied to tmp_path/run) -> what the one line says
     "the-run": (lambda tmp: tmp / "run", "lies inside the run"),
     "inside-the-run": (lambda tmp: tmp / "run" / "exports" / "x", "lies inside the run"),
@@ -351,3 +354,220 @@ def test_an_unreadable_input_is_one_line(what, modes_bind, tiny_scene, tmp_path)
         assert not (tmp_path / "run").exists()
     finally:
         target.chmod(stat.S_IRWXU | stat.S_IRGRP | stat.S_IXGRP | stat.S_IROTH | stat.S_IXOTH)
+
+
+# ---------------------------------------------------------------- --force never replaces an input
+
+
+@pytest.fixture(scope="module")
+def interiorgs_src(tiny_scene, tmp_path_factory) -> Path:
+    """The tiny scene as an InteriorGS folder (tests/interiorgs_fixture.py). Read-only: copy it."""
+    from interiorgs_fixture import write_interiorgs_folder
+
+    out = tmp_path_factory.mktemp("igs") / "0001_1"
+    write_interiorgs_folder(tiny_scene, out)
+    return out
+
+
+FURNITURE = Path(__file__).parent / "fixtures" / "sh3d_cc0"
+SOURCE_CASES = {  # (command's input, where OUT is) -> what the one line says
+    "interiorgs-out-is-src": ("src", lambda src: src, "is the input {src} (SRC)"),
+    "interiorgs-out-holds-src": ("src", lambda src: src.parent, "holds the input {src} (SRC)"),
+    "interiorgs-out-inside-src": ("src", lambda src: src / "scene", "lies inside the input {src} (SRC)"),
+    "interiorgs-out-holds-collision-usd": ("usd", lambda usd: usd.parent, "holds the input {src} (--collision-usd)"),
+    "synth-out-is-furniture": ("furniture", lambda f: f, "is the input {src} (--furniture)"),
+    "synth-out-holds-furniture": ("furniture", lambda f: f.parent, "holds the input {src} (--furniture)"),
+}
+
+
+@pytest.mark.parametrize("case", list(SOURCE_CASES))
+def test_force_never_replaces_an_input_or_a_folder_above_one(case, interiorgs_src, run_cli, tmp_path):
+    """import-interiorgs --out SRC --force deleted the source's files, and --out $(dirname SRC) --force the
+    folder, the source and a user's file beside it; synth-scene --force did the same to its --furniture."""
+    what, where, says = SOURCE_CASES[case]
+    inputs = tmp_path / "inputs"
+    src = shutil.copytree(interiorgs_src, inputs / "0001_1")
+    usd = inputs / "usd" / "collision.usd"
+    usd.parent.mkdir()
+    usd.write_text("#usda 1.0\n")
+    furniture = shutil.copytree(FURNITURE, inputs / "furniture")
+    (inputs / "notes.txt").write_text("the user's, beside the inputs\n")
+    given = {"src": src, "usd": usd, "furniture": furniture}[what]
+    out = where(given)
+    args = (["synth-scene", "--furniture", furniture] if what == "furniture"
+            else ["import-interiorgs", src, *(["--collision-usd", usd] if what == "usd" else [])])
+    line = refused(run_cli, [*args, "--out", out, "--force"], tmp_path, says.format(src=given))
+    assert line == (f"error: --out: {out} {says.format(src=given)}; `{args[0]}` never writes over what it reads: "
+                    "choose another --out")
+
+
+# ---------------------------------------------------------------- one file: never in a run, never over the user's
+
+
+@pytest.fixture(scope="module")
+def made_predictions(made_run, tmp_path_factory) -> Path:
+    """The oracle's predictions over made_run (and their record), outside it. Read-only."""
+    from sagebench.stages.rollout import make_baseline_config, run_baseline
+
+    out = tmp_path_factory.mktemp("made_predictions") / "oracle.jsonl"
+    run_baseline(made_run, out, make_baseline_config(agent_name="oracle"))
+    return out
+
+
+def _file_writer(name: str, run: Path, out: Path, predictions: Path) -> list:
+    return {"render": ["render", run, "--scene", "tiny", "--pose", "2,2,0", "--width", "8", "--height", "8",
+                       "--out", out],
+            "baseline": ["baseline", "--agent", "straight", "--run", run, "--out", out],
+            "evaluate": ["evaluate", "--run", run, "--predictions", predictions, "--out", out],
+            "rollout": ["rollout", "--run", run, "--policy", "straight", "--obs", "none", "--out", out]}[name]
+
+
+FILE_WRITERS = ["render", "baseline", "evaluate", "rollout"]
+IN_THE_RUN = "a sagebench run or export, where `{writer}` does not write"
+FILE_OUTS = {  # where OUT is (made_run copied to tmp_path/run) -> what the one line says
+    "manifest": (lambda tmp: tmp / "run" / "manifest.json", IN_THE_RUN),
+    "shard": (lambda tmp: next((tmp / "run" / "episodes" / "tiny").glob("part-train-*.parquet")), IN_THE_RUN),
+    "scene-xml": (lambda tmp: tmp / "run" / "scenes" / "tiny" / "scene.xml", IN_THE_RUN),
+    "gaussians": (lambda tmp: tmp / "run" / "scenes" / "tiny" / "gaussians.ply", IN_THE_RUN),
+    "a-new-file-in-the-run": (lambda tmp: tmp / "run" / "reports" / "mine.json", IN_THE_RUN),
+    "a-link-into-the-run": (lambda tmp: (tmp / "link").symlink_to(tmp / "run" / "scenes") or tmp / "link" / "x.out",
+                            IN_THE_RUN),
+    "a-users-file": (lambda tmp: ((tmp / "mine.out").write_text("the user's\n"), tmp / "mine.out")[1],
+                     "exists and sagebench did not write it; choose another --out, or --force to replace it"),
+}
+
+
+@pytest.mark.parametrize("where", list(FILE_OUTS))
+@pytest.mark.parametrize("writer", FILE_WRITERS)
+def test_a_file_output_never_lands_in_a_run_or_on_a_users_file(writer, where, made_run, made_predictions, run_cli,
+                                                                 tmp_path):
+    """--out RUN/manifest.json, a shard, scene.xml or gaussians.ply was overwritten by all four (and verify then
+    failed), and a user's file silently: each is one line now, before any work, with --force too in a run."""
+    run = shutil.copytree(made_run, tmp_path / "run")
+    make, says = FILE_OUTS[where]
+    out = make(tmp_path)
+    args = _file_writer(writer, run, out, made_predictions)
+    refused(run_cli, args, tmp_path, says.format(writer=writer))
+    if says == IN_THE_RUN:
+        refused(run_cli, [*args, "--force"], tmp_path, says.format(writer=writer))
+
+
+def test_sidecars_are_claimed_and_sagebench_s_own_outputs_are_replaced(made_run, made_predictions, run_cli, tmp_path):
+    """A rollout's record and contact sheet beside OUT are claimed with it; an output sagebench wrote there (its
+    content says so) is replaced without --force, a user's file only with it, never the predictions scored."""
+    run = shutil.copytree(made_run, tmp_path / "run")
+    (tmp_path / "r_rollout.json").write_text("{}\n")
+    refused(run_cli, ["baseline", "--agent", "straight", "--run", run, "--out", tmp_path / "r.jsonl"], tmp_path,
+            "r_rollout.json: exists and sagebench did not write it")
+    (tmp_path / "s_contact_sheet.png").write_bytes(b"\x89PNG\r\n\x1a\n the user's")
+    refused(run_cli, ["rollout", "--run", run, "--policy", "straight", "--obs", "none", "--out", tmp_path / "s.jsonl"],
+            tmp_path, "s_contact_sheet.png: exists and sagebench did not write it")
+    refused(run_cli, ["evaluate", "--run", run, "--predictions", made_predictions, "--out", made_predictions,
+                      "--force"], tmp_path, f"--out: {made_predictions} is the input {made_predictions} (--predictions)")
+    for writer in FILE_WRITERS:
+        out = tmp_path / f"{writer}.out"
+        args = _file_writer(writer, run, out, made_predictions)
+        assert run_cli(*args)[0] == 0 and run_cli(*args)[0] == 0, writer  # its own output: replaced
+        out.write_text("now the user's\n")
+        (tmp_path / f"{writer}_rollout.json").unlink(missing_ok=True)  # predictions are sagebench's by their record
+        refused(run_cli, args, tmp_path, "exists and sagebench did not write it")
+        assert run_cli(*args, "--force")[0] == 0, writer
+    code, _, err = run_cli(*_file_writer("baseline", run, run / "baselines" / "straight.jsonl", made_predictions))
+    assert code == 0, err  # the run's declared place for baselines
+    assert not list(tmp_path.rglob(".*.sagebench.lock"))  # a results file's lock goes with its holder
+
+
+def _hold_results(out: Path) -> subprocess.Popen:
+    proc = subprocess.Popen([sys.executable, "-c", "import sys, time\nfrom pathlib import Path\n"
+                             "from sagebench.run_lock import results_lock\nwith results_lock(Path(sys.argv[1])):\n"
+                             "    print('locked', flush=True)\n    time.sleep(600)\n", str(out)],
+                            stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline() == "locked\n"
+    return proc
+
+
+@pytest.mark.parametrize("writer", ["rollout", "baseline"])
+def test_a_second_writer_of_a_results_file_is_refused(writer, made_run, run_cli, tmp_path):
+    """Two rollouts into one results file both exited 0 and one policy's results were lost: a rollout holds its
+    results file for its whole run, and the second is one line naming the first's pid."""
+    out = tmp_path / "results.jsonl"
+    holder = _hold_results(out)
+    try:
+        refused(run_cli, _file_writer(writer, made_run, out, out), tmp_path,
+                f"{out}: another sagebench command (pid {holder.pid}) is writing this results file; wait for it to "
+                "end or choose another")
+    finally:
+        holder.kill()
+        holder.wait()
+    code, _, err = run_cli(*_file_writer(writer, made_run, out, out))
+    assert code == 0, err
+
+
+# ---------------------------------------------------------------- import-sage-episodes claims its run
+
+
+def test_import_sage_episodes_never_writes_a_run_another_command_holds(tiny_run, run_cli, tmp_path):
+    sage = tmp_path / "sage"
+    assert run_cli("export-sage", tiny_run, "--out", sage)[0] == 0
+    run = shutil.copytree(tiny_run, tmp_path / "run")
+    holder = _hold_lock(run)
+    try:
+        refused(run_cli, ["import-sage-episodes", sage / "tiny" / "trajectories_tiny.json", "--run", run], tmp_path,
+                f"error: {run}: another sagebench command (pid {holder.pid}) is writing this run directory")
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_export_sage_goes_again_into_its_own_output_and_never_over_a_users_file(tiny_run, run_cli, tmp_path):
+    mine = tmp_path / "mine" / "tiny" / "trajectories_tiny.json"
+    mine.parent.mkdir(parents=True)
+    mine.write_text('{"the": "user\'s"}\n')
+    refused(run_cli, ["export-sage", tiny_run, "--out", tmp_path / "mine"], tmp_path,
+            "is not empty and holds no export-sage output; use a new --out")
+    out = tmp_path / "sage"
+    assert run_cli("export-sage", tiny_run, "--out", out)[0] == 0
+    first = snapshot(out)
+    assert "sage_export.json" in first and "tiny/trajectories_tiny.json" in first
+    code, _, err = run_cli("export-sage", tiny_run, "--out", out)
+    assert code == 0, err
+    assert snapshot(out) == first
+
+
+# ---------------------------------------------------------------- a run folder is recognised by what it holds
+
+
+def test_a_project_folder_of_its_config_and_inputs_takes_the_run(tiny_scene, run_cli, tmp_path):
+    """`make demo`'s layout: run.toml (any header) and the input/ scenes it names, with out = ".". It was refused
+    as "files that are not a sagebench run's" unless --force; a stray file of the user's still is."""
+    project = tmp_path / "project"
+    shutil.copytree(tiny_scene, project / "input" / "tiny")
+    config = project / "run.toml"
+    config.write_text("# my project\n" + TOML.format(scene="input/tiny", out="."))
+    code, _, err = run_cli("-q", "run", config)
+    assert code == 0, err
+    assert (project / "manifest.json").is_file() and (project / "input" / "tiny" / "scene.json").is_file()
+    (project / "notes.txt").write_text("mine\n")
+    refused(run_cli, ["run", config], tmp_path, "holds files that are not a sagebench run's (notes.txt)")
+    (project / "notes.txt").unlink()
+    (project / "input" / "other.txt").write_text("mine\n")  # input/ holding more than the scenes named
+    refused(run_cli, ["run", config], tmp_path, "holds files that are not a sagebench run's (input/)")
+
+
+# ---------------------------------------------------------------- the finished lock and `cp -al`
+
+
+def test_a_cp_al_copy_of_a_finished_run_takes_a_writer_and_the_original_is_untouched(tiny_run, run_cli, tmp_path):
+    """Every finished run keeps .sagebench.lock; a `cp -al` copy shares it (2 links) and was refused as
+    "hard-linked elsewhere". Nobody holds it: the copy's name is replaced by a fresh file, never written."""
+    run = shutil.copytree(tiny_run, tmp_path / "run")
+    args = ["--per-scene", "2", "--min-geodesic", "1"]
+    assert run_cli("gen-trajectories", run, *args)[0] == 0
+    lock = run / ".sagebench.lock"
+    inode, before = lock.stat().st_ino, snapshot(run)
+    subprocess.run(["cp", "-al", str(run), str(tmp_path / "copy")], check=True)
+    assert lock.stat().st_nlink == 2
+    code, _, err = run_cli("gen-trajectories", tmp_path / "copy", *args, "--seed", "1")
+    assert code == 0, err
+    assert (lock.stat().st_ino, lock.stat().st_nlink, snapshot(run)) == (inode, 1, before)
+    assert (tmp_path / "copy" / ".sagebench.lock").stat().st_ino != inode

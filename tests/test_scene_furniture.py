@@ -112,7 +112,9 @@ def test_a_wall_cabinet_hangs_at_its_catalogue_elevation(tmp_path):
 
 
 def test_cli_bad_furniture_dir_writes_nothing(run_cli, tmp_path):
-    code, out, err = run_cli("synth-scene", "--out", tmp_path / "s", "--furniture", tmp_path)
+    furniture = tmp_path / "furniture"  # beside OUT: an OUT inside --furniture is refused before it is read
+    furniture.mkdir()
+    code, out, err = run_cli("synth-scene", "--out", tmp_path / "s", "--furniture", furniture)
     assert code == 2
-    assert err.strip().splitlines() == [f"error: {tmp_path}: no {CATALOGUE_FILE} (expected a Sweet Home 3D catalogue directory or .sh3f)"]
+    assert err.strip().splitlines() == [f"error: {furniture}: no {CATALOGUE_FILE} (expected a Sweet Home 3D catalogue directory or .sh3f)"]
     assert not (tmp_path / "s").exists()

@@ -17,6 +17,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from sagebench.episodes.schema import EPISODE_SCHEMA
+from sagebench.episodes.splits import SPLITS
 from sagebench.errors import DataError
 from sagebench.fileio import write_bytes
 
@@ -61,8 +62,13 @@ def shard_tables(table: pa.Table, shard_bytes: int) -> list[bytes]:
 
 def write_shards(rows: Sequence[dict[str, Any]], out_dir: Path, shard_bytes: int) -> list[Path]:
     """Write each split's rows (in order) into out_dir/part-<split>-00000.parquet, ... of about `shard_bytes`;
-    splits in sorted order. No rows: one empty part-empty-00000.parquet keeps the schema."""
+    splits in sorted order. No rows: one empty part-empty-00000.parquet keeps the schema. A split that is not one
+    of SPLITS is a DataError before anything is written."""
     splits = sorted({r["split"] for r in rows}) or ["empty"]
+    bad = next((s for s in splits if s not in (*SPLITS, "empty")), None)
+    if bad is not None:  # a name from an input must never leave out_dir: the split is part of every file name
+        raise DataError(f"split {bad!r} is not one of {', '.join(SPLITS)}; no shard was written", path=out_dir,
+                        field="split")
     paths = []
     for split in splits:
         table = rows_table([r for r in rows if r["split"] == split])

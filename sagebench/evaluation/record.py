@@ -14,9 +14,10 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from sagebench.errors import DataError, first_error
-from sagebench.fileio import write_text
+from sagebench.fileio import read_regular, write_text
 
 RECORD_FORMAT = 1
+RECORD_BYTES = 1 << 28  # far beyond a record of a million episode ids; a bigger file is not one
 
 
 class PolicyFailed(BaseModel):
@@ -80,6 +81,20 @@ def read_record(predictions: Path) -> RolloutRecord | None:
     except ValidationError as err:
         field, msg, _ = first_error(err)
         raise DataError(msg, path=path, field=field) from None
+
+
+def is_record(path: Path) -> bool:
+    """Whether `path` is a rollout record sagebench wrote: a regular file that parses as one."""
+    data = read_regular(path, limit=RECORD_BYTES)
+    try:
+        return data is not None and RolloutRecord.model_validate_json(data) is not None
+    except ValidationError:
+        return False
+
+
+def is_rollout_predictions(path: Path) -> bool:
+    """Whether `path` holds a rollout's predictions: the rollout record beside it is sagebench's."""
+    return is_record(record_path(path))
 
 
 def write_record(predictions: Path, record: RolloutRecord) -> None:

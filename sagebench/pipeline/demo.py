@@ -8,11 +8,11 @@ from pathlib import Path
 from sagebench.fileio import write_text
 from sagebench.pipeline.config import load_run_config
 from sagebench.pipeline.run import RunSummary, run_pipeline
-from sagebench.run_folder import claim_run_dir
+from sagebench.run_folder import check_scene_out, claim_run_dir
 from sagebench.run_layout import BASELINES, DEMO_CONFIG, DEMO_CONFIG_HEADER, DEMO_INPUT
 from sagebench.scene.loader import load_scene
 from sagebench.scene.summary import summarise
-from sagebench.scene.synth import write_synth_scene
+from sagebench.scene.synth import is_synth_scene, write_synth_scene
 from sagebench.ui import info
 
 RUN_CONFIG = DEMO_CONFIG_HEADER + """ (`make demo` writes it).
@@ -42,6 +42,7 @@ def run_demo(out: Path, *, seed: int = 0, force: bool = False) -> DemoResult:
 
 def _demo(out: Path, seed: int) -> DemoResult:
     scene_dir = out / DEMO_INPUT / f"demo_apartment_{seed}"
+    check_scene_out(scene_dir, "synth-scene", ours=is_synth_scene)
     write_synth_scene(scene_dir, seed=seed)
     info(f"demo scene: {scene_dir}")
     info(summarise(load_scene(scene_dir)))

@@ -72,12 +72,13 @@ class RunSummary:
 def run_pipeline(config: RunConfig, config_path: Path, *, force: bool = False) -> RunSummary:
     """Run build-scene, gen-trajectories, export-usd and validate over every scene of the config.
 
-    `out` must be absent, empty or a sagebench run, unless `force` (run_folder.claim_run_dir)."""
+    `out` must be absent, empty or a sagebench run (besides the config and the scenes it names), unless `force`
+    (run_folder.claim_run_dir)."""
     start = time.perf_counter()
     sources = _scene_ids(resolve_scenes(config, config_path), config_path)
     run_dir = Path(config.out)
     check_scenes_apart(run_dir, sources.values(), path=config_path, out_field="out", scenes_field="scenes")
-    with claim_run_dir(run_dir, "run", force=force):
+    with claim_run_dir(run_dir, "run", force=force, config=config_path, inputs=sources.values()):
         clean_temporaries(run_dir, sources.values())
         return _run_locked(config, config_path, sources, run_dir, start)
 

@@ -23,7 +23,7 @@ from shapely.geometry import Polygon, box as rect
 
 from sagebench.config import AgentConfig
 from sagebench.errors import ConfigError
-from sagebench.fileio import dumps_json, staged_dir, write_bytes
+from sagebench.fileio import dumps_json, read_regular, staged_dir, write_bytes
 from sagebench.scene import assets
 from sagebench.scene.furniture import CATEGORY_NOUNS, Catalogue, CatalogueEntry
 from sagebench.scene.loader import SCENE_FILE, yaw_quaternion
@@ -182,10 +182,9 @@ def _license(pick: _FurniturePicker | None) -> str:
 
 def write_synth_scene(out: Path, *, seed: int = 0, furniture: Path | None = None, force: bool = False) -> SceneSpec:
     """Write the demo scene for `seed` into `out` (replaced whole, atomically), furnished from the Sweet Home
-    3D catalogue `furniture` (a directory or .sh3f) where given. `out` must be absent, an empty directory or
-    an earlier synth scene, unless `force`: a user's files are never replaced by accident."""
-    if not force:
-        check_replaceable(Path(out))
+    3D catalogue `furniture` (a directory or .sh3f) where given. The caller claims `out` first (synth-scene and
+    demo: run_folder.check_scene_out with `is_synth_scene`); with `force` the user's hidden files in it are not
+    carried over."""
     spec, files = synth_spec_and_meshes(seed, None if furniture is None else Catalogue(furniture))
     with staged_dir(Path(out), keep_hidden=not force) as tmp:  # --force replaces OUT whatever it holds
         for name, data in files.items():
@@ -194,24 +193,11 @@ def write_synth_scene(out: Path, *, seed: int = 0, furniture: Path | None = None
     return spec
 
 
-def check_replaceable(out: Path) -> None:
-    """A ConfigError unless `out` is absent, an empty directory or exactly what write_synth_scene writes
-    (scene.json of a demo apartment and the meshes it names, nothing else)."""
-    if not out.exists() and not out.is_symlink():
-        return
-    if out.is_symlink() or not out.is_dir():
-        raise ConfigError("exists and is not a directory; choose another --out (or --force to replace it)",
-                          path=out, field="--out")
-    if not any(out.iterdir()) or _is_synth_scene(out):
-        return
-    raise ConfigError("is not empty and not a scene written by `sagebench synth-scene`; choose another --out "
-                      "(or --force to replace it)", path=out, field="--out")
-
-
-def _is_synth_scene(out: Path) -> bool:
-    spec_path = out / SCENE_FILE
+def is_synth_scene(out: Path) -> bool:
+    """Whether `out` holds exactly what write_synth_scene writes (scene.json of a demo apartment and the meshes
+    it names, nothing else)."""
     try:
-        spec = json.loads(spec_path.read_text(encoding="utf-8"))
+        spec = json.loads(read_regular(Path(out) / SCENE_FILE, limit=1 << 26) or b"")  # a FIFO is never opened
         scene_id, meshes = spec.get("scene_id"), {o["mesh"] for o in spec.get("objects")}
     except (OSError, ValueError, AttributeError, TypeError, KeyError):
         return False

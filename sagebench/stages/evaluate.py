@@ -9,6 +9,7 @@ episode, the ids of missing episodes and the settings; with --visualize, one pic
 from __future__ import annotations
 
 import hashlib
+import json
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -28,10 +29,11 @@ from sagebench.evaluation.record import RolloutRecord, read_record, record_path
 from sagebench.evaluation.scoring import (
     DISTANCE_USED, ICP_SOURCES, METRIC_NAMES, EpisodeScore, Summary, score_episodes, summarise_scores,
 )
-from sagebench.fileio import write_json
+from sagebench.fileio import read_regular, write_json
 from sagebench.metrics import MetricConfig, NavigableMap
 from sagebench.replay.physics import ReplayConfig, ReplayModel
 from sagebench.replay.scene_model import open_replay_model
+from sagebench.run_folder import Output, claim_output_file
 from sagebench.run_layout import SEMANTIC_MAP, TOPDOWN, run_scene_dir
 from sagebench.topdown.grid_file import read_topdown_grids
 from sagebench.topdown.semantic_map import read_semantic_map
@@ -198,14 +200,36 @@ def _derived(models: dict[str, ReplayModel], episodes: list[Episode], matched: d
     return derived
 
 
+def is_evaluation(path: Path) -> bool:
+    """Whether `path` holds results evaluate wrote: a JSON object with its keys."""
+    try:
+        doc = json.loads(read_regular(path, limit=1 << 30) or b"")
+    except (ValueError, RecursionError):
+        return False
+    return isinstance(doc, dict) and {"predictions", "overall", "per_episode", "distance_used"} <= doc.keys()
+
+
 def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = EvaluateConfig(), *,
-             scene_id: str | None = None, split: str | None = None, out: Path | None = None) -> Evaluation:
+             scene_id: str | None = None, split: str | None = None, out: Path | None = None,
+             force: bool = False) -> Evaluation:
     """Score `predictions` against the run's episodes (or `scene_id`'s, or `split`'s: predictions of the run's
-    other episodes are then left out); write `out` (JSON) when given.
+    other episodes are then left out); write `out` (JSON) when given, claimed first (run_folder.claim_output_file:
+    never over a file sagebench did not write unless `force`, never over the predictions or their record).
 
     Every check (format, ids, starts, inputs) passes before anything is replayed or written.
     """
     run_dir, predictions = Path(run_dir), Path(predictions)
+    if out is None:
+        return _scored(run_dir, predictions, config, scene_id, split)
+    with claim_output_file(Output(Path(out), is_evaluation), "evaluate", force=force,
+                           inputs={"--predictions": predictions, "their rollout record": record_path(predictions)}):
+        result = _scored(run_dir, predictions, config, scene_id, split)
+        write_json(Path(out), result.to_json())
+        return result
+
+
+def _scored(run_dir: Path, predictions: Path, config: EvaluateConfig, scene_id: str | None,
+            split: str | None) -> Evaluation:
     episodes = load_episodes(run_dir, scene_id)
     rows = read_predictions(predictions, allow_empty=True)
     record = read_record(predictions)
@@ -231,12 +255,9 @@ def evaluate(run_dir: Path, predictions: Path, config: EvaluateConfig = Evaluate
     check_on_map(rows, lambda eid: maps[by_id[eid].scene_id].bounds, predictions)
     models = {sid: open_replay_model(run_dir, sid, replay=config.replay) for sid in need_replay}
     scores = score_episodes(episodes, matched, _derived(models, episodes, matched, config.workers), maps, config.metrics)
-    result = Evaluation(scores=scores, summary=summarise_scores(scores), missing=missing, predictions=predictions,
-                        predictions_sha256=hashlib.sha256(predictions.read_bytes()).hexdigest(), config=config,
-                        split=split, record=record, asked_only=asked_only)
-    if out is not None:
-        write_json(Path(out), result.to_json())
-    return result
+    return Evaluation(scores=scores, summary=summarise_scores(scores), missing=missing, predictions=predictions,
+                      predictions_sha256=hashlib.sha256(predictions.read_bytes()).hexdigest(), config=config,
+                      split=split, record=record, asked_only=asked_only)
 
 
 def draw_pictures(run_dir: Path, result: Evaluation, out_dir: Path) -> list[Path]:

@@ -14,8 +14,9 @@ from pathlib import Path
 
 from sagebench.config import from_options
 from sagebench.errors import ConfigError
-from sagebench.fileio import staged_dir
+from sagebench.fileio import read_regular, staged_dir
 from sagebench.importers.config import REPORT_FILE, InteriorGSConfig
+from sagebench.run_folder import check_scene_out
 from sagebench.run_layout import SCENE_FILE
 
 OPTIONS = {"--voxel": "voxel", "--min-opacity": "min_opacity", "--max-parts": "max_parts"}
@@ -42,11 +43,12 @@ class ImportResult:
 
 def import_interiorgs_scene(src: Path, out: Path, config: InteriorGSConfig = InteriorGSConfig(), *,
                             collision_usd: Path | None = None, force: bool = False) -> ImportResult:
-    """Import `src` into `out` (absent, empty or an earlier import, unless `force`)."""
+    """Import `src` into `out` (absent, empty or an earlier import, unless `force`; never an input, inside one or
+    holding one: run_folder.check_scene_out)."""
     from sagebench.importers.interiorgs import import_interiorgs, write_imported
 
-    if not force:
-        _check_replaceable(Path(out))
+    check_scene_out(Path(out), "import-interiorgs", ours=_is_import, force=force,
+                    inputs={"SRC": src, "--collision-usd": collision_usd})
     if collision_usd is not None and not Path(collision_usd).is_file():
         raise ConfigError("no such file", path=collision_usd, field="--collision-usd")
     imported = import_interiorgs(Path(src), config, collision_usd=collision_usd)
@@ -55,18 +57,10 @@ def import_interiorgs_scene(src: Path, out: Path, config: InteriorGSConfig = Int
     return ImportResult(Path(out), imported.report, imported.warnings)
 
 
-def _check_replaceable(out: Path) -> None:
-    if not out.exists() and not out.is_symlink():
-        return
-    if out.is_symlink() or not out.is_dir():
-        raise ConfigError("exists and is not a directory; choose another --out (or --force to replace it)",
-                          path=out, field="--out")
-    if not any(out.iterdir()):
-        return
+def _is_import(out: Path) -> bool:
+    """Whether `out` holds a scene import-interiorgs wrote (its report and a scene.json)."""
     try:
-        ours = json.loads((out / REPORT_FILE).read_text(encoding="utf-8")).get("scene_id") is not None
-    except (OSError, ValueError, AttributeError):
+        ours = json.loads(read_regular(out / REPORT_FILE, limit=1 << 26) or b"").get("scene_id") is not None
+    except (ValueError, AttributeError):
         ours = False
-    if not (ours and (out / SCENE_FILE).is_file()):
-        raise ConfigError("is not empty and not a scene written by `sagebench import-interiorgs`; choose another "
-                          "--out (or --force to replace it)", path=out, field="--out")
+    return ours and (out / SCENE_FILE).is_file()

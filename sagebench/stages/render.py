@@ -12,14 +12,17 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from numpy.lib import format as npy_format
 from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench.config import CameraConfig, from_options
 from sagebench.errors import ConfigError, DataError
-from sagebench.fileio import write_bytes
+from sagebench.fileio import read_regular, write_bytes
+from sagebench.png_mark import is_marked, marked
 from sagebench.render.backends import RendererChoice, open_renderer
 from sagebench.render.camera import agent_camera
 from sagebench.render.splat_reference import Frame
+from sagebench.run_folder import Output, claim_output_file
 from sagebench.run_layout import CONTRACT, GAUSSIANS, SCENE_FILE, run_scene_dir
 from sagebench.scene.loader import parse_spec
 
@@ -108,9 +111,35 @@ def npy_bytes(array: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
+def render_files(run_dir: Path, scene_id: str, pose: tuple[float, float, float], config: RenderConfig, out: Path, *,
+                 depth_out: Path | None = None, instance_out: Path | None = None, force: bool = False) -> list[Path]:
+    """Render the view and write OUT (PNG) and the arrays asked for, each claimed first
+    (run_folder.claim_output_file: never in a run, never over a file sagebench did not write unless `force`)."""
+    needs = ("rgb", *(["depth"] if depth_out else []), *(["instance"] if instance_out else []))
+    arrays = [Output(Path(p), is_render_array, field)
+              for p, field in ((depth_out, "--depth-out"), (instance_out, "--instance-out")) if p is not None]
+    with claim_output_file(Output(Path(out), is_marked), "render", force=force, sidecars=arrays):
+        frame = render_view(run_dir, scene_id, pose, config, needs=needs)
+        return write_frame(frame, out, depth_out=depth_out, instance_out=instance_out)
+
+
+def is_render_array(path: Path) -> bool:
+    """Whether `path` holds what --depth-out or --instance-out writes: a .npy of one 2-D float32 or int32 array."""
+    head = read_regular(path, limit=None, size=4096)
+    try:
+        buf = io.BytesIO(head or b"")
+        major, _ = npy_format.read_magic(buf)
+        read = npy_format.read_array_header_1_0 if major == 1 else npy_format.read_array_header_2_0
+        shape, _, dtype = read(buf)
+    except (ValueError, EOFError, SyntaxError, TypeError):
+        return False
+    return len(shape) == 2 and dtype in (np.dtype("<f4"), np.dtype("<i4"))
+
+
 def write_frame(frame: Frame, out: Path, *, depth_out: Path | None = None, instance_out: Path | None = None) -> list[Path]:
-    """Write the PNG, and the depth (float32, m) and instance-id (int32) arrays when asked; returns the paths."""
-    files = [(out, png_bytes(frame.rgb))]
+    """Write the PNG (marked as sagebench's), and the depth (float32, m) and instance-id (int32) arrays when
+    asked; returns the paths."""
+    files = [(out, marked(png_bytes(frame.rgb)))]
     if depth_out is not None:
         files.append((depth_out, npy_bytes(frame.depth.astype(np.float32))))
     if instance_out is not None:

@@ -25,7 +25,9 @@ from sagebench import ui
 from sagebench.adapters.vlnce import PRESETS, VlnceAgents, body_note, preset_differences, preset_env
 from sagebench.config import from_options
 from sagebench.errors import ConfigError, DataError, Interrupted
-from sagebench.evaluation.record import Observed, RolloutRecord, read_record, record_path
+from sagebench.evaluation.record import (
+    Observed, RolloutRecord, is_record, is_rollout_predictions, read_record, record_path,
+)
 from sagebench.fileio import write_bytes
 from sagebench.navsim.http_policy import HttpPolicy
 from sagebench.navsim.policies import BUILT_IN, Policy, built_in
@@ -34,6 +36,8 @@ from sagebench.navsim.protocol import Encoding
 from sagebench.navsim.resumable import run_into
 from sagebench.navsim.rollout import contact_sheet, select_episodes
 from sagebench.navsim.simulator import EnvConfig, Simulator
+from sagebench.png_mark import is_marked, marked
+from sagebench.run_folder import Output, claim_output_file
 from sagebench.threads import share_cores
 
 
@@ -188,17 +192,27 @@ def sheet_path(out: Path) -> Path:
 
 
 def _write_sheet(path: Path, views: list, wanted: int) -> None:
-    """The contact sheet, when this process rendered the views of all `wanted` episodes it shows."""
+    """The contact sheet, when this process rendered the views of all `wanted` episodes it shows (marked as
+    sagebench's, so that a later rollout replaces it)."""
     if views and len(views) == wanted:
-        write_bytes(path, cv2.imencode(".png", contact_sheet(views)[:, :, ::-1])[1].tobytes())
+        write_bytes(path, marked(cv2.imencode(".png", contact_sheet(views)[:, :, ::-1])[1].tobytes()))
 
 
-def run_rollout(run_dir: Path, out: Path, config: RolloutConfig = RolloutConfig(), *,
-                scene_id: str | None = None, resume: bool = False) -> RolloutSummary:
+def run_rollout(run_dir: Path, out: Path, config: RolloutConfig = RolloutConfig(), *, scene_id: str | None = None,
+                resume: bool = False, force: bool = False, command: str = "rollout") -> RolloutSummary:
     """Roll the policy out over the episodes asked for into `out` (sagebench.navsim.resumable) and write the
-    contact sheet; with `resume`, run those an earlier rollout into `out` left, with its settings."""
-    share_cores(config.threads)
+    contact sheet; with `resume`, run those an earlier rollout into `out` left, with its settings. `out`, its
+    record and its sheet are claimed for `command` first (run_folder.claim_output_file): held by this rollout
+    alone, never over a file sagebench did not write unless `force`."""
     out = Path(out)
+    sheet = [Output(sheet_path(out), is_marked)] if config.sheet_episodes else []
+    with claim_output_file(Output(out, is_rollout_predictions), command, force=force,
+                           sidecars=[Output(record_path(out), is_record), *sheet]):
+        return _roll_out(Path(run_dir), out, config, scene_id, resume)
+
+
+def _roll_out(run_dir: Path, out: Path, config: RolloutConfig, scene_id: str | None, resume: bool) -> RolloutSummary:
+    share_cores(config.threads)
     earlier = read_record(out) if resume else None
     config = resumed(config, earlier, out) if resume else config
     sim = Simulator(run_dir, config.env, scene_id=scene_id, threads=config.workers)
@@ -328,8 +342,9 @@ class BaselineResult:
 
 
 def run_baseline(run_dir: Path, out: Path, config: BaselineConfig = BaselineConfig(), *,
-                 scene_id: str | None = None) -> BaselineResult:
-    """Roll the agent out over every episode of the run (or `scene_id`) and write `out` whole."""
-    done = run_rollout(Path(run_dir), Path(out), config.rollout(), scene_id=scene_id)
+                 scene_id: str | None = None, force: bool = False) -> BaselineResult:
+    """Roll the agent out over every episode of the run (or `scene_id`) and write `out` whole (claimed as
+    run_rollout claims it)."""
+    done = run_rollout(Path(run_dir), Path(out), config.rollout(), scene_id=scene_id, force=force, command="baseline")
     return BaselineResult(agent_name=config.agent_name, out=done.out, episodes=done.episodes, stopped=done.stopped,
                           actions=done.steps)
