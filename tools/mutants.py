@@ -403,6 +403,15 @@ MUTANTS = (
     Mutant("a policy retry's backoff sleeps past the request's deadline", "sagebench/navsim/http_policy.py",
            "attempt == retries or time.monotonic() + wait >= deadline:", "attempt == retries:",
            ("tests/test_navsim_http_policy.py",)),
+    Mutant("export-training resumes over a run whose Gaussians changed", "sagebench/training/export.py",
+           "files += [scene / GAUSSIANS, scene / TOPDOWN,", "files += [scene / TOPDOWN,",
+           ("tests/test_cli_export_training.py::test_a_resume_over_changed_gaussians_or_at_another_size_is_refused"
+            "[gaussians]",)),
+    Mutant("export-training resumes at another image size", "sagebench/training/export.py",
+           'NOT_IN_SHARDS = {"renderer", "batch", "workers", "navila"}',
+           'NOT_IN_SHARDS = {"renderer", "batch", "workers", "navila", "width", "height"}',
+           ("tests/test_cli_export_training.py::test_a_resume_over_changed_gaussians_or_at_another_size_is_refused"
+            "[size]",)),
     Mutant("an InteriorGS door opening takes the farthest door label in reach", "sagebench/importers/interiorgs.py",
            "door = min(near, key=lambda n: n[:2])[2]", "door = max(near, key=lambda n: n[:2])[2]",
            ("tests/test_importers_interiorgs_structure.py",)),
