@@ -10,8 +10,12 @@ import threading
 import numpy as np
 import pytest
 
+from vlnce_agents import HabitatSimActions
+
 from sagebench.adapters.vlnce import serve, vlnce_action, vlnce_observations
 from sagebench.navsim.actions import Action
+from sagebench.navsim.http_policy import post
+from sagebench.navsim.protocol import encode_request, request_fields
 
 VLNCE_RUN = ("--preset", "vlnce", "--episodes", "3", "--seed", "1")
 
@@ -59,6 +63,40 @@ def test_an_agent_runs_unchanged_in_process_and_over_http_with_identical_results
     assert one.read_bytes() == inproc.read_bytes()  # one object, one episode at a time: the same
     # what the agent saw: VLN-CE's shapes and dtypes
     assert set(vlnce_agents.ONE_AGENT.checked) == {((224, 224, 3), np.dtype(np.uint8), (256, 256, 1), np.dtype(np.float32), 200)}
+
+
+class _FirstStepAgent:
+    """Turns left on its episode's first step and moves forward after: each answer tells whether the server kept
+    the episode's agent or made it anew."""
+
+    def reset(self):
+        self.steps = 0
+
+    def act(self, observations):
+        self.steps += 1
+        return {"action": HabitatSimActions.TURN_LEFT if self.steps == 1 else HabitatSimActions.MOVE_FORWARD}
+
+
+def test_a_full_agent_table_lets_the_least_recently_asked_agent_go_never_the_new_one(agent_server, monkeypatch):
+    """Episodes cut by the step limit never say STOP, so a long rollout fills the server's table (LIVE_AGENTS,
+    made 3 here): a new episode then evicts the agent asked least recently; the new one, and one still
+    stepping, keep theirs (an evicted agent would restart its episode from nothing mid-way)."""
+    import sagebench.adapters.vlnce as vlnce
+
+    monkeypatch.setattr(vlnce, "LIVE_AGENTS", 3)
+    url = agent_server(_FirstStepAgent)
+    obs = {"rgb": np.zeros((2, 2, 3), np.uint8), "depth": np.zeros((2, 2, 1), np.float32), "instruction": "go",
+           "instruction_tokens": np.array([5, 0], np.int64)}
+
+    def ask(episode: str, step: int) -> str:
+        fields = request_fields(obs, episode_id=episode * 16, step=step, action_space="discrete", profile="vlnce")
+        content_type, body = encode_request(obs, fields)
+        return Action(json.loads(post(url, body, content_type, timeout=30.0))["action"]).name
+
+    first, kept = "TURN_LEFT", "MOVE_FORWARD"
+    assert [ask("a", 0), ask("b", 0), ask("c", 0), ask("a", 1)] == [first, first, first, kept]
+    assert [ask("d", 0), ask("d", 1)] == [first, kept]  # b, asked least recently, made room for d
+    assert [ask("a", 2), ask("c", 1), ask("b", 1)] == [kept, kept, first]
 
 
 def test_the_agent_gets_vlnces_observation_keys():

@@ -3,6 +3,7 @@ loadable with `datasets`, deterministic whatever the batch, resumable after kill
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import json
 import os
@@ -173,6 +174,35 @@ def test_an_out_dir_of_other_settings_or_content_is_refused(exported, run, tmp_p
     assert code == 2 and err.strip() == (f"error: --out: {tmp_path / 'x'} is not empty and holds no "
                                          "export-training output; use a new --out")
     assert sorted(p.name for p in (tmp_path / "x").iterdir()) == ["notes.txt"]
+
+
+def _retrained(run: Path, tmp_path: Path) -> Path:
+    """A copy of the run whose scene's Gaussians were trained again (every opacity a little lower)."""
+    from sagebench.splats.ply import write_ply
+
+    changed = tmp_path / "retrained"
+    shutil.copytree(run, changed)
+    ply = changed / "scenes" / "demo_apartment_0" / "gaussians.ply"
+    g = read_ply(ply)
+    write_ply(ply, dataclasses.replace(g, opacity_logits=g.opacity_logits - 0.5))
+    return changed
+
+
+@pytest.mark.parametrize("change", ["gaussians", "size"])
+def test_a_resume_over_changed_gaussians_or_at_another_size_is_refused(change, exported, run, tmp_path, run_cli):
+    """An export interrupted after its first shard, resumed over a run whose Gaussians changed since, or at
+    another image size, would finish with shards of two kinds: it is refused, one line, and OUT is left as it was."""
+    out = tmp_path / "e"
+    shutil.copytree(exported, out)
+    (out / "index.json").unlink()
+    for shard in json.loads((exported / "index.json").read_text())["shards"][1:]:
+        (out / shard["file"]).unlink()
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file() and p.name != ".sagebench.lock"}
+    source, size = (_retrained(run, tmp_path), SMALL) if change == "gaussians" else (run, ("--width", "40", *SMALL[2:]))
+    code, _, err = run_cli("-q", "export-training", source, "--out", out, "--depth", "--renderer", "cpu", *size)
+    assert (code, err.strip()) == (2, f"error: --out: {out} holds an export of other settings or inputs; use a new "
+                                      "--out or remove it")
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file() and p.name != ".sagebench.lock"} == before
 
 
 def test_a_second_export_into_a_locked_out_dir_is_refused(exported, run, tmp_path, run_cli):

@@ -74,3 +74,20 @@ def test_a_leaf_s_state_and_swing_come_from_its_box(hinge_x, side, turn, state, 
 ])
 def test_room_types_in_sagebench_words(given, expected):
     assert room_type(given) == expected
+
+
+def test_a_door_opening_takes_the_nearest_door_label_in_reach():
+    """Two door labels within reach of one doorway (a leaf standing closed in it, and the open leaf of the next
+    door along the corridor): the doorway's door is the leaf in it, and the other label stays a plain object,
+    whatever order labels.json lists them in."""
+    from types import SimpleNamespace
+
+    from sagebench.importers.interiorgs import _match_doors, _Thing
+
+    for order in ((0, 1), (1, 0)):
+        leaves = {0: _leaf(1.0, 0.0), 1: _leaf(2.6, 90.0)}  # closed in the doorway; open, 1.3 m from its centre
+        doors = [_Thing(0, "door", "object", label=k, box=leaves[k]) for k in order]
+        wall = _Thing(0, "wall", "wall", segment=WALL, openings=openings_on(WALL, (DOOR,), taken=set()))
+        _match_doors(doors, [wall], SimpleNamespace(holes=(DOOR,)), rooms=[])
+        assert {d.label: (d.kind, d.door.state if d.door else None) for d in doors} == {
+            0: ("door", "closed"), 1: ("object", None)}

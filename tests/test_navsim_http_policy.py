@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import time
+import types
 
 import numpy as np
 import pytest
@@ -83,6 +84,24 @@ def test_an_http_error_is_not_retried(server):
     with pytest.raises(RequestFailed, match="^HTTP 500 policy crashed$"):
         post(s.url, data, content_type, timeout=30.0, retries=3)
     assert s.requests == 1
+
+
+def test_a_retry_never_waits_past_the_requests_deadline(server, monkeypatch):
+    """A server that keeps closing connections, a 1 s deadline and backoff from 0.4 s: the client retries after
+    0.4 s, then gives up rather than wait 0.8 s more (the request would end at 1.2 s, past its deadline). The
+    backoff runs on a fake clock, so the test measures the client's arithmetic, not the machine's speed."""
+    import sagebench.navsim.http_policy as http_policy
+
+    slept: list[float] = []
+    clock = types.SimpleNamespace(monotonic=lambda: time.monotonic() + sum(slept), sleep=slept.append)
+    monkeypatch.setattr(http_policy, "time", clock)
+    s = server("close")
+    content_type, data = body()
+    start = clock.monotonic()
+    with pytest.raises(RequestFailed, match="^connection error: RemoteDisconnected"):
+        post(s.url, data, content_type, timeout=1.0, retries=5, backoff=0.4)
+    assert clock.monotonic() - start <= 1.0 + 0.5  # the real attempts take milliseconds of it
+    assert slept == [0.4] and s.requests == 2
 
 
 def test_a_refused_connection_fails_within_the_deadline():

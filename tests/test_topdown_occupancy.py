@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
@@ -46,9 +47,11 @@ def _occupancy(mesh, band_max=1.2):
 
 
 def test_solid_body_blocks_inside_not_just_its_outline():
-    # a wardrobe: its top (2 m) is above the band, so only its sides cross it; the inside must block too
-    wardrobe = assets.cabinet(1.2, 0.6, 2.0, (200, 200, 200))
-    wardrobe.apply_translation((0.013, 0.012, 0))
+    # a built-in wardrobe, one closed box from the floor to 2 m: its bottom (0 m) is under the band and its top
+    # above it, so only its sides cross the band; the inside must block too (only its span through the band says so)
+    wardrobe = trimesh.creation.box(extents=(1.2, 0.6, 2.0))
+    wardrobe.apply_translation((0.013, 0.012, 1.0))
+    assert not clip_to_band(wardrobe.triangles[np.abs(wardrobe.face_normals[:, 2]) > 0.5], 0.05, 1.2)[1].size
     occ = _occupancy(wardrobe)
     r = np.nonzero(occ.any(axis=1))[0]
     c = np.nonzero(occ.any(axis=0))[0]

@@ -432,6 +432,27 @@ MUTANTS = (
     Mutant("a mesh's face count not read from its header", "sagebench/scene/mesh_budget.py",
            "    if faces is not None and faces > MAX_MESH_FACES:\n", "    if False:\n",
            ("tests/test_fuzz_safety.py::test_scene_inputs_that_raised_are_one_line",)),
+    Mutant("a policy retry's backoff sleeps past the request's deadline", "sagebench/navsim/http_policy.py",
+           "attempt == retries or time.monotonic() + wait >= deadline:", "attempt == retries:",
+           ("tests/test_navsim_http_policy.py",)),
+    Mutant("export-training resumes over a run whose Gaussians changed", "sagebench/training/export.py",
+           "files += [scene / GAUSSIANS, scene / TOPDOWN,", "files += [scene / TOPDOWN,",
+           ("tests/test_cli_export_training.py::test_a_resume_over_changed_gaussians_or_at_another_size_is_refused"
+            "[gaussians]",)),
+    Mutant("export-training resumes at another image size", "sagebench/training/export.py",
+           'NOT_IN_SHARDS = {"renderer", "batch", "workers", "navila"}',
+           'NOT_IN_SHARDS = {"renderer", "batch", "workers", "navila", "width", "height"}',
+           ("tests/test_cli_export_training.py::test_a_resume_over_changed_gaussians_or_at_another_size_is_refused"
+            "[size]",)),
+    Mutant("an InteriorGS door opening takes the farthest door label in reach", "sagebench/importers/interiorgs.py",
+           "door = min(near, key=lambda n: n[:2])[2]", "door = max(near, key=lambda n: n[:2])[2]",
+           ("tests/test_importers_interiorgs_structure.py",)),
+    Mutant("the VLN-CE server evicts the agent it just made once its table is full", "sagebench/adapters/vlnce.py",
+           "agents.popitem(last=False)", "agents.popitem()",
+           ("tests/test_adapters_vlnce.py::"
+            "test_a_full_agent_table_lets_the_least_recently_asked_agent_go_never_the_new_one",)),
+    Mutant("solid spans dropped from occupancy", "sagebench/topdown/occupancy.py",
+           "    out |= _solid_spans(tris, part, grid, z_lo, z_hi)\n", "", ("tests/test_topdown_occupancy.py",)),
 )
 
 

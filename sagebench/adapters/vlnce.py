@@ -84,7 +84,7 @@ def body_note(bodies: Sequence[AgentConfig]) -> str:
 
 
 NEEDED = ("rgb", "depth", "instruction", "instruction_tokens")  # the vlnce profile's keys
-LIVE_AGENTS = 1024  # a server keeps this many episodes' agents (episodes cut by the step limit never say STOP)
+LIVE_AGENTS = 1024  # agents a server keeps, the most recently asked (an episode cut by the step limit never says STOP)
 
 
 def vlnce_observations(obs: Mapping[str, Any], trajectory_id: int) -> dict:
@@ -162,14 +162,12 @@ def serve(agent: Any, host: str = "127.0.0.1", port: int = 0) -> ThreadingHTTPSe
                 fields, images = decode_request(self.headers.get("Content-Type", ""), body)
                 eid = fields["episode_id"]
                 with lock:
-                    if fields["step"] == 0 or eid not in agents:
+                    new = fields["step"] == 0 or eid not in agents
+                    if new:
                         agents[eid] = (make(), threading.Lock())
-                        agents.move_to_end(eid)
-                        while len(agents) > LIVE_AGENTS:
-                            agents.popitem(last=False)
-                        new = True
-                    else:
-                        new = False
+                    agents.move_to_end(eid)  # over the bound, the agent asked least recently goes
+                    while len(agents) > LIVE_AGENTS:
+                        agents.popitem(last=False)
                     one, mine = agents[eid]
                 obs = {**images, **fields, "instruction_tokens": np.asarray(fields.get("instruction_tokens", []),
                                                                              np.int64)}
