@@ -15,7 +15,6 @@ import os
 import re
 import secrets
 import shutil
-import stat
 import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -86,23 +85,6 @@ def copy_file(src: Path, path: Path) -> None:
     """Copy `src` to `path` as write_bytes writes (temporary sibling, fsync, rename), a chunk at a time."""
     with staged_file(path) as fh, open(src, "rb") as source:
         shutil.copyfileobj(source, fh, 1 << 20)
-
-
-def read_regular(path: Path, *, limit: int | None, size: int = -1) -> bytes | None:
-    """The first `size` bytes (all when -1) of `path` when it is a regular file of at most `limit` bytes (any
-    size when None), else None: a FIFO, device, directory or link is never opened (a FIFO would block)."""
-    try:
-        st = os.lstat(path)
-        if not stat.S_ISREG(st.st_mode) or (limit is not None and st.st_size > limit):
-            return None
-        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
-    except OSError:
-        return None
-    with os.fdopen(fd, "rb") as fh:
-        try:
-            return fh.read(size) if stat.S_ISREG(os.fstat(fd).st_mode) else None
-        except OSError:
-            return None
 
 
 def hash_file(path: Path, h: Any = None) -> Any:

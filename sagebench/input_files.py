@@ -4,7 +4,8 @@ A FIFO as an input would block the read forever and a device such as /dev/zero n
 a regular file (or, for a command's path arguments, a directory) is refused by `os.stat` before it is opened
 (and the opened file is checked again, so a file swapped for a FIFO in between cannot block either).
 JSON nesting deeper than Python's recursion limit and integers of more than `sys.get_int_max_str_digits()`
-digits are refused in one line, as scene.json and run.toml refuse them.
+digits are refused in one line, as scene.json and run.toml refuse them. `read_regular` looks at a file the
+same way without following a link and without an error (is the file at an output path sagebench's?).
 """
 
 from __future__ import annotations
@@ -36,19 +37,45 @@ def special_kind(path: Path | str, *, mode: int | None = None) -> str | None:
 
 def read_input(path: Path | str, error: type[SagebenchError] = DataError) -> bytes:
     """The bytes of the input file `path`; anything but a regular file, or a read that fails, is one `error`."""
-    _refuse_special(path, special_kind(path), error)
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
-        with os.fdopen(fd, "rb") as fh:
-            _refuse_special(path, special_kind(path, mode=os.fstat(fd).st_mode), error)  # swapped since examined
-            return fh.read()
+        data = _read_if_regular(path, follow=True)
     except OSError as err:
         raise error(f"cannot read: {err.strerror or err}", path=path) from None
+    if isinstance(data, str):
+        raise error(f"is {data}, not a file: sagebench reads inputs from regular files only", path=path)
+    return data
 
 
-def _refuse_special(path: Path | str, kind: str | None, error: type[SagebenchError]) -> None:
-    if kind is not None:
-        raise error(f"is {kind}, not a file: sagebench reads inputs from regular files only", path=path)
+def read_regular(path: Path | str, *, limit: int | None, size: int = -1) -> bytes | None:
+    """The first `size` bytes (all when -1) of `path` when it is a regular file of at most `limit` bytes (any
+    size when None), else None: a link is not followed, and whatever cannot be read counts as no file. For
+    looking at an output before replacing it (is it sagebench's?), where nothing there is an error."""
+    try:
+        data = _read_if_regular(path, follow=False, size=size, limit=limit)
+    except OSError:
+        return None
+    return None if isinstance(data, str) else data
+
+
+def _read_if_regular(path: Path | str, *, follow: bool, size: int = -1, limit: int | None = None) -> bytes | str:
+    """The bytes of `path` (its first `size`), or what it is instead of a regular file of at most `limit` bytes
+    ('a FIFO', 'a link', 'too large', ...): its type is checked before it is opened and again on the open file
+    (swapped in between), so a FIFO never blocks the read and a device never ends it."""
+    st = os.stat(path) if follow else os.lstat(path)
+    kind = _not_regular(st.st_mode) or (limit is not None and st.st_size > limit and "too large")
+    if kind:
+        return kind
+    flags = os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC | (0 if follow else os.O_NOFOLLOW)
+    with os.fdopen(os.open(path, flags), "rb") as fh:
+        return _not_regular(os.fstat(fh.fileno()).st_mode) or fh.read(size)
+
+
+def _not_regular(mode: int) -> str | None:
+    if stat.S_ISREG(mode):
+        return None
+    if stat.S_ISLNK(mode):
+        return "a link"
+    return special_kind("", mode=mode) or "a directory"
 
 
 def loads_json(text: str | bytes, where: Path | str, error: type[SagebenchError] = DataError) -> Any:

@@ -9,7 +9,7 @@ import struct
 import zlib
 from pathlib import Path
 
-from sagebench.fileio import read_regular
+from sagebench.input_files import read_regular
 
 _TEXT = b"Software\x00sagebench"
 MARK = struct.pack(">I", len(_TEXT)) + b"tEXt" + _TEXT + struct.pack(">I", zlib.crc32(b"tEXt" + _TEXT))

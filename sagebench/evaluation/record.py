@@ -14,7 +14,8 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from sagebench.errors import DataError, first_error
-from sagebench.fileio import read_regular, write_text
+from sagebench.fileio import write_text
+from sagebench.input_files import read_regular
 
 RECORD_FORMAT = 1
 RECORD_BYTES = 1 << 28  # far beyond a record of a million episode ids; a bigger file is not one

@@ -23,7 +23,8 @@ from shapely.geometry import Polygon, box as rect
 
 from sagebench.config import AgentConfig
 from sagebench.errors import ConfigError
-from sagebench.fileio import dumps_json, read_regular, staged_dir, write_bytes
+from sagebench.fileio import dumps_json, staged_dir, write_bytes
+from sagebench.input_files import read_regular
 from sagebench.scene import assets
 from sagebench.scene.furniture import CATEGORY_NOUNS, Catalogue, CatalogueEntry
 from sagebench.scene.loader import SCENE_FILE, yaw_quaternion

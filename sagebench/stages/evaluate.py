@@ -29,7 +29,8 @@ from sagebench.evaluation.record import RolloutRecord, read_record, record_path
 from sagebench.evaluation.scoring import (
     DISTANCE_USED, ICP_SOURCES, METRIC_NAMES, EpisodeScore, Summary, score_episodes, summarise_scores,
 )
-from sagebench.fileio import read_regular, write_json
+from sagebench.fileio import write_json
+from sagebench.input_files import read_regular
 from sagebench.metrics import MetricConfig, NavigableMap
 from sagebench.replay.physics import ReplayConfig, ReplayModel
 from sagebench.replay.scene_model import open_replay_model

@@ -14,8 +14,9 @@ from pathlib import Path
 
 from sagebench.config import from_options
 from sagebench.errors import ConfigError
-from sagebench.fileio import read_regular, staged_dir
+from sagebench.fileio import staged_dir
 from sagebench.importers.config import REPORT_FILE, InteriorGSConfig
+from sagebench.input_files import read_regular
 from sagebench.run_folder import check_scene_out
 from sagebench.run_layout import SCENE_FILE
 

@@ -17,7 +17,8 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench.config import CameraConfig, from_options
 from sagebench.errors import ConfigError, DataError
-from sagebench.fileio import read_regular, write_bytes
+from sagebench.fileio import write_bytes
+from sagebench.input_files import read_regular
 from sagebench.png_mark import is_marked, marked
 from sagebench.render.backends import RendererChoice, open_renderer
 from sagebench.render.camera import agent_camera
