@@ -168,7 +168,7 @@ def semantic_report(scene: LoadedScene, config: BuildSceneConfig, *, grid: Grid,
     spec, cell = scene.spec, grid.cell_area()
     z_lo, z_hi = height_band(spec, config.agent)
     return SemanticMap(
-        scene_id=spec.scene_id, resolution=config.resolution, origin=grid.origin, shape=grid.shape,
+        scene_id=spec.scene_id, resolution=grid.resolution, origin=grid.origin, shape=grid.shape,
         floor_height=spec.floor_height, band_m=(_r(z_lo), _r(z_hi)), agent_radius=config.agent.radius,
         categories=categories,
         instances=map_instances(scene, footprints, categories, blocking),
