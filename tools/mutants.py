@@ -329,7 +329,7 @@ MUTANTS = (
            ("tests/test_topdown_build_scene.py",)),
     Mutant("walls footprinted by their parts' hulls", "sagebench/topdown/footprints.py",
            'BAND_SECTION_KINDS = frozenset({"wall"})', "BAND_SECTION_KINDS = frozenset()",
-           ("tests/test_topdown_build_scene.py",)),
+           ("tests/test_topdown_footprints.py", "tests/test_topdown_build_scene.py")),
     Mutant("band section keeps every enclosed face", "sagebench/topdown/footprints.py",
            "faces = faces[_covered(shapely.get_coordinates(shapely.point_on_surface(faces)), flat)]", "pass",
            ("tests/test_topdown_footprints.py",)),

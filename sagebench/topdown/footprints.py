@@ -3,8 +3,8 @@ their cross-section in the agent's height band.
 
 An L-shaped sofa or a table on four legs is then not one rectangle: each connected part of the mesh
 gets its own hull and the hulls are fused. A wall with door openings is one connected part, whose hull
-would span every doorway; its band section keeps them open. `object_footprints` is build-scene's step: every
-object's footprint, by the one way or the other.
+would span every doorway; its band section keeps them open. `object_footprints` is build-scene's step: the
+footprint of every object of a scene, walls by their section, everything else by its hulls.
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ def object_footprints(scene: LoadedScene, parts: Mapping[int, Parts], band: tupl
     return out
 
 
-def mesh_parts(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
+def mesh_parts(mesh: trimesh.Trimesh) -> Parts:
     """Triangles [F, 3, 3] (float64, m) and the connected part [F] (int64, 0..P-1) each belongs to.
 
     Vertices at the same position are merged first, so a part is a piece whose triangles share edges
