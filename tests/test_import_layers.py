@@ -173,6 +173,17 @@ def test_stages_are_thin_no_stage_function_is_longer_than_40_lines():
     assert not found, "\n".join(found)
 
 
+BUILD_STEP_MODULES = ("builder", "footprints", "occupancy", "passages", "regions")  # sagebench/topdown/builder.py's steps
+
+
+def test_the_map_builders_steps_are_short_enough_to_read_alone():
+    """build-scene's maps are made in named steps (topdown/builder.py's docstring), none over 40 lines, so a newcomer
+    finds each step and tests it alone instead of reading one function that does them all."""
+    found = [f"sagebench/topdown/{m}.py: {name} is {n} lines" for m in BUILD_STEP_MODULES
+             for name, n in long_functions((ROOT / "topdown" / f"{m}.py").read_text(encoding="utf-8"), 40)]
+    assert not found, "\n".join(found)
+
+
 def test_a_long_function_or_method_is_reported_with_its_length():
     def indented(lines: int, depth: int) -> str:
         return "".join(" " * depth + "x = 1\n" for _ in range(lines))

@@ -11,6 +11,7 @@ import pytest
 import shapely
 import trimesh
 
+from inline_scene import inline_scene
 from meshes import wall_with_openings
 
 from sagebench.errors import ConfigError, SceneError
@@ -20,6 +21,10 @@ from sagebench.config import AgentConfig
 from sagebench.episodes.targets import scene_targets
 from sagebench.stages.build_scene import BuildSceneConfig, build_scene, make_config
 from sagebench.stages.gen_trajectories import read_scene_inputs
+from sagebench.topdown.builder import category_names, paint_categories, paint_instances, semantic_report
+from sagebench.topdown.passages import PASSAGE
+from sagebench.topdown.raster import Grid
+from sagebench.topdown.regions import room_reachability
 from sagebench.topdown.semantic_map import SemanticMap
 
 RES = 0.05
@@ -293,6 +298,63 @@ def test_config_errors_name_the_option():
         make_config(agent_radius=-1.0)
     assert make_config() == BuildSceneConfig()
     assert make_config(agent_radius=0.3).agent.radius == 0.3
+
+
+# ---------------------------------------------------------------- the builder's own steps, on inline inputs
+
+
+def test_instances_are_painted_low_to_high_and_categories_read_through_their_names():
+    """A TV over its stand shows the TV, the stand shows round it, a rug under the band sits under both, the floor
+    under all; the ceiling is left out. The category raster is each cell's instance seen through the sorted names."""
+    things = [("floor", "floor", _box((0, 0, -0.05), (2, 2, 0))),
+              ("rug", "object", _box((0.2, 0.2, 0), (1.8, 1.8, 0.01))),
+              ("tv", "object", _box((0.6, 0.6, 0.5), (1.4, 0.8, 1.1))),
+              ("stand", "object", _box((0.5, 0.5, 0), (1.5, 1.0, 0.5))),
+              ("ceiling", "ceiling", _box((0, 0, 2.4), (2, 2, 2.5)))]
+    scene = inline_scene(things)
+    footprints = {i: shapely.box(*m.bounds[0, :2], *m.bounds[1, :2]) for i, m in scene.meshes.items()}
+    grid = Grid((0.0, 0.0), 0.1, (20, 20))  # cell (row, col) has its centre at x = col / 10 + 0.05, y = row / 10 + 0.05
+    instance = paint_instances(scene, footprints, grid, (0.05, 1.2))
+    assert instance.dtype == np.int32 and 5 not in instance
+    assert [instance[7, 10], instance[9, 10], instance[3, 3], instance[0, 0]] == [3, 4, 2, 1]  # tv, stand, rug, floor
+    categories = category_names(scene.spec.objects)
+    assert categories == ["background", "ceiling", "floor", "rug", "stand", "tv"]
+    category = paint_categories(instance, scene.spec.objects, categories)
+    assert category.dtype == np.int16 and [category[7, 10], category[9, 10], category[0, 0]] == [5, 4, 2]
+
+
+def test_the_semantic_report_of_two_objects():
+    """semantic_map.json from the steps' results, on a table in room a and a lamp outside every room, with two
+    regions of navigable floor (one holding a passage cell) in room a: every field known by hand."""
+    scene = inline_scene([("table", "object", _box((0.5, 0.5, 0), (1.5, 1.5, 0.75))),
+                          ("lamp", "object", _box((3.5, 0.5, 1.8), (4.0, 1.0, 2.0)))], rooms={"a": _rect(0, 0, 3, 3)})
+    grid = Grid((0.0, 0.0), 0.5, (6, 10))
+    nav = np.zeros(grid.shape, np.uint8)
+    nav[0:2, 0:3] = 1  # region 1: 6 cells of 0.25 m^2
+    nav[4, 0:2] = (1, PASSAGE)  # region 2: 2 cells
+    footprints = {1: shapely.box(0.5, 0.5, 1.5, 1.5), 2: shapely.box(3.5, 0.5, 4.0, 1.0)}
+    sem = semantic_report(scene, BuildSceneConfig(), grid=grid, footprints=footprints,
+                          categories=category_names(scene.spec.objects), blocking=frozenset({1}), navigable=nav,
+                          reach=room_reachability(nav, scene.spec.rooms, grid)).model_dump(mode="json")
+    assert {k: v for k, v in sem.items() if k not in ("instances", "regions", "rooms")} == {
+        "scene_id": "inline", "resolution": 0.5, "origin": [0.0, 0.0], "shape": [6, 10], "floor_height": 0.0,
+        "band_m": [0.05, 1.2], "agent_radius": 0.2, "connectivity": 8, "categories": ["background", "lamp", "table"],
+        "navigable_area_m2": 2.0, "main_region": 1, "all_rooms_connected": True}
+    assert sem["instances"] == [
+        {"instance_id": 1, "category": "table", "category_id": 2, "kind": "object", "room": "a",
+         "polygon": {"type": "MultiPolygon",  # exterior counter-clockwise, closed
+                     "coordinates": [[[[1.5, 0.5], [1.5, 1.5], [0.5, 1.5], [0.5, 0.5], [1.5, 0.5]]]]},
+         "bbox_m": [[0.5, 0.5, 0.0], [1.5, 1.5, 0.75]], "area_m2": 1.0, "min_z": 0.0, "max_z": 0.75,
+         "door_state": None, "blocks": True},
+        {"instance_id": 2, "category": "lamp", "category_id": 1, "kind": "object", "room": None,
+         "polygon": {"type": "MultiPolygon",
+                     "coordinates": [[[[4.0, 0.5], [4.0, 1.0], [3.5, 1.0], [3.5, 0.5], [4.0, 0.5]]]]},
+         "bbox_m": [[3.5, 0.5, 1.8], [4.0, 1.0, 2.0]], "area_m2": 0.25, "min_z": 1.8, "max_z": 2.0,
+         "door_state": None, "blocks": False}]
+    assert sem["regions"] == [{"region_id": 1, "area_m2": 1.5, "rooms": ["a"]},
+                              {"region_id": 2, "area_m2": 0.5, "rooms": ["a"]}]
+    assert sem["rooms"] == [{"room_id": "a", "type": "room", "navigable_area_m2": 2.0, "regions": [1, 2],
+                             "reachable": True, "unreachable_area_m2": 0.5, "reachable_rooms": []}]
 
 
 @pytest.fixture(scope="module")

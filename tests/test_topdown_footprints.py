@@ -7,11 +7,13 @@ import pytest
 import shapely
 import trimesh
 
+from inline_scene import inline_scene
 from meshes import prism, wall_with_openings
 
 from sagebench.scene import assets
 from sagebench.topdown.config import BuildSceneConfig
-from sagebench.topdown.footprints import band_section, footprint, footprint_reference, mesh_parts, sample_surface
+from sagebench.topdown.footprints import (band_section, footprint, footprint_reference, mesh_parts, object_footprints,
+                                          sample_surface)
 
 DENSITY = BuildSceneConfig().sample_density
 
@@ -126,3 +128,25 @@ def test_open_and_capless_walls_still_stand():
 def test_a_wall_outside_the_band_has_no_band_section():
     lintel = trimesh.creation.box(bounds=[(0, 0, 2.1), (1, 0.1, 2.4)])
     assert band_section(lintel, *BAND, min_width=0.05).is_empty
+
+
+# ---------------------------------------------------------------- the step: every object of a scene
+
+
+def test_object_footprints_cut_walls_in_the_band_and_hull_everything_else():
+    """build-scene's footprint step on a wall with a doorway and a box beside it: the wall is its section in the
+    band given (the doorway open, the lintel only above it), the box its sampled hull, seeded per instance."""
+    wall = wall_with_openings(6.0, 0.1, 2.4, [(2.0, 3.0, 0.0, 2.1)])
+    cabinet = trimesh.creation.box(bounds=[(1.0, 1.0, 0.0), (2.0, 1.6, 0.5)])
+    scene = inline_scene([("wall", "wall", wall), ("cabinet", "object", cabinet)])
+    parts = {i: mesh_parts(m) for i, m in scene.meshes.items()}
+    config = BuildSceneConfig()
+    fps = object_footprints(scene, parts, BAND, config)
+    exact_wall = shapely.union(shapely.box(0.0, 0.0, 2.0, 0.1), shapely.box(3.0, 0.0, 6.0, 0.1))
+    assert sorted(fps) == [1, 2] and fps[1].symmetric_difference(exact_wall).area < 1e-9
+    assert fps[2].area == pytest.approx(0.6, rel=0.01) and shapely.box(1.0, 1.0, 2.0, 1.6).buffer(1e-9).covers(fps[2])
+    above = object_footprints(scene, parts, (2.2, 2.3), config)  # a band through the lintel: the wall is whole
+    assert above[1].symmetric_difference(shapely.box(0.0, 0.0, 6.0, 0.1)).area < 1e-9
+    assert above[2].equals(fps[2])  # a hull does not depend on the band, and the same seed samples alike
+    reseeded = object_footprints(scene, parts, BAND, config.model_copy(update={"seed": 1}))
+    assert not reseeded[2].equals(fps[2]) and reseeded[1].equals(fps[1])

@@ -9,11 +9,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+import shapely
+import trimesh
+
+from inline_scene import inline_scene
 from profiles import examples
 
+from sagebench.errors import ConfigError
 from sagebench.scene import assets
 from sagebench.topdown.footprints import mesh_parts
-from sagebench.topdown.occupancy import band_occupancy, clip_to_band, inflate, inflate_reference
+from sagebench.topdown.occupancy import band_occupancy, clip_to_band, inflate, inflate_reference, scene_occupancy
 from sagebench.topdown.raster import Grid
 
 GRID = Grid(origin=(-1.0, -1.0), resolution=0.05, shape=(40, 40))
@@ -91,3 +96,31 @@ def test_inflation_is_exact(occ, radius):
         if len(blocked):
             gap = np.hypot(np.maximum(np.abs(blocked[:, 0] - r) - 0.5, 0), np.maximum(np.abs(blocked[:, 1] - c) - 0.5, 0))
             assert gap.min() * 0.05 >= radius - 1e-9
+
+
+# ---------------------------------------------------------------- the step: a scene's objects on the map's grid
+
+
+def test_scene_occupancy_of_one_box_in_the_band():
+    """build-scene's occupancy step: a 0.2 m box blocks its 5 x 5 cells and the cells off the floor plan block;
+    a floor slab and a ceiling reaching into the band, and a lamp above it, block nothing; inflation follows."""
+    things = [("floor", "floor", trimesh.creation.box(bounds=[(-0.8, -0.8, -0.05), (0.8, 0.8, 0.1)])),
+              ("ceiling", "ceiling", trimesh.creation.box(bounds=[(-0.8, -0.8, 1.0), (0.8, 0.8, 1.1)])),
+              ("cabinet", "object", trimesh.creation.box(bounds=[(0.012, 0.011, 0.0), (0.212, 0.211, 0.5)])),
+              ("lamp", "object", trimesh.creation.box(bounds=[(-0.5, -0.5, 1.8), (-0.3, -0.3, 2.0)]))]
+    objects = inline_scene(things).spec.objects
+    parts = {o.instance_id: mesh_parts(mesh) for o, (_, _, mesh) in zip(objects, things)}
+    occ = scene_occupancy(objects, parts, shapely.box(-0.8, -0.8, 0.8, 0.8), GRID, (0.05, 1.2), 0.2)
+    expected = np.ones(GRID.shape, bool)
+    expected[4:36, 4:36] = False  # the cells whose centre lies on the plan
+    expected[20:25, 20:25] = True  # the cabinet: x, y 0.012 .. 0.212 m
+    np.testing.assert_array_equal(occ.occupied, expected)
+    np.testing.assert_array_equal(occ.navigable, inflate(expected, 0.2, 0.05))
+    assert occ.blocking == {3}
+    assert len(occ.band_polys) == 10  # the cabinet's sides and top; its bottom lies under the band
+    lo, hi = occ.band_polys.min(axis=(0, 1)), occ.band_polys.max(axis=(0, 1))  # world m, as the cabinet stands
+    assert np.allclose(lo, (0.012, 0.011)) and np.allclose(hi, (0.212, 0.211))
+    with pytest.raises(ConfigError) as err:
+        scene_occupancy(objects, parts, shapely.box(-0.8, -0.8, 0.8, 0.8), GRID, (0.05, 1.2), 0.9)
+    assert str(err.value) == ("agent.radius: an agent of radius 0.9 m fits nowhere on the floor: no navigable cell "
+                              "(a smaller agent radius, or a scene with free floor)")

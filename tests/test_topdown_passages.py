@@ -8,11 +8,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 import shapely
+import trimesh
+
+from inline_scene import inline_scene
 
 from sagebench.scene.loader import load_scene
 from sagebench.topdown.builder import BuildSceneConfig, compute_topdown
+from sagebench.topdown.footprints import mesh_parts
+from sagebench.topdown.occupancy import scene_occupancy
 from sagebench.topdown.passages import MARGIN, PASSAGE, open_passages
 from sagebench.topdown.raster import Grid
+from sagebench.topdown.regions import label_regions
 
 HOUSE = Path(__file__).parent / "fixtures" / "concave_house"
 RADIUS = BuildSceneConfig().agent.radius
@@ -52,6 +58,26 @@ def test_a_map_in_one_piece_is_left_as_it_is():
     out, passages = open_passages(nav, occupied, np.zeros((0, 9, 2)), shapely.box(0.05, 0.05, 0.95, 0.95),
                                   Grid((0.0, 0.0), 0.05, (20, 20)), RADIUS)
     assert np.array_equal(out, nav.astype(np.uint8)) and len(passages.cells) == 0
+
+
+@pytest.mark.parametrize("gap, opened", [((0.81, 1.224), True), ((0.81, 1.195), False)])
+def test_a_passage_opens_between_two_footprints_only_where_the_agent_fits(gap, opened):
+    """Two blocks across a 2 m room leave a gap that holds no navigable cell centre. At 0.414 m, 1 cm wider than
+    the agent needs (2 x (radius + MARGIN) = 0.404 m), a passage opens: one region after, each anchor clearing
+    both blocks. At 0.385 m (7.5 mm short of the radius on each side) the rooms stay apart."""
+    blocks = [shapely.box(0.0, 0.96, gap[0], 1.06), shapely.box(gap[1], 0.96, 2.0, 1.06)]
+    scene = inline_scene([("block", "object", trimesh.creation.box(bounds=[(*b.bounds[:2], 0), (*b.bounds[2:], 2.4)]))
+                          for b in blocks])
+    plan, grid = shapely.box(0, 0, 2, 2), Grid((-0.1, -0.1), 0.05, (44, 44))
+    parts = {i: mesh_parts(m) for i, m in scene.meshes.items()}
+    occ = scene_occupancy(scene.spec.objects, parts, plan, grid, (0.05, 1.2), RADIUS)
+    assert label_regions(occ.navigable)[1] == 2  # the cells' centres leave the gap shut
+    out, passages = open_passages(occ.navigable, occ.occupied, occ.band_polys, plan, grid, RADIUS)
+    assert label_regions(out)[1] == (1 if opened else 2) and bool(len(passages.cells)) is opened
+    assert np.count_nonzero(out == PASSAGE) == len(passages.cells)
+    if opened:
+        clearance = shapely.distance(shapely.union_all(blocks), shapely.points(passages.anchors))
+        assert clearance.min() >= RADIUS + MARGIN - 1e-4, clearance.min()
 
 
 def test_trajectories_through_the_passage_keep_to_the_geometry_and_replay_clean(tmp_path, run_cli):

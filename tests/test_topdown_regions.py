@@ -5,7 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sagebench.topdown.regions import label_regions, reachability
+from sagebench.scene.model import Room
+from sagebench.topdown.passages import PASSAGE
+from sagebench.topdown.raster import Grid
+from sagebench.topdown.regions import label_regions, reachability, room_reachability
 
 
 def _rooms(shape, **spans) -> dict[str, np.ndarray]:
@@ -70,3 +73,21 @@ def test_a_room_is_reachable_only_when_more_than_half_its_floor_is_in_the_main_r
     assert reach.room_reachable("r") is reachable  # exactly half (5 of 10) is not more than half
     assert reach.unreachable_cells("r") == outside
     assert reach.all_rooms_connected() is reachable
+
+
+def test_room_reachability_of_two_rooms_a_wall_apart():
+    """build-scene's regions step: each room's floor is the cells whose centre lies in its polygon; two rooms with
+    a blocked column between are two regions, the bigger one main; one passage cell joins them."""
+    grid = Grid(origin=(0.0, 0.0), resolution=1.0, shape=(3, 8))  # cell centres at x, y = 0.5, 1.5, ...
+    rooms = [Room(id="a", type="office", polygon=[(0, 0), (3, 0), (3, 3), (0, 3)]),  # columns 0..2
+             Room(id="b", type="hall", polygon=[(4, 0), (8, 0), (8, 3), (4, 3)])]  # columns 4..7
+    nav = np.ones(grid.shape, np.uint8)
+    nav[:, 3] = 0  # the wall
+    reach = room_reachability(nav, rooms, grid)
+    assert reach.region_cells == (9, 12) and reach.main_region == 2
+    assert reach.room_regions == {"a": (1,), "b": (2,)} and reach.room_cells == {"a": 9, "b": 12}
+    assert not reach.room_reachable("a") and reach.unreachable_cells("a") == 9 and reach.room_reachable("b")
+    assert reach.reachable_from("a") == reach.reachable_from("b") == () and not reach.all_rooms_connected()
+    nav[1, 3] = PASSAGE  # a passage cell counts as navigable
+    joined = room_reachability(nav, rooms, grid)
+    assert joined.region_cells == (22,) and joined.all_rooms_connected() and joined.reachable_from("a") == ("b",)

@@ -1,30 +1,39 @@
 """The map builder: a loaded scene -> its top-down maps (instance, category, occupancy, navigable, regions)
-and the semantic report, computed without I/O (build-scene writes them).
+and the semantic report, computed without I/O (build-scene writes them), in named steps, each a function of
+the results before it, testable alone:
+
+1. footprints: `footprints.object_footprints`, each object's outline seen from above;
+2. the floor plan and the map's grid: `floor_plan`, `map_grid` (below);
+3. occupancy: `occupancy.scene_occupancy`, what blocks in the height band and where the agent fits;
+4. passages: `passages.open_passages`, narrow gaps between regions re-judged on the exact geometry;
+5. the instance and category rasters: `paint_instances`, `paint_categories` (below);
+6. regions: `regions.room_reachability`, the navigable map's connected regions and the rooms they hold;
+7. the semantic map: `semantic_report` (below), semantic_map.json from the results of all the others.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import shapely
 from shapely.geometry.base import BaseGeometry
 
+from sagebench.config import AgentConfig
 from sagebench.errors import ConfigError, SceneError
 from sagebench.scene.checks import NO_FLOOR
 from sagebench.scene.loader import SCENE_FILE, LoadedScene
+from sagebench.scene.model import Room, SceneObject, SceneSpec
 from sagebench.topdown.config import BuildSceneConfig
-from sagebench.topdown.footprints import band_section, footprint, mesh_parts
-from sagebench.topdown.occupancy import band_occupancy, clip_to_band, inflate
+from sagebench.topdown.footprints import mesh_parts, object_footprints
+from sagebench.topdown.occupancy import blockers, scene_occupancy
 from sagebench.topdown.passages import Passages, open_passages
 from sagebench.topdown.raster import Grid, polygon_mask
-from sagebench.topdown.regions import reachability
+from sagebench.topdown.regions import Reachability, room_reachability
 from sagebench.topdown.semantic_map import DECIMALS, MapInstance, MultiPolygon, Region, RoomReach, SemanticMap
-from sagebench.ui import track
 
-NOT_BLOCKING_KINDS = frozenset({"floor", "ceiling"})  # walkable surfaces and what is above every head
 THIN_KINDS = frozenset({"door", "window"})  # painted where they touch a cell, so a 4 cm leaf shows
-BAND_SECTION_KINDS = frozenset({"wall"})  # footprint: where they stand in the band (doorways stay open), not hulls
 
 
 @dataclass(frozen=True)
@@ -44,109 +53,25 @@ class Topdown:
 
 
 def compute_topdown(scene: LoadedScene, config: BuildSceneConfig) -> Topdown:
-    """The maps and the semantic report of a loaded scene (no I/O)."""
+    """The maps and the semantic report of a loaded scene (no I/O), step by step (the module docstring)."""
     scene_grid(scene, config.resolution)  # refuses a map over the cell budget before any work
-    spec = scene.spec
-    res = config.resolution
-    z_lo, z_hi = (spec.floor_height + z for z in config.agent.band)  # the band is measured from the floor
-    objects = spec.objects
+    objects, radius = scene.spec.objects, config.agent.radius
+    band = height_band(scene.spec, config.agent)
     parts = {o.instance_id: mesh_parts(scene.meshes[o.instance_id]) for o in objects}
-    footprints: dict[int, BaseGeometry] = {}
-    for o in track(objects, "footprints"):
-        if o.kind in BAND_SECTION_KINDS:
-            fp = band_section(scene.meshes[o.instance_id], z_lo, z_hi, min_width=res)
-        else:
-            tris, part = parts[o.instance_id]
-            rng = np.random.default_rng([config.seed, o.instance_id])
-            fp = footprint(tris, part, config.sample_density, rng, min_width=res)
-        footprints[o.instance_id] = fp.simplify(res / 10)  # drops the near-collinear sample and section corners
-
+    footprints = object_footprints(scene, parts, band, config)
     plan = floor_plan(scene, footprints, config.wall_gap)
-    blockers = [o for o in objects if o.kind not in NOT_BLOCKING_KINDS]
-    los = [plan.bounds[:2]] + [scene.meshes[o.instance_id].bounds[0][:2] for o in blockers]
-    his = [plan.bounds[2:]] + [scene.meshes[o.instance_id].bounds[1][:2] for o in blockers]
-    grid = Grid.covering(np.min(los, axis=0), np.max(his, axis=0), res, margin=2 * res)
-
-    tris, part, owner = _stack([parts[o.instance_id] for o in blockers])
-    occupied = band_occupancy(tris, part, grid, z_lo, z_hi) | ~polygon_mask(plan, grid)
-    navigable = inflate(occupied, config.agent.radius, res)
-    if not navigable.any():
-        raise ConfigError(f"an agent of radius {config.agent.radius:g} m fits nowhere on the floor: no navigable cell "
-                          "(a smaller agent radius, or a scene with free floor)", field="agent.radius")
-    polys, src = clip_to_band(tris, z_lo, z_hi)
-    navigable, passages = open_passages(navigable, occupied, polys, plan, grid, config.agent.radius)
-    blocking_ids = {blockers[i].instance_id for i in np.unique(owner[src])}
-
-    categories = ["background", *sorted({o.category for o in objects})]
-    cat_id = {c: i for i, c in enumerate(categories)}
-    bounds = {o.instance_id: scene.meshes[o.instance_id].bounds for o in objects}
-    instance = paint_instances(objects, footprints, bounds, grid, z_lo, z_hi)
-    lut = np.zeros(max(o.instance_id for o in objects) + 1, dtype=np.int16)
-    for o in objects:
-        lut[o.instance_id] = cat_id[o.category]
-    category = lut[instance]
-
-    room_masks = {r.id: polygon_mask(shapely.Polygon(r.polygon), grid) for r in spec.rooms}
-    reach = reachability(navigable, room_masks)
-    cell = grid.cell_area()
-    region_rooms = {k: sorted(r for r, regs in reach.room_regions.items() if k in regs)
-                    for k in range(1, len(reach.region_cells) + 1)}
-    semantic = SemanticMap(
-        scene_id=spec.scene_id,
-        resolution=res,
-        origin=grid.origin,
-        shape=grid.shape,
-        floor_height=spec.floor_height,
-        band_m=(_r(z_lo), _r(z_hi)),
-        agent_radius=config.agent.radius,
-        categories=categories,
-        instances=[
-            MapInstance(
-                instance_id=o.instance_id,
-                category=o.category,
-                category_id=cat_id[o.category],
-                kind=o.kind,
-                room=o.room_id or _room_of(footprints[o.instance_id], spec.rooms),
-                polygon=_geojson(footprints[o.instance_id]),
-                bbox_m=(tuple(_r(v) for v in bounds[o.instance_id][0]), tuple(_r(v) for v in bounds[o.instance_id][1])),
-                area_m2=_r(footprints[o.instance_id].area),
-                min_z=_r(bounds[o.instance_id][0][2]),
-                max_z=_r(bounds[o.instance_id][1][2]),
-                door_state=o.door.state if o.door else None,
-                blocks=o.instance_id in blocking_ids,
-            )
-            for o in objects
-        ],
-        navigable_area_m2=_r(float(np.count_nonzero(navigable)) * cell),
-        regions=[Region(region_id=k, area_m2=_r(n * cell), rooms=region_rooms[k])
-                 for k, n in enumerate(reach.region_cells, start=1)],
-        main_region=reach.main_region,
-        rooms=[
-            RoomReach(
-                room_id=r.id,
-                type=r.type,
-                navigable_area_m2=_r(reach.room_cells[r.id] * cell),
-                regions=list(reach.room_regions[r.id]),
-                reachable=reach.room_reachable(r.id),
-                unreachable_area_m2=_r(reach.unreachable_cells(r.id) * cell),
-                reachable_rooms=list(reach.reachable_from(r.id)),
-            )
-            for r in spec.rooms
-        ],
-        all_rooms_connected=reach.all_rooms_connected(),
-    )
-    return Topdown(
-        grid=grid,
-        instance=instance,
-        category=category,
-        occupancy=occupied.astype(np.uint8),
-        navigable=navigable.astype(np.uint8),
-        region=reach.labels,
-        categories=categories,
-        semantic=semantic,
-        footprints=footprints,
-        passages=passages,
-    )
+    grid = map_grid(scene, plan, config.resolution)
+    occ = scene_occupancy(objects, parts, plan, grid, band, radius)
+    navigable, passages = open_passages(occ.navigable, occ.occupied, occ.band_polys, plan, grid, radius)
+    categories = category_names(objects)
+    instance = paint_instances(scene, footprints, grid, band)
+    reach = room_reachability(navigable, scene.spec.rooms, grid)
+    semantic = semantic_report(scene, config, grid=grid, footprints=footprints, categories=categories,
+                               blocking=occ.blocking, navigable=navigable, reach=reach)
+    return Topdown(grid=grid, instance=instance, category=paint_categories(instance, objects, categories),
+                   occupancy=occ.occupied.astype(np.uint8), navigable=navigable.astype(np.uint8),
+                   region=reach.labels, categories=categories, semantic=semantic, footprints=footprints,
+                   passages=passages)
 
 
 def scene_grid(scene: LoadedScene, resolution: float) -> Grid:
@@ -160,7 +85,13 @@ def scene_grid(scene: LoadedScene, resolution: float) -> Grid:
         raise ConfigError(err.detail, path=scene.source_dir, field=err.field) from None
 
 
-def floor_plan(scene: LoadedScene, footprints: dict[int, BaseGeometry], wall_gap: float) -> BaseGeometry:
+def height_band(spec: SceneSpec, agent: AgentConfig) -> tuple[float, float]:
+    """World z (lo, hi) of the band whose geometry blocks, m: the agent's body, measured from the floor."""
+    z_lo, z_hi = (spec.floor_height + z for z in agent.band)
+    return z_lo, z_hi
+
+
+def floor_plan(scene: LoadedScene, footprints: Mapping[int, BaseGeometry], wall_gap: float) -> BaseGeometry:
     """Where the floor is: the room polygons (else the floor meshes' footprints), joined across walls.
 
     Room polygons stop at the wall faces, so a doorway lies outside all of them; closing the union by
@@ -180,15 +111,30 @@ def floor_plan(scene: LoadedScene, footprints: dict[int, BaseGeometry], wall_gap
     return plan
 
 
-def paint_instances(objects, footprints: dict[int, BaseGeometry], bounds: dict[int, np.ndarray], grid: Grid,
-                    z_lo: float, z_hi: float) -> np.ndarray:
-    """[H, W] int32 instance id per cell: footprints painted floor first, things outside the band next,
-    then the rest from low to high (a TV over its stand), then walls, then the doors and windows set in
-    them. Ceilings are left out: they would cover everything.
-    """
+def map_grid(scene: LoadedScene, plan: BaseGeometry, resolution: float) -> Grid:
+    """The map's grid: cells `resolution` m square covering the floor plan and every object that may block
+    (`occupancy.blockers`), with two cells of margin."""
+    boxes = [scene.meshes[o.instance_id].bounds for o in blockers(scene.spec.objects)]
+    los = [plan.bounds[:2]] + [b[0][:2] for b in boxes]
+    his = [plan.bounds[2:]] + [b[1][:2] for b in boxes]
+    return Grid.covering(np.min(los, axis=0), np.max(his, axis=0), resolution, margin=2 * resolution)
 
-    def order(o) -> tuple:
-        lo, hi = bounds[o.instance_id][0][2], bounds[o.instance_id][1][2]
+
+def category_names(objects: Sequence[SceneObject]) -> list[str]:
+    """Category id -> name: 'background' (id 0), then the scene's categories sorted, so equal scenes number alike."""
+    return ["background", *sorted({o.category for o in objects})]
+
+
+def paint_instances(scene: LoadedScene, footprints: Mapping[int, BaseGeometry], grid: Grid,
+                    band: tuple[float, float]) -> np.ndarray:
+    """[H, W] int32 instance id per cell of `grid`: footprints painted floor first, things outside the `band`
+    (world z lo, hi, m) next, then the rest from low to high (a TV over its stand), then walls, then the doors
+    and windows set in them. Ceilings are left out: they would cover everything.
+    """
+    z_lo, z_hi = band
+
+    def order(o: SceneObject) -> tuple:
+        lo, hi = scene.meshes[o.instance_id].bounds[:, 2]
         if o.kind == "floor":
             rank = 0
         elif o.kind == "wall":
@@ -200,23 +146,71 @@ def paint_instances(objects, footprints: dict[int, BaseGeometry], bounds: dict[i
         return (rank, round(float(hi), 6), o.instance_id)
 
     out = np.zeros(grid.shape, dtype=np.int32)
-    for o in sorted((o for o in objects if o.kind != "ceiling"), key=order):
+    for o in sorted((o for o in scene.spec.objects if o.kind != "ceiling"), key=order):
         out[polygon_mask(footprints[o.instance_id], grid, touch=o.kind in THIN_KINDS)] = o.instance_id
     return out
 
 
-def _stack(items: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Concatenate per-object (tris [F, 3, 3], part [F]) into tris, globally unique part ids, owner index."""
-    if not items:
-        return np.zeros((0, 3, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64)
-    offsets = np.cumsum([0] + [int(p.max()) + 1 if len(p) else 0 for _, p in items[:-1]])
-    tris = np.concatenate([t for t, _ in items])
-    part = np.concatenate([p + off for (_, p), off in zip(items, offsets)])
-    owner = np.concatenate([np.full(len(t), i) for i, (t, _) in enumerate(items)])
-    return tris, part, owner
+def paint_categories(instance: np.ndarray, objects: Sequence[SceneObject], categories: list[str]) -> np.ndarray:
+    """[H, W] int16 category id per cell (index into `categories`, 0 background) of the [H, W] instance raster."""
+    cat_id = {c: i for i, c in enumerate(categories)}
+    lut = np.zeros(max(o.instance_id for o in objects) + 1, dtype=np.int16)
+    for o in objects:
+        lut[o.instance_id] = cat_id[o.category]
+    return lut[instance]
 
 
-def _room_of(fp: BaseGeometry, rooms) -> str | None:
+def semantic_report(scene: LoadedScene, config: BuildSceneConfig, *, grid: Grid,
+                    footprints: Mapping[int, BaseGeometry], categories: list[str], blocking: frozenset[int],
+                    navigable: np.ndarray, reach: Reachability) -> SemanticMap:
+    """semantic_map.json from the steps' results: the map's frame and band, every object (`map_instances`), the
+    navigable area (`navigable`: [H, W] on `grid`, nonzero = navigable), its regions and each room's reach."""
+    spec, cell = scene.spec, grid.cell_area()
+    z_lo, z_hi = height_band(spec, config.agent)
+    return SemanticMap(
+        scene_id=spec.scene_id, resolution=grid.resolution, origin=grid.origin, shape=grid.shape,
+        floor_height=spec.floor_height, band_m=(_r(z_lo), _r(z_hi)), agent_radius=config.agent.radius,
+        categories=categories,
+        instances=map_instances(scene, footprints, categories, blocking),
+        navigable_area_m2=_r(float(np.count_nonzero(navigable)) * cell),
+        regions=[Region(region_id=k, area_m2=_r(n * cell),
+                        rooms=sorted(r for r, regs in reach.room_regions.items() if k in regs))
+                 for k, n in enumerate(reach.region_cells, start=1)],
+        main_region=reach.main_region,
+        rooms=[room_reach(r, reach, cell) for r in spec.rooms],
+        all_rooms_connected=reach.all_rooms_connected(),
+    )
+
+
+def map_instances(scene: LoadedScene, footprints: Mapping[int, BaseGeometry], categories: list[str],
+                  blocking: frozenset[int]) -> list[MapInstance]:
+    """One record per object, in scene order: category id (index into `categories`), room, footprint, box and
+    heights (m), and whether it blocks (its instance id in `blocking`)."""
+    cat_id = {c: i for i, c in enumerate(categories)}
+    out = []
+    for o in scene.spec.objects:
+        fp, (lo, hi) = footprints[o.instance_id], scene.meshes[o.instance_id].bounds
+        out.append(MapInstance(
+            instance_id=o.instance_id, category=o.category, category_id=cat_id[o.category], kind=o.kind,
+            room=o.room_id or _room_of(fp, scene.spec.rooms), polygon=_geojson(fp),
+            bbox_m=(tuple(_r(v) for v in lo), tuple(_r(v) for v in hi)), area_m2=_r(fp.area),
+            min_z=_r(lo[2]), max_z=_r(hi[2]), door_state=o.door.state if o.door else None,
+            blocks=o.instance_id in blocking,
+        ))
+    return out
+
+
+def room_reach(room: Room, reach: Reachability, cell: float) -> RoomReach:
+    """A room's line of the reachability report; `cell`: the area of one cell, m^2."""
+    return RoomReach(
+        room_id=room.id, type=room.type, navigable_area_m2=_r(reach.room_cells[room.id] * cell),
+        regions=list(reach.room_regions[room.id]), reachable=reach.room_reachable(room.id),
+        unreachable_area_m2=_r(reach.unreachable_cells(room.id) * cell),
+        reachable_rooms=list(reach.reachable_from(room.id)),
+    )
+
+
+def _room_of(fp: BaseGeometry, rooms: Sequence[Room]) -> str | None:
     c = fp.centroid
     return next((r.id for r in rooms if shapely.Polygon(r.polygon).covers(c)), None) if not c.is_empty else None
 

@@ -3,12 +3,15 @@ their cross-section in the agent's height band.
 
 An L-shaped sofa or a table on four legs is then not one rectangle: each connected part of the mesh
 gets its own hull and the hulls are fused. A wall with door openings is one connected part, whose hull
-would span every doorway; its band section keeps them open.
+would span every doorway; its band section keeps them open. `object_footprints` is build-scene's step: the
+footprint of every object of a scene, walls by their section, everything else by its hulls.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 import shapely
@@ -16,10 +19,40 @@ import trimesh
 from scipy.spatial import ConvexHull, QhullError
 from shapely.geometry.base import BaseGeometry
 
+from sagebench.ui import track
+
+if TYPE_CHECKING:
+    from sagebench.scene.loader import LoadedScene
+    from sagebench.topdown.config import BuildSceneConfig
+
 MIN_PART_POINTS = 16  # even a tiny part gets enough samples for a hull
+BAND_SECTION_KINDS = frozenset({"wall"})  # footprint: where they stand in the band (doorways stay open), not hulls
+Parts = tuple[np.ndarray, np.ndarray]  # one mesh's `mesh_parts`: tris [F, 3, 3] float64 m, part [F] int64
 
 
-def mesh_parts(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
+def object_footprints(scene: LoadedScene, parts: Mapping[int, Parts], band: tuple[float, float],
+                      config: BuildSceneConfig) -> dict[int, BaseGeometry]:
+    """Instance id -> footprint of every object of the scene (Polygon or MultiPolygon, world xy, m).
+
+    A wall is its `band_section` in `band` (world z lo, hi, m); anything else the `footprint` of its `parts`
+    (instance id -> `mesh_parts`), sampled at `config.sample_density` with a generator seeded by (`config.seed`,
+    instance id). Each is simplified by a tenth of a cell (`config.resolution`), which drops the near-collinear
+    sample and section corners.
+    """
+    res = config.resolution
+    out: dict[int, BaseGeometry] = {}
+    for o in track(scene.spec.objects, "footprints"):
+        if o.kind in BAND_SECTION_KINDS:
+            fp = band_section(scene.meshes[o.instance_id], *band, min_width=res)
+        else:
+            tris, part = parts[o.instance_id]
+            rng = np.random.default_rng([config.seed, o.instance_id])
+            fp = footprint(tris, part, config.sample_density, rng, min_width=res)
+        out[o.instance_id] = fp.simplify(res / 10)
+    return out
+
+
+def mesh_parts(mesh: trimesh.Trimesh) -> Parts:
     """Triangles [F, 3, 3] (float64, m) and the connected part [F] (int64, 0..P-1) each belongs to.
 
     Vertices at the same position are merged first, so a part is a piece whose triangles share edges

@@ -6,15 +6,70 @@ A cell is blocked by a part (a connected piece of a mesh) when
 - the vertical line through the cell centre meets the part at heights whose span [lowest, highest]
   overlaps the band (solid things: the inside of a wall, a cabinet's body under its top above the band).
 A table top at 0.75 m therefore blocks at the default band (0.05..1.2 m), a lamp hanging from 1.8 m
-does not, and a 1 cm rug does not.
+does not, and a 1 cm rug does not. `scene_occupancy` is build-scene's step: the blocked and navigable maps of
+a scene's objects on the map's grid.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
 import numpy as np
 from scipy import ndimage
+from shapely.geometry.base import BaseGeometry
 
-from sagebench.topdown.raster import Grid, touched_cells, triangle_centre_hits
+from sagebench.errors import ConfigError
+from sagebench.topdown.raster import Grid, polygon_mask, touched_cells, triangle_centre_hits
+
+if TYPE_CHECKING:
+    from sagebench.scene.model import SceneObject
+    from sagebench.topdown.footprints import Parts
+
+NOT_BLOCKING_KINDS = frozenset({"floor", "ceiling"})  # walkable surfaces and what is above every head
+
+
+@dataclass(frozen=True)
+class Occupancy:
+    """What blocks the agent on the map's grid, and where its centre may stand."""
+
+    occupied: np.ndarray  # [H, W] bool, blocked: geometry in the band, or outside the floor plan
+    navigable: np.ndarray  # [H, W] bool, free cells at least the agent's radius from every blocked one (`inflate`)
+    band_polys: np.ndarray  # [M, 9, 2] float64 world m, the blocking triangles' outlines in the band (`clip_to_band`)
+    blocking: frozenset[int]  # instance ids with some geometry in the band
+
+
+def blockers(objects: Sequence[SceneObject]) -> list[SceneObject]:
+    """The objects whose geometry may block, in order: all but floors and ceilings."""
+    return [o for o in objects if o.kind not in NOT_BLOCKING_KINDS]
+
+
+def scene_occupancy(objects: Sequence[SceneObject], parts: Mapping[int, Parts], plan: BaseGeometry, grid: Grid,
+                    band: tuple[float, float], radius: float) -> Occupancy:
+    """The `band_occupancy` of the `blockers` among `objects` (their `parts`: instance id -> `mesh_parts`, world m)
+    in `band` (world z lo, hi, m), every cell outside the floor `plan` blocked too, inflated by the agent's
+    `radius` (m). No navigable cell left is a ConfigError naming agent.radius."""
+    objs = blockers(objects)
+    tris, part, owner = _stack([parts[o.instance_id] for o in objs])
+    occupied = band_occupancy(tris, part, grid, *band) | ~polygon_mask(plan, grid)
+    navigable = inflate(occupied, radius, grid.resolution)
+    if not navigable.any():
+        raise ConfigError(f"an agent of radius {radius:g} m fits nowhere on the floor: no navigable cell "
+                          "(a smaller agent radius, or a scene with free floor)", field="agent.radius")
+    polys, src = clip_to_band(tris, *band)
+    return Occupancy(occupied, navigable, polys, frozenset(objs[i].instance_id for i in np.unique(owner[src])))
+
+
+def _stack(items: list[Parts]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Concatenate per-object (tris [F, 3, 3], part [F]) into tris, globally unique part ids, owner index."""
+    if not items:
+        return np.zeros((0, 3, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64)
+    offsets = np.cumsum([0] + [int(p.max()) + 1 if len(p) else 0 for _, p in items[:-1]])
+    tris = np.concatenate([t for t, _ in items])
+    part = np.concatenate([p + off for (_, p), off in zip(items, offsets)])
+    owner = np.concatenate([np.full(len(t), i) for i, (t, _) in enumerate(items)])
+    return tris, part, owner
 
 
 def clip_to_band(tris: np.ndarray, z_lo: float, z_hi: float) -> tuple[np.ndarray, np.ndarray]:

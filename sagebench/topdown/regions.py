@@ -8,14 +8,23 @@ numbers. The main region is the largest (the lowest id among equals).
 A room is reachable when more than half (`REACHABLE_SHARE`) of its navigable cells lie in the main region:
 an office that the main region touches with one cell through an ajar door, the rest of its floor cut off,
 is not. Rooms reach each other when the same region holds more than half of each one's navigable cells.
+`room_reachability` is build-scene's step: the regions of the navigable map and the reach of the scene's rooms.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+import shapely
 from scipy import ndimage
+
+from sagebench.topdown.raster import Grid, polygon_mask
+
+if TYPE_CHECKING:
+    from sagebench.scene.model import Room
 
 REACHABLE_SHARE = 0.5  # a room is reachable when strictly more than this share of its navigable cells is in the main region
 
@@ -74,3 +83,9 @@ def reachability(navigable: np.ndarray, room_masks: dict[str, np.ndarray]) -> Re
         room_main_cells={room: int(n[main]) if main else 0 for room, n in per_room.items()},
         home=home,
     )
+
+
+def room_reachability(navigable: np.ndarray, rooms: Sequence[Room], grid: Grid) -> Reachability:
+    """`reachability` of the navigable map ([H, W] on `grid`, nonzero = navigable, passages included) for the
+    rooms: each room's floor is the cells whose centre lies in its polygon (world xy, m)."""
+    return reachability(navigable, {r.id: polygon_mask(shapely.Polygon(r.polygon), grid) for r in rooms})
