@@ -14,15 +14,14 @@ from email.utils import format_datetime
 import pytest
 from fake_llm import Reply, answer, bounded, completion
 
+from sagebench.http_client import MAX_RETRY_AFTER_S, retry_after_s
 from sagebench.instructions.llm_client import (
     ANSWER_SCHEMA,
-    MAX_RETRY_AFTER_S,
     STOP,
     ChatClient,
     LLMConfig,
     LLMError,
     LLMUnavailable,
-    retry_after_s,
 )
 
 BOUND_S = 10.0  # every call below is expected to take well under a second or two
