@@ -143,6 +143,13 @@ def test_a_dripping_or_hanging_server_is_cut_at_the_whole_request_deadline(fake_
     assert server.dripped < 2 * 0.4 / 0.05 + 4
 
 
+def test_a_reply_nested_too_deep_is_an_error_not_a_crash(fake_llm, tmp_path):
+    server = fake_llm(lambda b, n: Reply(body="[" * 100_000 + "]" * 100_000))
+    with pytest.raises(LLMError, match=r": the reply's JSON is nested deeper than 64 levels$"):
+        bounded(BOUND_S, ChatClient(config(tmp_path, server.url, response_format="none")).complete, "x")
+    assert len(server.bodies) == 1
+
+
 def test_404_is_not_retried(fake_llm, tmp_path):
     server = fake_llm(lambda b, n: Reply(404, {"error": "model 'fake' not found"}))
     with pytest.raises(LLMError, match="HTTP 404 .*model 'fake' not found"):

@@ -110,6 +110,14 @@ def test_a_refused_connection_fails_within_the_deadline():
         post("http://127.0.0.1:9/act", data, content_type, timeout=30.0, retries=1)
 
 
+def test_a_reply_nested_too_deep_fails_its_slot_and_not_the_rollout(server):
+    s = server("deep")
+    policy = HttpPolicy(s.url, timeout=30.0)
+    policy.begin([episode("ep-a")])
+    (failure,) = policy.act([0], [OBS], [{"steps": 0}])
+    assert failure.reason == f"policy {s.url} (step 0): the reply's JSON is nested deeper than 64 levels"
+
+
 def episode(eid: str) -> Episode:
     z = np.zeros(3)
     return Episode(eid, "s", "low", "Base_Action", z, 0.0, z, 1.0, 1.0, np.zeros((2, 4)))
