@@ -4,13 +4,15 @@ What each request is promised, whoever makes it:
 
 - One deadline: connecting, sending and reading the whole reply end within `timeout` seconds of the start, or the
   request fails. urllib3's and httpx's timeouts bound each socket operation only (urllib3 says so of its `total`),
-  so a server that trickles its reply a byte a second is never cut by them: `python -m benchmarks http_deadline`
-  measured urllib3 `Timeout(total=2)` and httpx2's `Client(timeout=2)` taking 6 s for a 6-byte body trickle and
-  16 s for a header trickle. httpx2's async client under `asyncio.wait_for` holds the deadline, but only inside an
-  event loop, which both callers (blocking code on worker threads, cancelled from the main thread on Ctrl-C) would
-  need to run beside them, with six more packages to install. So a watchdog timer shuts the request's socket at
-  the deadline (or on `cancel`), waking any blocked read, and the transport is the standard library's: with it the
-  watchdog sees every socket through one connection class, and callers keep the exceptions they report.
+  so a server that trickles its reply is never cut by them: `python -m benchmarks http_deadline` measured urllib3
+  2.8 (`Timeout(total=2)`, or connect=2, read=2) and httpx2 2.16's `Client(timeout=2)` each reading a 6-byte
+  trickle (a byte a second, of the body or of a header line) whole in 6 s, where this client gives up at 2.0 s.
+  httpx2's async client under `asyncio.wait_for` holds the deadline too (2.0 s), but only inside an event loop,
+  which both callers (blocking code on worker threads, cancelled from the main thread on Ctrl-C) would have to run
+  beside them, with httpx2 and its dependencies installed for it. So a watchdog timer shuts the request's socket
+  at the deadline (or on `cancel`), waking any blocked read. The transport under it is the standard library's
+  urllib.request: urllib3 would add connection reuse but not the deadline, hand the watchdog its sockets only
+  through subclassed pool connections, and wrap the exceptions both callers report (and it is not a dependency).
 - Retries (`retried`) with exponential backoff, or the server's Retry-After when longer, never sleeping past the
   request's deadline.
 - Redirects are not followed (the request, and its Authorization header, would go wherever a reply says): a 3xx
@@ -187,8 +189,9 @@ class Client:
 
 
 def _redirect(status: int, location: str | None) -> str:
+    """What a 3xx says: where it points (the origin, or the path of a same-origin Location; never a query)."""
     where = urllib.parse.urlsplit(location or "")
-    origin = public_url(f"{where.scheme}://{where.netloc}") if where.netloc else "an unnamed place"
+    origin = public_url(f"{where.scheme}://{where.netloc}") if where.netloc else where.path or "no Location given"
     return (f"HTTP {status}: the server redirects to {origin} (redirects are not followed: set the URL to where it "
             "points)")
 

@@ -5,6 +5,7 @@ and on its JSON's nesting, and no secret in any message."""
 
 from __future__ import annotations
 
+import re
 import socket
 import threading
 import types
@@ -43,6 +44,9 @@ class RawServer:
             data = b""
             while b"\r\n\r\n" not in data and (chunk := conn.recv(65536)):
                 data += chunk
+            length = re.search(rb"(?i)\r\ncontent-length: *(\d+)", data)
+            while length and len(data.partition(b"\r\n\r\n")[2]) < int(length[1]) and (chunk := conn.recv(65536)):
+                data += chunk  # the whole body: closing with unread bytes would reset the connection
             self.requests.append(data.decode("latin-1"))
             try:
                 for part, wait in self.reply:

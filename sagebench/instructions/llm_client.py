@@ -3,9 +3,9 @@
 `ChatClient` speaks POST {base_url}/chat/completions through sagebench.http_client (vLLM, a llama.cpp server,
 Ollama and OpenAI all serve that route). Every attempt has one deadline for the whole request (a server that
 drips its body cannot stretch it); 429, 5xx, timeouts, dropped connections, non-HTTP replies and truncated
-bodies are retried with exponential backoff (a Retry-After in seconds or as an HTTP date is honoured). A circuit breaker counts
-consecutive failed attempts across all threads and, at `breaker_failures`, cuts the requests in flight
-and refuses new ones, so a dead, hanging or misconfigured server costs a bounded time. Answers are cached
+bodies are retried with exponential backoff (a Retry-After in seconds or as an HTTP date is honoured). A circuit
+breaker counts consecutive failed attempts across all threads and, at `breaker_failures`, cuts the requests in
+flight and refuses new ones, so a dead, hanging or misconfigured server costs a bounded time. Answers are cached
 on disk under sha256 of the model and every generation setting; the server's URL is not in the key.
 
 With response_format "auto", the first request decides once, before any other is sent, which way of asking
@@ -233,7 +233,8 @@ class ChatClient:
     def _reported_slots(self) -> int | None:
         root = self.url.removesuffix("/chat/completions").removesuffix("/v1")
         try:
-            reply = self.http.send("GET", root + "/props", headers=self._headers, timeout=min(self.config.timeout_s, 5.0))
+            reply = self.http.send("GET", root + "/props", headers=self._headers,
+                                   timeout=min(self.config.timeout_s, 5.0))
             slots = parse_json(reply.body).get("total_slots") if reply.status == 200 else None
         except (HTTPFailure, ValueError, AttributeError):
             return None
