@@ -5,14 +5,17 @@ and on its JSON's nesting, and no secret in any message."""
 
 from __future__ import annotations
 
+import ast
 import re
 import socket
 import threading
 import types
+from pathlib import Path
 
 import pytest
 from fake_llm import bounded
 
+import sagebench
 import sagebench.http_client as http_client
 from sagebench.http_client import MAX_JSON_DEPTH, Client, HTTPFailure, TooDeep, parse_json, retried
 
@@ -215,3 +218,17 @@ def test_no_secret_reaches_a_message(serve):
     assert str(err.value) == "BadStatusLine: HELLO Authorization: Bearer [redacted] and [redacted]"
     url = server.origin.replace("http://", "http://user:hunter2@") + "/v1"
     assert Client(url).clean(f"{url} answered: password=hunter2") == f"{server.origin}/v1 answered: password=[redacted]"
+
+
+def test_no_other_module_sends_http_requests():
+    """The promises above hold for a request only if it goes through this client: no other module of the package
+    imports an HTTP client library."""
+    clients = ("urllib.request", "http.client", "urllib3", "httpx", "httpx2", "requests", "aiohttp")
+    root = Path(sagebench.__file__).parent
+    found = set()
+    for path in root.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            found |= {(path.relative_to(root).as_posix(), n) for n in names if n.startswith(clients)}
+    assert {where for where, _ in found} == {"http_client.py"}, sorted(found)
