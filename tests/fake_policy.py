@@ -13,7 +13,7 @@ import numpy as np
 
 from sagebench.navsim.protocol import decode_request
 
-FAULTS = ("status500", "drip", "hang", "close", "truncated")
+FAULTS = ("status500", "drip", "hang", "close", "truncated", "deep")
 LONGEST_FAULT = 60.0  # s: a hanging or dripping reply gives up after this
 DRIP_S = 0.2  # s between dripped bytes: well inside any read timeout, so only a request's deadline ends a drip
 
@@ -64,6 +64,8 @@ class FakePolicy:
                     owner.seen.append((fields, images))
                 action = [0.3, 0.0, float(fields["step"] >= 3)] if owner.continuous else decide(fields, images)
                 reply = json.dumps({"action": action}).encode()
+                if fault == "deep":  # an action nested 100,000 lists deep (json.loads: RecursionError)
+                    reply = b'{"action": ' + b"[" * 100_000 + b"]" * 100_000 + b"}"
                 if fault == "drip":  # valid JSON whose whitespace tail outlasts LONGEST_FAULT at DRIP_S a byte
                     reply += b" " * int(LONGEST_FAULT / DRIP_S)
                 self.send_response(200)

@@ -20,7 +20,8 @@ LAYERS = {
     "pipeline": 3,
     "report": 3,  # reads finished outputs through the stages' readers (evaluate's scores, render's views)
     "stages": 2,
-    "scene": 0, "fileio": 0, "input_files": 0, "errors": 0, "config": 0, "ui": 0, "run_layout": 0, "__init__": 0,
+    "scene": 0, "fileio": 0, "input_files": 0, "errors": 0, "config": 0, "ui": 0, "run_layout": 0, "http_client": 0,
+    "__init__": 0,
 }
 LIBRARY = 1
 NAMES = {4: "cli", 3: "pipeline", 2: "stages", 1: "library", 0: "base"}

@@ -14,15 +14,14 @@ from email.utils import format_datetime
 import pytest
 from fake_llm import Reply, answer, bounded, completion
 
+from sagebench.http_client import MAX_RETRY_AFTER_S, retry_after_s
 from sagebench.instructions.llm_client import (
     ANSWER_SCHEMA,
-    MAX_RETRY_AFTER_S,
     STOP,
     ChatClient,
     LLMConfig,
     LLMError,
     LLMUnavailable,
-    retry_after_s,
 )
 
 BOUND_S = 10.0  # every call below is expected to take well under a second or two
@@ -142,6 +141,13 @@ def test_a_dripping_or_hanging_server_is_cut_at_the_whole_request_deadline(fake_
     assert len(server.bodies) == 2
     # each socket read came within the per-read timeout; only the whole-request deadline stops the drip
     assert server.dripped < 2 * 0.4 / 0.05 + 4
+
+
+def test_a_reply_nested_too_deep_is_an_error_not_a_crash(fake_llm, tmp_path):
+    server = fake_llm(lambda b, n: Reply(body="[" * 100_000 + "]" * 100_000))
+    with pytest.raises(LLMError, match=r": the reply's JSON is nested deeper than 64 levels$"):
+        bounded(BOUND_S, ChatClient(config(tmp_path, server.url, response_format="none")).complete, "x")
+    assert len(server.bodies) == 1
 
 
 def test_404_is_not_retried(fake_llm, tmp_path):

@@ -90,11 +90,11 @@ def test_a_retry_never_waits_past_the_requests_deadline(server, monkeypatch):
     """A server that keeps closing connections, a 1 s deadline and backoff from 0.4 s: the client retries after
     0.4 s, then gives up rather than wait 0.8 s more (the request would end at 1.2 s, past its deadline). The
     backoff runs on a fake clock, so the test measures the client's arithmetic, not the machine's speed."""
-    import sagebench.navsim.http_policy as http_policy
+    import sagebench.http_client as http_client
 
     slept: list[float] = []
     clock = types.SimpleNamespace(monotonic=lambda: time.monotonic() + sum(slept), sleep=slept.append)
-    monkeypatch.setattr(http_policy, "time", clock)
+    monkeypatch.setattr(http_client, "time", clock)
     s = server("close")
     content_type, data = body()
     start = clock.monotonic()
@@ -108,6 +108,14 @@ def test_a_refused_connection_fails_within_the_deadline():
     content_type, data = body()
     with pytest.raises(RequestFailed, match="^connection error: ConnectionRefusedError"):
         post("http://127.0.0.1:9/act", data, content_type, timeout=30.0, retries=1)
+
+
+def test_a_reply_nested_too_deep_fails_its_slot_and_not_the_rollout(server):
+    s = server("deep")
+    policy = HttpPolicy(s.url, timeout=30.0)
+    policy.begin([episode("ep-a")])
+    (failure,) = policy.act([0], [OBS], [{"steps": 0}])
+    assert failure.reason == f"policy {s.url} (step 0): the reply's JSON is nested deeper than 64 levels"
 
 
 def episode(eid: str) -> Episode:

@@ -1,12 +1,11 @@
 """Chat-completions client for OpenAI-compatible servers: bounded in time, retried, cached, and able to give up.
 
-`ChatClient` speaks POST {base_url}/chat/completions with the standard library only (vLLM, a llama.cpp
-server, Ollama and OpenAI all serve that route). Every attempt has one deadline for the whole request,
-counted from when it is sent (a watchdog cuts the socket, so a server that drips its body cannot stretch
-it); 429, 5xx, timeouts, dropped connections, non-HTTP replies and truncated bodies are retried with
-exponential backoff (a Retry-After in seconds or as an HTTP date is honoured). A circuit breaker counts
-consecutive failed attempts across all threads and, at `breaker_failures`, cuts the requests in flight
-and refuses new ones, so a dead, hanging or misconfigured server costs a bounded time. Answers are cached
+`ChatClient` speaks POST {base_url}/chat/completions through sagebench.http_client (vLLM, a llama.cpp server,
+Ollama and OpenAI all serve that route). Every attempt has one deadline for the whole request (a server that
+drips its body cannot stretch it); 429, 5xx, timeouts, dropped connections, non-HTTP replies and truncated
+bodies are retried with exponential backoff (a Retry-After in seconds or as an HTTP date is honoured). A circuit
+breaker counts consecutive failed attempts across all threads and, at `breaker_failures`, cuts the requests in
+flight and refuses new ones, so a dead, hanging or misconfigured server costs a bounded time. Answers are cached
 on disk under sha256 of the model and every generation setting; the server's URL is not in the key.
 
 With response_format "auto", the first request decides once, before any other is sent, which way of asking
@@ -14,29 +13,22 @@ for JSON the server takes (json_schema, json_object, or none): any 4xx/5xx to on
 supported" and the same prompt is sent the next way; so what is asked never depends on timing.
 
 The API key never leaves the request's own origin: redirects are not followed, and the key (and any
-"Bearer ..." token) is cut from every server reply before it reaches a message, a log or the cache.
+"Bearer ..." token) is cut from every server reply before it reaches a message, a log or the cache; the
+environment's proxy is used for a server that is not on this machine.
 """
 
 from __future__ import annotations
 
-import email.utils
-import functools
 import hashlib
-import http.client
 import ipaddress
+import itertools
 import json
 import os
 import re
-import socket
 import threading
-import time
-import urllib.error
 import urllib.parse
-import urllib.request
 from collections import Counter
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
-from datetime import datetime, timezone
 from pathlib import Path
 from typing import Literal
 
@@ -44,17 +36,25 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from sagebench.errors import ConfigError
 from sagebench.fileio import dumps_json, write_text
+from sagebench.http_client import (
+    Client,
+    HTTPFailure,
+    Reply,
+    TooDeep,
+    is_loopback,
+    parse_json,
+    redact,
+    retried,
+    retry_after_s,
+)
 
 RETRY_STATUS = frozenset({408, 409, 425, 429, 500, 502, 503, 504})
-MAX_RETRY_AFTER_S = 30.0
 API_KEY_ENV = "SAGEBENCH_LLM_API_KEY"  # the only variable read for the bearer token unless the CLI names another
 STOP = ("}",)  # the answer is one flat JSON object: nothing after its closing brace is wanted
 ANSWER_SCHEMA = {"type": "object", "properties": {"instruction": {"type": "string"}},
                  "required": ["instruction"], "additionalProperties": False}
 FORMATS = ("json_schema", "json_object", "none")  # what response_format "auto" tries, in this order
 REMOTE_CONCURRENCY = 4  # requests in flight to a server elsewhere that reports no slots
-_BEARER = re.compile(r"(?i)\b(bearer|api[-_ ]?key|authorization)([\s:=\"']+)(?!bearer\b)[^\s\"',;}]+")
-REDACTED = "[redacted]"
 
 
 class LLMConfig(BaseModel):
@@ -101,24 +101,6 @@ class LLMError(Exception):
 
 class LLMUnavailable(LLMError):
     """The breaker is open (or the client was cancelled): no request is sent any more."""
-
-
-def redact(text: str, secrets: tuple[str, ...] = ()) -> str:
-    """`text` without the secrets' values or any "Bearer <token>" / "api_key: <token>" it quotes."""
-    for secret in secrets:
-        if secret:
-            text = text.replace(secret, REDACTED)
-    return _BEARER.sub(lambda m: f"{m.group(1)}{m.group(2)}{REDACTED}", text)
-
-
-def public_url(url: str) -> str:
-    """`url` without a user:password@ part (a secret, when the URL carries one)."""
-    parts = urllib.parse.urlsplit(url)
-    if parts.username is None and parts.password is None:
-        return url
-    host = parts.hostname or ""
-    netloc = host if parts.port is None else f"{host}:{parts.port}"
-    return urllib.parse.urlunsplit(parts._replace(netloc=netloc))
 
 
 _ENV_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
@@ -182,112 +164,16 @@ class Breaker:
             return False
 
 
-class _Watch:
-    """One attempt's deadline, counted from when its request goes out (its socket is connected; connecting is
-    bounded by the socket timeout): at expiry (or on cancel) every socket it saw is shut down, waking blocked
-    reads. Time spent waiting for a slot in this client is not counted."""
-
-    def __init__(self, seconds: float):
-        self.seconds = seconds
-        self.deadline: float | None = None
-        self.expired = False
-        self._socks: list[socket.socket] = []
-        self._lock = threading.Lock()
-        self._timer: threading.Timer | None = None
-
-    def attach(self, sock: socket.socket) -> None:
-        with self._lock:
-            self._socks.append(sock)
-            if self.expired:
-                _shut(sock)
-            elif self._timer is None:
-                self.deadline = time.monotonic() + self.seconds
-                self._timer = threading.Timer(self.seconds, self.cut)
-                self._timer.daemon = True
-                self._timer.start()
-
-    def cut(self) -> None:
-        with self._lock:
-            self.expired = True
-            for s in self._socks:
-                _shut(s)
-
-    def stop(self) -> None:
-        with self._lock:
-            if self._timer is not None:
-                self._timer.cancel()
-
-    def past(self) -> bool:
-        """Cut, or past the deadline (a per-read timeout may fire just before the watchdog does)."""
-        return self.expired or (self.deadline is not None and time.monotonic() >= self.deadline)
-
-
-def _shut(sock: socket.socket) -> None:
-    try:
-        sock.shutdown(socket.SHUT_RDWR)
-    except OSError:
-        pass  # already closed
-
-
-class _Watched:
-    """Connection mixin: hands its socket to the attempt's watch as soon as it is connected."""
-
-    def __init__(self, *args, watch: _Watch, **kwargs):
-        self._watch = watch
-        super().__init__(*args, **kwargs)
-
-    def connect(self) -> None:
-        super().connect()
-        self._watch.attach(self.sock)
-
-
-class _HTTPConnection(_Watched, http.client.HTTPConnection):
-    pass
-
-
-class _HTTPSConnection(_Watched, http.client.HTTPSConnection):
-    pass
-
-
-class _HTTPHandler(urllib.request.HTTPHandler):
-    def __init__(self, watch: _Watch):
-        super().__init__()
-        self.watch = watch
-
-    def http_open(self, req):  # noqa: ANN001, ANN201 - urllib's signature
-        return self.do_open(functools.partial(_HTTPConnection, watch=self.watch), req)
-
-
-class _HTTPSHandler(urllib.request.HTTPSHandler):
-    def __init__(self, watch: _Watch):
-        super().__init__()
-        self.watch = watch
-
-    def https_open(self, req):  # noqa: ANN001, ANN201 - urllib's signature
-        return self.do_open(functools.partial(_HTTPSConnection, watch=self.watch), req, context=self._context)
-
-
-TRANSPORT_ERRORS = (urllib.error.URLError, OSError, http.client.HTTPException)  # BadStatusLine, IncompleteRead ...
-
-
-class _NoRedirect(urllib.request.HTTPRedirectHandler):
-    """Redirects are not followed (the request and its Authorization header would go wherever a reply says):
-    the 3xx comes back as an HTTPError naming where it pointed."""
-
-    def redirect_request(self, req, fp, code, msg, headers, newurl):  # noqa: ANN001, ANN201 - urllib's signature
-        return None
-
-
 class ChatClient:
     """Thread-safe chat-completions client with a disk cache; `stats` counts requests, hits, retries."""
 
     def __init__(self, config: LLMConfig, *, api_key: str | None = None):
         if not config.base_url or not config.model:
             raise ValueError("LLMConfig needs base_url and model")
-        parsed = urllib.parse.urlparse(config.base_url)
         self.config = config
         self.url = config.base_url.rstrip("/") + "/chat/completions"
-        self.shown_url = public_url(self.url)  # what messages name
+        self.http = Client(self.url, secrets=(api_key,), proxy_from_env=True)
+        self.shown_url = self.http.shown_url  # what messages name
         self.cache_dir = Path(config.cache_dir) if config.cache_dir is not None else default_cache_dir()
         self.breaker = Breaker(config.breaker_failures)
         self.stats: Counter[str] = Counter()
@@ -296,10 +182,7 @@ class ChatClient:
         self._lock = threading.Lock()
         self._deciding = threading.Lock()  # held while the first request finds the response_format the server takes
         self._cancelled = threading.Event()
-        self._watches: set[_Watch] = set()
         self._format: str | None = None if config.response_format == "auto" else config.response_format
-        self._proxies = {} if _is_loopback(parsed.hostname or "") else None  # loopback never goes to a proxy
-        self._secrets = tuple(x for x in (api_key, parsed.password) if x)
         self._headers = {"Content-Type": "application/json", **({"Authorization": f"Bearer {api_key}"} if api_key else {})}
 
     def settings(self) -> dict[str, object]:
@@ -345,28 +228,17 @@ class ChatClient:
     def cancel(self) -> None:
         """Stop: cut the requests in flight and refuse new ones (Ctrl-C, or the breaker opening)."""
         self._cancelled.set()
-        with self._lock:
-            watches = list(self._watches)
-        for w in watches:
-            w.cut()
+        self.http.cancel()
 
     def _reported_slots(self) -> int | None:
         root = self.url.removesuffix("/chat/completions").removesuffix("/v1")
-        watch = _Watch(min(self.config.timeout_s, 5.0))
         try:
-            opener = self._opener(watch)
-            req = urllib.request.Request(root + "/props", headers=self._headers, method="GET")
-            with opener.open(req, timeout=watch.seconds) as resp:
-                slots = json.loads(resp.read(1 << 16)).get("total_slots")
-        except (*TRANSPORT_ERRORS, ValueError, AttributeError):
+            reply = self.http.send("GET", root + "/props", headers=self._headers,
+                                   timeout=min(self.config.timeout_s, 5.0))
+            slots = parse_json(reply.body).get("total_slots") if reply.status == 200 else None
+        except (HTTPFailure, ValueError, AttributeError):
             return None
-        finally:
-            watch.stop()
         return min(max(slots, 1), 64) if isinstance(slots, int) and not isinstance(slots, bool) else None
-
-    def _opener(self, watch: _Watch) -> urllib.request.OpenerDirector:
-        return urllib.request.build_opener(urllib.request.ProxyHandler(self._proxies), _NoRedirect(),
-                                           _HTTPHandler(watch), _HTTPSHandler(watch))
 
     def _body(self, prompt: str, fmt: str) -> bytes:
         body: dict[str, object] = {**self.settings(), "messages": [{"role": "user", "content": prompt}]}
@@ -403,84 +275,69 @@ class ChatClient:
     def _ask(self, prompt: str, fmt: str, *, refusal_ends: bool = False) -> str:
         cfg = self.config
         body = self._body(prompt, fmt)
-        last = "no attempt"
-        for attempt in range(cfg.max_attempts):
-            self._check_open()
-            if attempt:
-                self._count("retries")
-            out = self._attempt(body, refusal_ends)
-            if out.content is not None:
-                return out.content
-            if out.refused:
-                raise _Refused(out.error)
-            last = out.error
-            if not out.retry:
-                raise LLMError(f"{self.shown_url}: {last}")
-            if attempt + 1 < cfg.max_attempts:
-                self._cancelled.wait(max(cfg.backoff_s * 2 ** attempt, out.wait_s))
-        raise LLMError(f"{self.shown_url}: {last} (after {cfg.max_attempts} attempts)")
+        tries = itertools.count()
 
-    def _attempt(self, body: bytes, refusal_ends: bool) -> _Outcome:
+        def attempt(_: float | None) -> str:
+            self._check_open()
+            if next(tries):
+                self._count("retries")
+            return self._attempt(body, refusal_ends)
+
+        try:
+            return retried(attempt, attempts=cfg.max_attempts, backoff_s=cfg.backoff_s, wait=self._cancelled.wait)
+        except _Failed as err:
+            if err.refused:
+                raise _Refused(str(err)) from None
+            after = f" (after {cfg.max_attempts} attempts)" if err.retry else ""  # else not worth another
+            raise LLMError(f"{self.shown_url}: {err}{after}") from None
+
+    def _attempt(self, body: bytes, refusal_ends: bool) -> str:
         """One POST holding a slot; the breaker hears of it before the slot is let go, so at most
         `breaker_failures` failures plus the attempts already in flight are ever sent to a dead server."""
         with self._slots:
             self._check_open()
-            out = self._post(body, refusal_ends)
-            if out.content is not None:
-                self.breaker.success()
-            elif out.failure and self.breaker.failure(out.error):
-                self.cancel()
-            return out
-
-    def _post(self, body: bytes, refusal_ends: bool) -> _Outcome:
-        """POST once under one deadline (the watchdog starts when the request goes out). With `refusal_ends`, an
-        HTTP error other than 429 is a refusal of the response_format asked for, not a failure."""
-        watch = _Watch(self.config.timeout_s)
-        expired = _Outcome(error=f"no complete reply within {self.config.timeout_s:g} s", retry=True)
-        with self._lock:
-            self._watches.add(watch)
-        try:
-            self._count("requests")
-            req = urllib.request.Request(self.url, data=body, headers=self._headers, method="POST")
             try:
-                with self._opener(watch).open(req, timeout=self.config.timeout_s) as resp:
-                    payload = resp.read()
-            except urllib.error.HTTPError as err:
-                return self._http_error(err, refusal_ends)
-            except TRANSPORT_ERRORS as err:
-                if self._cancelled.is_set():
-                    raise LLMUnavailable(self._why_stopped()) from None
-                if watch.past():
-                    return expired
-                return _Outcome(error=self._clean(f"{type(err).__name__}: {getattr(err, 'reason', err)}"), retry=True)
-            if watch.expired:  # a body without Content-Length ends at the cut, looking complete
-                return expired
-            out = _content(payload)
-            return _Outcome(content=redact(out.content, self._secrets)) if out.content is not None else \
-                _Outcome(error=self._clean(out.error)[:300])
-        finally:
-            watch.stop()
-            with self._lock:
-                self._watches.discard(watch)
+                content = self._post(body, refusal_ends)
+            except _Failed as err:
+                if err.counts and self.breaker.failure(str(err)):
+                    self.cancel()
+                raise
+            self.breaker.success()
+            return content
 
-    def _http_error(self, err: urllib.error.HTTPError, refusal_ends: bool) -> _Outcome:
+    def _post(self, body: bytes, refusal_ends: bool) -> str:
+        """POST once under one deadline: the answer's text, or a _Failed saying why not. With `refusal_ends`, an
+        HTTP error other than 429 is a refusal of the response_format asked for, not a failure."""
+        self._count("requests")
         try:
-            detail = err.read(4096).decode("utf-8", "replace")
-        except TRANSPORT_ERRORS:  # cut while reading the error body
-            detail = ""
-        if 300 <= err.code < 400:
-            where = urllib.parse.urlsplit(err.headers.get("Location") or "")
-            return _Outcome(error=f"HTTP {err.code}: the server redirects to {where.scheme}://{where.netloc} (redirects "
-                                  "are not followed: set the base URL to where it points)")
-        error = self._clean(f"HTTP {err.code} {detail}")[:200]
-        if refusal_ends and err.code != 429:  # counted by the breaker: a server refusing everything is a dead one
-            return _Outcome(error=error, refused=True)
-        return _Outcome(error=error, retry=err.code in RETRY_STATUS, failure=err.code != 429,
-                        wait_s=retry_after_s(err.headers.get("Retry-After")))
+            reply = self.http.send("POST", body=body, headers=self._headers, timeout=self.config.timeout_s)
+        except HTTPFailure as err:
+            raise self._transport_failure(err) from None
+        if not 200 <= reply.status < 300:
+            raise self._http_error(reply, refusal_ends)
+        try:
+            return redact(_content(reply.body), self.http.secrets)
+        except ValueError as err:
+            raise _Failed(self.http.clean(str(err))[:300]) from None
 
-    def _clean(self, text: str) -> str:
-        """A server's words made fit for a message: one line, no secret."""
-        return _one_line(redact(public_url_in(text, self.url, self.shown_url), self._secrets))
+    def _transport_failure(self, err: HTTPFailure) -> Exception:
+        """What an attempt that got no reply means here: timeouts and broken connections are retried."""
+        if err.kind == "cancelled":
+            return LLMUnavailable(self._why_stopped())
+        if err.kind == "timeout":
+            return _Failed(f"no complete reply within {self.config.timeout_s:g} s", retry=True)
+        if err.kind == "transport":
+            cause = err.cause
+            return _Failed(self.http.clean(f"{type(cause).__name__}: {getattr(cause, 'reason', cause)}"), retry=True)
+        return _Failed(str(err))  # a redirect, a reply too large
+
+    def _http_error(self, reply: Reply, refusal_ends: bool) -> _Failed:
+        detail = reply.body[:4096].decode("utf-8", "replace")
+        error = self.http.clean(f"HTTP {reply.status} {detail}")[:200]
+        if refusal_ends and reply.status != 429:  # counted by the breaker: a server refusing everything is a dead one
+            return _Failed(error, refused=True)
+        return _Failed(error, retry=reply.status in RETRY_STATUS, counts=reply.status != 429,
+                       wait_s=retry_after_s(reply.headers.get("Retry-After")))
 
     def _check_open(self) -> None:
         if self._cancelled.is_set():
@@ -498,38 +355,28 @@ class _Refused(Exception):
     """The server answered a request asking for one response_format with an HTTP error: try the next."""
 
 
-@dataclass(frozen=True)
-class _Outcome:
-    """What one attempt got: the answer's text, or why not and what to do about it."""
+class _Failed(HTTPFailure):
+    """An attempt that got no answer; `counts` towards the breaker (a 429 does not); `refused`: the response_format
+    asked for was refused (while deciding it)."""
 
-    content: str | None = None
-    error: str = ""
-    retry: bool = False  # worth another attempt (429, 5xx, timeouts, dropped connections)
-    failure: bool = True  # counts towards the breaker (a 429 does not)
-    wait_s: float = 0.0  # the server's Retry-After
-    refused: bool = False  # the response_format asked for was refused (while deciding it)
+    def __init__(self, message: str, *, retry: bool = False, wait_s: float = 0.0, counts: bool = True,
+                 refused: bool = False):
+        super().__init__(message, kind="llm", retry=retry, wait_s=wait_s)
+        self.counts, self.refused = counts, refused
 
 
-def public_url_in(text: str, url: str, shown: str) -> str:
-    """`text` with the client's URL replaced by its public form (a URL's user:password never shows)."""
-    return text.replace(url, shown) if url != shown else text
-
-
-def _one_line(text: str) -> str:
-    """Errors end up in one-line messages: a server's reply may hold newlines."""
-    return " ".join(text.split())
-
-
-def _content(payload: bytes) -> _Outcome:
-    """The reply's text, or why it has none (not JSON, not chat-completions, content null): not retried."""
+def _content(payload: bytes) -> str:
+    """The reply's text; a ValueError says why it has none (not JSON, not chat-completions, content null)."""
     try:
-        message = json.loads(payload)["choices"][0]["message"]
+        message = parse_json(payload)["choices"][0]["message"]
+    except TooDeep:
+        raise
     except (ValueError, KeyError, IndexError, TypeError):
-        return _Outcome(error=f"not a chat-completions response: {payload[:4096]!r}")
+        raise ValueError(f"not a chat-completions response: {payload[:4096]!r}") from None
     content = message.get("content") if isinstance(message, dict) else None
     if not isinstance(content, str):
-        return _Outcome(error=f"the reply has no text (content {json.dumps(content)}; a reasoning or tool-call reply?)")
-    return _Outcome(content=content)
+        raise ValueError(f"the reply has no text (content {json.dumps(content)}; a reasoning or tool-call reply?)")
+    return content
 
 
 def _read_cached(path: Path) -> str | None:
@@ -541,38 +388,12 @@ def _read_cached(path: Path) -> str | None:
     return content if isinstance(content, str) else None
 
 
-def _is_loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
-
-
 def _is_local(host: str) -> bool:
     """On this machine or the local network (loopback, private, link-local, a .local name)."""
-    if _is_loopback(host) or host.endswith(".local"):
+    if is_loopback(host) or host.endswith(".local"):
         return True
     try:
         address = ipaddress.ip_address(host)
     except ValueError:
         return False
     return address.is_private or address.is_link_local
-
-
-def retry_after_s(value: str | None, now: datetime | None = None) -> float:
-    """Seconds a Retry-After header asks for (delta-seconds or an HTTP date), clamped to [0, MAX_RETRY_AFTER_S]."""
-    if not value:
-        return 0.0
-    try:
-        seconds = float(value)
-    except ValueError:
-        try:
-            when = email.utils.parsedate_to_datetime(value)
-        except (TypeError, ValueError, IndexError):
-            return 0.0
-        if when.tzinfo is None:
-            when = when.replace(tzinfo=timezone.utc)
-        seconds = (when - (now or datetime.now(timezone.utc))).total_seconds()
-    return min(max(seconds, 0.0), MAX_RETRY_AFTER_S)
