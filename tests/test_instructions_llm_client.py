@@ -15,15 +15,9 @@ import pytest
 from fake_llm import Reply, answer, bounded, completion
 
 from sagebench.instructions.llm_client import (
-    ANSWER_SCHEMA,
-    MAX_RETRY_AFTER_S,
-    STOP,
-    ChatClient,
-    LLMConfig,
-    LLMError,
-    LLMUnavailable,
-    retry_after_s,
+    ANSWER_SCHEMA, MAX_RETRY_AFTER_S, STOP, ChatClient, LLMError, LLMUnavailable, retry_after_s,
 )
+from sagebench.settings.gen_trajectories import LLMConfig
 
 BOUND_S = 10.0  # every call below is expected to take well under a second or two
 

@@ -10,7 +10,7 @@ import trimesh
 from meshes import prism, wall_with_openings
 
 from sagebench.scene import assets
-from sagebench.topdown.config import BuildSceneConfig
+from sagebench.settings.build_scene import BuildSceneConfig
 from sagebench.topdown.footprints import band_section, footprint, footprint_reference, mesh_parts, sample_surface
 
 DENSITY = BuildSceneConfig().sample_density

@@ -13,7 +13,7 @@ from shapely.geometry.base import BaseGeometry
 from sagebench.errors import ConfigError, SceneError
 from sagebench.scene.checks import NO_FLOOR
 from sagebench.scene.loader import SCENE_FILE, LoadedScene
-from sagebench.topdown.config import BuildSceneConfig
+from sagebench.settings.build_scene import BuildSceneConfig
 from sagebench.topdown.footprints import band_section, footprint, mesh_parts
 from sagebench.topdown.occupancy import band_occupancy, clip_to_band, inflate
 from sagebench.topdown.passages import Passages, open_passages
