@@ -12,11 +12,16 @@ from __future__ import annotations
 import importlib
 import inspect
 from collections.abc import Callable, Mapping
-from typing import Annotated, Any, Literal, get_origin
+from typing import TYPE_CHECKING, Annotated, Any, Literal, get_origin
 
 import typer
 import typer.core
 import typer.main
+
+if TYPE_CHECKING:
+    from pydantic import BaseModel
+
+    from sagebench.settings.option import Setting
 
 GIVEN = "sagebench.settings"  # ctx.meta key of the settings options given: {"--band-max": 1.8}
 
@@ -28,7 +33,9 @@ def settings_command(model: str, *, before: str = "--force", overrides: bool = F
     says so)."""
 
     class Command(typer.core.TyperCommand):
-        _settings: dict[str, Any] | None = None  # parameter name -> Setting
+        model: type[BaseModel]
+        _settings: dict[str, Setting] | None = None  # the options' parameter names -> their settings
+        _options: list = []
 
         def get_params(self, ctx: typer.Context) -> list:
             if self._settings is None:
@@ -53,14 +60,14 @@ def given(ctx: typer.Context) -> Mapping[str, object]:
     return {option: value for option, value in ctx.meta.get(GIVEN, {}).items() if value not in (None, ())}
 
 
-def settings(ctx: typer.Context) -> Any:
+def settings(ctx: typer.Context) -> BaseModel:
     """The command's settings: its model from the options given; a bad value is one ConfigError naming the option."""
     from sagebench.settings.option import from_options
 
     return from_options(ctx.command.model, given(ctx))
 
 
-def setting_options(model: type, *, overrides: bool = False) -> tuple[dict[str, Any], list]:
+def setting_options(model: type[BaseModel], *, overrides: bool = False) -> tuple[dict[str, Setting], list]:
     """(parameter name -> Setting, the typer options) of a settings model: typer makes them from a function
     signature, as it makes a command's own."""
     from sagebench.settings.option import settings_of
@@ -79,7 +86,7 @@ def _signed(signature: inspect.Signature) -> Callable[..., None]:
     return options
 
 
-def _parameter(name: str, setting: Any, overrides: bool) -> inspect.Parameter:  # setting: settings.option.Setting
+def _parameter(name: str, setting: Setting, overrides: bool) -> inspect.Parameter:
     kind = setting.kind
     if setting.option.parse is not None or get_origin(kind) is Literal:
         kind = str
@@ -93,14 +100,14 @@ def _parameter(name: str, setting: Any, overrides: bool) -> inspect.Parameter:  
                              annotation=Annotated[kind | None, option])
 
 
-def _value(setting: Any, value: object) -> object:
+def _value(setting: Setting, value: object) -> object:
     """What an option's value sets: a flag given sets the other value than the field's default (--no-views)."""
     if setting.kind is bool:
         return (not setting.default) if value else None
     return tuple(value) if isinstance(value, list) else value
 
 
-def help_text(setting: Any, *, overrides: bool = False) -> str:  # setting: settings.option.Setting
+def help_text(setting: Setting, *, overrides: bool = False) -> str:
     """The field's description, with its default where one helps: "(default 0.05)"; none for a flag, a required
     option or a default of nothing."""
     value = setting.default

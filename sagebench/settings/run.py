@@ -28,7 +28,7 @@ class RunConfig(BaseModel):
     out: Path = Field(description="Run directory.")
     seed: int | None = Field(default=None, description="When set, the seed of every stage that has none of its own.")
     workers: Annotated[int, Option("--workers")] = Field(
-        default=1, ge=1, description="Scene-stage tasks run at once by the local executor.")
+        default=1, ge=1, description="Tasks run at once by the local executor: scene stages and collider pieces.")
     executor: Annotated[Literal["local", "ray"], Option("--executor")] = Field(
         default="local", description="local or ray.")
     ray_address: Annotated[str | None, Option("--ray-address")] = Field(
