@@ -50,8 +50,9 @@ def run() -> list[dict]:
     from sagebench.pipeline.config import load_run_config
     from sagebench.pipeline.run import run_pipeline
     from sagebench.scene.synth import write_synth_scene
+    from sagebench.settings.validate import ValidateConfig
     from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, generate_scene
-    from sagebench.stages.validate import ValidateConfig, validate_scene
+    from sagebench.stages.validate import validate_scene
     from sagebench.ui import SETTINGS
 
     SETTINGS.quiet = True

@@ -61,13 +61,13 @@ def run() -> list[dict]:
     from sagebench.collider_export.quality import (
         _distances, _inside, inside_reference, measure_objects, part_planes, sample_surface,
     )
-    from sagebench.scene.loader import load_scene
+    from sagebench.scene.loader import door_pose, load_scene
     from sagebench.scene.synth import write_synth_scene
+    from sagebench.settings.export_usd import ColliderSettings
     from sagebench.stages.build_scene import build_scene
     from sagebench.collider_export.scene_export import local_meshes
-    from sagebench.stages.export_usd import agent_band, make_config, part_cache
+    from sagebench.stages.export_usd import agent_band, part_cache
     from sagebench.collider_export.decompose import decompose_meshes
-    from sagebench.scene.loader import door_pose
     from sagebench.ui import SETTINGS
 
     catalogue = SYSTEM_CATALOGUE if SYSTEM_CATALOGUE.is_file() else FIXTURE_CATALOGUE
@@ -91,7 +91,7 @@ def run() -> list[dict]:
         scene_dir = tmp / "run" / "scenes" / load_scene(tmp / "scene").spec.scene_id
         scene, band = load_scene(scene_dir), agent_band(scene_dir)
         local = local_meshes(scene)
-        colliders = decompose_meshes(local, make_config().colliders, cache=part_cache(tmp / "cache"), workers=WORKERS,
+        colliders = decompose_meshes(local, ColliderSettings(), cache=part_cache(tmp / "cache"), workers=WORKERS,
                                      band=band)
         measured = {n: mc.parts for n, mc in colliders.items() if mc.pieces}
         placed = [(o.instance_id, o.mesh, o.transform.as_matrix() if o.door is None

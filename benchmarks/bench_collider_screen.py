@@ -30,8 +30,9 @@ def screen(mode: str, entries: list, catalogue) -> list[dict]:
     """Per model: name, band error cm, parts, merged parts, CPU s, wall s (no cache: every piece decomposed)."""
     from sagebench.collider_export.coacd_cache import PartCache
     from sagebench.collider_export.decompose import decompose_meshes
-    from sagebench.collider_export.methods import ColliderSettings, band_error_cm
-    from sagebench.config import AgentConfig
+    from sagebench.collider_export.methods import band_error_cm
+    from sagebench.settings.export_usd import ColliderSettings
+    from sagebench.settings.shared import AgentConfig
 
     settings = ColliderSettings(mode=mode)
     band = AgentConfig().band  # each model standing on a floor at z = 0

@@ -41,11 +41,12 @@ def _cpu_seconds() -> float:
 
 def _export(run_dir: Path, cache: Path, mode: str) -> tuple[float, float, object, str]:
     """(seconds, CPU seconds, ExportResult, stderr text) of one export-usd."""
-    from sagebench.stages.export_usd import export_usd, make_config
+    from sagebench.settings.export_usd import ColliderSettings, ExportConfig
+    from sagebench.stages.export_usd import export_usd
 
     err = io.StringIO()
     start, cpu = time.perf_counter(), _cpu_seconds()
-    config = make_config(colliders=mode, workers=WORKERS)
+    config = ExportConfig(colliders=ColliderSettings(mode=mode), workers=WORKERS)
     with contextlib.redirect_stderr(err):
         (result,) = export_usd(run_dir, config=config, cache_dir=cache)
     return time.perf_counter() - start, _cpu_seconds() - cpu, result, err.getvalue()
@@ -67,8 +68,8 @@ def _quality(scene_dir: Path, max_parts: int) -> dict:
 def run() -> list[dict]:
     from sagebench.scene.loader import load_scene
     from sagebench.scene.synth import write_synth_scene
+    from sagebench.settings.export_usd import ExportConfig
     from sagebench.stages.build_scene import build_scene
-    from sagebench.stages.export_usd import ExportConfig
     from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, gen_trajectories
     from sagebench.stages.validate import validate_run
     from sagebench.ui import SETTINGS

@@ -20,7 +20,8 @@ from sagebench.navsim.motion import Agents
 from sagebench.navsim.observe import observe
 from sagebench.navsim.policies import RandomWalk
 from sagebench.navsim.rollout import rollout
-from sagebench.navsim.simulator import EnvConfig, Simulator
+from sagebench.navsim.simulator import Simulator
+from sagebench.settings.rollout import EnvConfig
 
 STEPS = 40  # actions per episode
 ROUNDS = 3  # alternations of the one-env and four-env rollouts

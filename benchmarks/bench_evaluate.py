@@ -34,9 +34,9 @@ def _plain_intensity(rm, poses: np.ndarray) -> np.ndarray:
 def run() -> list[dict]:
     from sagebench.evaluation.intensity import replay_intensity
     from sagebench.evaluation.predictions import Prediction, read_predictions, write_predictions
+    from sagebench.settings.evaluate import STEP_REPLAY
     from sagebench.stages.evaluate import evaluate
     from sagebench.stages.rollout import BaselineConfig, run_baseline
-    from sagebench.evaluation.intensity import STEP_REPLAY
     from sagebench.replay.scene_model import open_replay_model
 
     rows = []

@@ -24,13 +24,13 @@ def _u_prism() -> trimesh.Trimesh:
 
 
 def run() -> list[dict]:
-    from sagebench.collider_export.coacd_cache import CoacdParams, PartCache, run_coacd
+    from sagebench.collider_export.coacd_cache import PartCache, run_coacd
     from sagebench.collider_export.decompose import decompose_meshes
-    from sagebench.collider_export.methods import ColliderSettings
     from sagebench.collider_export.pieces import Piece, decompose_pieces
-    from sagebench.config import AgentConfig
     from sagebench.scene.loader import load_scene, read_mesh
     from sagebench.scene.synth import write_synth_scene
+    from sagebench.settings.export_usd import CoacdParams, ColliderSettings
+    from sagebench.settings.shared import AgentConfig
     from sagebench.stages.build_scene import build_scene
     from sagebench.stages.export_usd import export_usd
     from sagebench.ui import SETTINGS

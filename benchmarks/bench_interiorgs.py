@@ -35,10 +35,9 @@ from sagebench.importers.interiorgs_structure import box_mesh  # noqa: E402
 from sagebench.scene.assets import CATALOGUE, table  # noqa: E402
 from sagebench.scene.loader import load_scene  # noqa: E402
 from sagebench.scene.synth import write_synth_scene  # noqa: E402
-from sagebench.splats.config import SplatConfig  # noqa: E402
+from sagebench.settings.build_scene import BuildSceneConfig, SplatConfig
 from sagebench.splats.ply import read_ply  # noqa: E402
 from sagebench.topdown.builder import compute_topdown  # noqa: E402
-from sagebench.topdown.config import BuildSceneConfig  # noqa: E402
 from sagebench.topdown.footprints import footprint_reference, mesh_parts  # noqa: E402
 
 TARGET = 1_000_000

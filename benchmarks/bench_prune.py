@@ -13,8 +13,9 @@ from sagebench.render.gaussians import Gaussians
 from sagebench.render.splat_render import render
 from sagebench.scene.loader import load_scene
 from sagebench.scene.synth import write_synth_scene
+from sagebench.settings.build_scene import SplatConfig
 from sagebench.splats.prune import contribution_scores, mse, prune_lowest, psnr_from_mse
-from sagebench.splats.scene import SplatConfig, room_views, sampled_gaussians
+from sagebench.splats.scene import room_views, sampled_gaussians
 
 SCORING_VIEWS = 32  # 320x240, as build-scene's --prune uses by default
 HELD_OUT_VIEWS = 8  # 640x480, different random poses

@@ -15,8 +15,9 @@ from sagebench.render.splat_reference import render_reference
 from sagebench.render.splat_render import render
 from sagebench.scene.loader import load_scene
 from sagebench.scene.synth import write_synth_scene
+from sagebench.settings.build_scene import SplatConfig
 from sagebench.splats.prune import psnr
-from sagebench.splats.scene import SplatConfig, sampled_gaussians
+from sagebench.splats.scene import sampled_gaussians
 
 POSES = [(5.5, 4.5, 0.4), (9.0, 6.0, -2.2), (2.0, 2.0, 0.6), (7.0, 5.5, 0.3), (10.5, 4.0, 2.6)]
 

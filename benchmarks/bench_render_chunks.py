@@ -13,7 +13,8 @@ from sagebench.render.chunks import pack, visible_index
 from sagebench.render.splat_render import render, render_packed
 from sagebench.scene.loader import load_scene
 from sagebench.scene.synth import write_synth_scene
-from sagebench.splats.scene import SplatConfig, sampled_gaussians
+from sagebench.settings.build_scene import SplatConfig
+from sagebench.splats.scene import sampled_gaussians
 
 POSES = [(5.5, 4.5, 0.4), (9.0, 6.0, -2.2), (2.0, 2.0, 0.6), (7.0, 5.5, 0.3), (10.5, 4.0, 2.6)]
 SIZE = 224

@@ -14,7 +14,8 @@ def run() -> list[dict]:
     from sagebench.episodes.load import read_trajectories
     from sagebench.replay.physics import replay_batch, replay_one
     from sagebench.replay.scene_model import open_replay_model
-    from sagebench.stages.validate import ValidateConfig, validate_scene
+    from sagebench.settings.validate import ValidateConfig
+    from sagebench.stages.validate import validate_scene
     from sagebench.validation.checks import judge
 
     with tempfile.TemporaryDirectory() as tmp:

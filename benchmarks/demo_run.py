@@ -8,7 +8,8 @@ from pathlib import Path
 def built_demo_run(root: Path) -> Path:
     """Write the demo scene (seed 0) and run build-scene, gen-trajectories and export-usd into `root`."""
     from sagebench.scene.synth import write_synth_scene
-    from sagebench.stages.build_scene import BuildSceneConfig, build_scene
+    from sagebench.settings.build_scene import BuildSceneConfig
+    from sagebench.stages.build_scene import build_scene
     from sagebench.stages.export_usd import export_usd
     from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, gen_trajectories
 

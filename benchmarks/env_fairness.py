@@ -21,7 +21,8 @@ import numpy as np
 from sagebench.navsim.actions import Action
 from sagebench.navsim.http_policy import HttpPolicy
 from sagebench.navsim.rollout import rollout
-from sagebench.navsim.simulator import EnvConfig, Simulator
+from sagebench.navsim.simulator import Simulator
+from sagebench.settings.rollout import EnvConfig
 
 ROUNDS = 3
 STEPS = 20  # actions per episode

@@ -182,7 +182,8 @@ def section_agreement(c: Check) -> Iterator[dict]:
 
 def section_env(c: Check) -> Iterator[dict]:
     from sagebench.navsim.actions import Action
-    from sagebench.navsim.simulator import EnvConfig, Simulator
+    from sagebench.navsim.simulator import Simulator
+    from sagebench.settings.rollout import EnvConfig
 
     pattern = [Action.MOVE_FORWARD, Action.MOVE_FORWARD, Action.TURN_LEFT, Action.MOVE_FORWARD, Action.TURN_RIGHT]
     runs = [(b, c.backend) for b in c.batches] + ([] if c.dry else [(16, "cpu")])
@@ -212,7 +213,8 @@ def section_env(c: Check) -> Iterator[dict]:
 def section_export(c: Check) -> Iterator[dict]:
     import pyarrow.parquet as pq
 
-    from sagebench.training.export import TrainingExportConfig, export_training
+    from sagebench.settings.export_training import TrainingExportConfig
+    from sagebench.training.export import export_training
 
     with tempfile.TemporaryDirectory() as tmp:
         sub = Path(tmp) / "run"

@@ -6,7 +6,6 @@ Every SagebenchError becomes one line on stderr and exit status 2, here and nowh
 from __future__ import annotations
 
 import contextlib
-import importlib
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -15,6 +14,7 @@ from typing import Annotated
 import typer
 import typer.core
 
+from sagebench.cli_settings import given, settings, settings_command
 from sagebench.errors import ConfigError, Interrupted, OutputError, SagebenchError
 from sagebench.ui import SETTINGS, interrupted, interrupts_noted
 
@@ -25,33 +25,6 @@ app = typer.Typer(
     rich_markup_mode=None,  # click's plain help: rewrapped to the terminal (80 columns at most), flags without a value
     help="Turn artist-made indoor scenes into a physically executable VLN benchmark.",
 )
-
-
-def _defaults_from(settings: str, options: str = "OPTIONS") -> type[typer.core.TyperCommand]:
-    """A command class whose --help adds "(default X)" to each option, X read from the settings model
-    "module:Model" through the module's OPTIONS (or `options`: option -> field path) when help is shown: the defaults have
-    one source, and a command that is run rather than asked for help imports nothing more."""
-
-    class Command(typer.core.TyperCommand):
-        def format_help(self, ctx, formatter) -> None:  # noqa: ANN001 - click's signature
-            if not getattr(self, "_defaults_shown", False):
-                from sagebench.config import option_defaults
-
-                module_name, model = settings.split(":")
-                module = importlib.import_module(module_name)
-                defaults = option_defaults(getattr(module, model), getattr(module, options))
-                for param in self.params:
-                    value = next((defaults[o] for o in param.opts if o in defaults), None)
-                    if value not in (None, ()) and not isinstance(value, bool) and not param.required:
-                        shown = f"{value:g}" if isinstance(value, float) else str(value)
-                        param.help = f"{param.help.removesuffix('.')} (default {shown})."
-                self._defaults_shown = True
-            super().format_help(ctx, formatter)
-
-    return Command
-
-
-RENDERER_HELP = "Renderer: cpu (the reference), gsplat (CUDA GPU, pip install 'sagebench[gpu]') or auto (gsplat when it can run here)."
 
 
 def existing(path: Path | list[Path] | None) -> Path | list[Path] | None:
@@ -69,24 +42,9 @@ def existing(path: Path | list[Path] | None) -> Path | list[Path] | None:
     return path
 
 
-def values_of(settings: str, option: str, options: str = "OPTIONS"):
-    """Shell completion of an option's values: the Literal values of the settings field it sets ("module:Model",
-    through the module's OPTIONS or `options`), read only when a shell asks."""
-
-    def complete(incomplete: str) -> list[str]:
-        from sagebench.config import option_choices
-
-        module_name, model = settings.split(":")
-        module = importlib.import_module(module_name)
-        return [v for v in option_choices(getattr(module, model), getattr(module, options), option)
-                if v.startswith(incomplete)]
-
-    return complete
-
-
 def splits(incomplete: str) -> list[str]:
     """Shell completion of --split: the benchmark's splits."""
-    from sagebench.episodes.splits import SPLITS
+    from sagebench.settings.shared import SPLITS
 
     return [s for s in SPLITS if s.startswith(incomplete)]
 
@@ -214,8 +172,9 @@ def demo(
         raise typer.Exit(1)
 
 
-@app.command("import-interiorgs", cls=_defaults_from("sagebench.stages.import_interiorgs:InteriorGSConfig"))
+@app.command("import-interiorgs", cls=settings_command("sagebench.settings.import_interiorgs:InteriorGSConfig"))
 def import_interiorgs_cmd(
+    ctx: typer.Context,
     src: Annotated[Path, typer.Argument(
         metavar="SRC", callback=existing, help="InteriorGS scene folder (3dgs_compressed.ply, labels.json, structure.json, "
                                 "occupancy.png, occupancy.json).")],
@@ -225,9 +184,6 @@ def import_interiorgs_cmd(
         "--collision-usd", callback=existing,
         help="SAGE-3D's collision USD for this scene: its meshes replace the surfaces made from Gaussians for the "
              "objects they match.")] = None,
-    voxel: Annotated[float | None, typer.Option(help="Voxel side of the object surfaces, m.")] = None,
-    min_opacity: Annotated[float | None, typer.Option(help="Summed opacity a voxel needs to be solid.")] = None,
-    max_parts: Annotated[int | None, typer.Option(help="Convex parts per object surface at most.")] = None,
     force: Annotated[bool, typer.Option("--force", help="Replace OUT whatever it holds, unless it is SRC or "
                                                         "COLLISION_USD, lies inside one or holds one.")] = False,
 ) -> None:
@@ -243,29 +199,18 @@ def import_interiorgs_cmd(
     earlier import (unless --force), and never SRC or COLLISION_USD, inside one, a folder holding one, or
     inside a sagebench run. build-scene and run also take SRC directly.
     """
-    from sagebench.stages.import_interiorgs import import_interiorgs_scene, make_config
+    from sagebench.stages.import_interiorgs import import_interiorgs_scene
 
-    config = make_config(voxel=voxel, min_opacity=min_opacity, max_parts=max_parts)
+    config = settings(ctx)
     typer.echo(import_interiorgs_scene(src, out, config, collision_usd=collision_usd, force=force).summary())
 
 
-@app.command("build-scene", cls=_defaults_from("sagebench.stages.build_scene:BuildSceneConfig"))
+@app.command("build-scene", cls=settings_command("sagebench.settings.build_scene:BuildSceneConfig"))
 def build_scene_cmd(
+    ctx: typer.Context,
     scene_dir: Annotated[Path, typer.Argument(
         metavar="SCENE_DIR", callback=existing, help="Artist scene directory (scene.json + meshes) or InteriorGS scene folder.")],
     out: Annotated[Path, typer.Option("--out", help="Run directory; writes OUT/scenes/<scene_id>/.")],
-    resolution: Annotated[float | None, typer.Option(help="Grid cell side, m.")] = None,
-    band_min: Annotated[float | None, typer.Option(
-        help="Lowest blocking height above the floor, m: the agent body's bottom (its clearance).")] = None,
-    band_max: Annotated[float | None, typer.Option(
-        help="Highest blocking height above the floor, m: the agent body's top (its height).")] = None,
-    sample_density: Annotated[float | None, typer.Option(help="Footprint surface samples per m^2.")] = None,
-    wall_gap: Annotated[float | None, typer.Option(help="Join room floors across walls up to this thick, m.")] = None,
-    agent_radius: Annotated[float | None, typer.Option(help="Agent radius for the navigable map, m.")] = None,
-    seed: Annotated[int | None, typer.Option(help="Seed of the footprint and Gaussian sampling.")] = None,
-    object_density: Annotated[float | None, typer.Option(help="Sampled Gaussians per m^2 on objects.")] = None,
-    structure_density: Annotated[float | None, typer.Option(help="Sampled Gaussians per m^2 on walls, floors, ceilings.")] = None,
-    prune: Annotated[float | None, typer.Option(help="Drop this fraction of Gaussians by blending contribution.")] = None,
     force: Force = False,
 ) -> None:
     """Build the semantic top-down map, the height-band occupancy and the Gaussians of one scene.
@@ -287,53 +232,19 @@ def build_scene_cmd(
     """
     from sagebench.pipeline.stage_commands import build_scene
     from sagebench.run_folder import check_scenes_apart, claim_run_dir
-    from sagebench.stages.build_scene import make_config
 
-    config = make_config(resolution=resolution, band_min=band_min, band_max=band_max, sample_density=sample_density,
-                         wall_gap=wall_gap, agent_radius=agent_radius, seed=seed, prune=prune,
-                         object_density=object_density, structure_density=structure_density)
+    config = settings(ctx)
     check_scenes_apart(out, [scene_dir])
     with claim_run_dir(out, "build-scene", force=force):
         typer.echo(build_scene(scene_dir, out, config).summary())
 
 
-@app.command("gen-trajectories", cls=_defaults_from("sagebench.stages.gen_trajectories:GenTrajectoriesConfig"))
+@app.command("gen-trajectories", cls=settings_command("sagebench.settings.gen_trajectories:GenTrajectoriesConfig",
+                                                     before="--llm-api-key-env"))
 def gen_trajectories_cmd(
+    ctx: typer.Context,
     run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing, help="Run directory that build-scene wrote (RUN/scenes/<id>/).")],
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene id (default: every scene).")] = None,
-    per_scene: Annotated[int | None, typer.Option(help="Distinct trajectories per scene.")] = None,
-    seed: Annotated[int | None, typer.Option(help="Seed of sampling and wording.")] = None,
-    shard_mb: Annotated[float | None, typer.Option(help="Largest Parquet shard, MB (one split per shard).")] = None,
-    instructions: Annotated[
-        str | None, typer.Option(autocompletion=values_of("sagebench.stages.gen_trajectories:GenTrajectoriesConfig",
-                                                          "--instructions"),
-                                 help="template: two low-level rows and one high-level row per trajectory; llm: the "
-                                      "high-level row from a chat model; none: bare trajectories.")
-    ] = None,
-    min_geodesic: Annotated[float | None, typer.Option(help="Shortest accepted path, m.")] = None,
-    max_geodesic: Annotated[float | None, typer.Option(help="Longest accepted path, m.")] = None,
-    goal_radius: Annotated[float | None, typer.Option(help="Success radius written with each episode, m.")] = None,
-    llm_base_url: Annotated[str | None, typer.Option(
-        help="OpenAI-compatible API root for --instructions llm, e.g. http://localhost:8000/v1.")] = None,
-    llm_model: Annotated[str | None, typer.Option(help="Chat model name for --instructions llm.")] = None,
-    llm_cache_dir: Annotated[Path | None, typer.Option(
-        help="Answer cache, keyed by sha256 of (model, prompt) (default: the user cache directory).")] = None,
-    llm_concurrency: Annotated[int | None, typer.Option(
-        help="LLM requests in flight at once (default: the slots the server reports, else 1 for a server on this "
-             "machine or network, else 4).")] = None,
-    llm_timeout: Annotated[float | None, typer.Option(
-        help="Deadline of one whole LLM request (connect to last byte), s.")] = None,
-    llm_attempts: Annotated[int | None, typer.Option(help="HTTP attempts per LLM request (429, 5xx, timeouts).")] = None,
-    llm_temperature: Annotated[float | None, typer.Option(help="Sampling temperature of the LLM.")] = None,
-    llm_max_tokens: Annotated[int | None, typer.Option(help="Longest LLM answer, tokens.")] = None,
-    llm_min_share: Annotated[float | None, typer.Option(
-        help="Exit 1 (writing nothing) when a scene gets a smaller share of high-level rows from the LLM; with no "
-             "LLM row it always does.")] = None,
-    llm_response_format: Annotated[str | None, typer.Option(
-        help="How to ask the LLM for JSON: auto (json_schema, else json_object, else none, decided by the first "
-             "request), json_schema, json_object or none.")] = None,
-    llm_refresh: Annotated[bool | None, typer.Option(
-        "--llm-refresh", help="Ask the LLM again even for prompts the answer cache holds.")] = None,
     llm_api_key_env: Annotated[str | None, typer.Option(
         help="Name of the environment variable holding the LLM API key (default: SAGEBENCH_LLM_API_KEY).")] = None,
     force: Force = False,
@@ -357,14 +268,7 @@ def gen_trajectories_cmd(
     from sagebench.run_folder import claim_run_dir
     from sagebench.stages.gen_trajectories import make_config
 
-    llm = {k: v for k, v in {"base_url": llm_base_url, "model": llm_model, "cache_dir": llm_cache_dir,
-                             "concurrency": llm_concurrency, "timeout_s": llm_timeout, "max_attempts": llm_attempts,
-                             "temperature": llm_temperature, "max_tokens": llm_max_tokens,
-                             "min_share": llm_min_share, "response_format": llm_response_format,
-                             "refresh": llm_refresh}.items() if v is not None}
-    config = make_config(per_scene=per_scene, seed=seed, shard_mb=shard_mb, instructions=instructions,
-                         min_geodesic_m=min_geodesic, max_geodesic_m=max_geodesic, goal_radius_m=goal_radius,
-                         llm=llm or None)
+    config = make_config(given(ctx))
     api_key = None
     if llm_api_key_env is not None:
         if config.instructions != "llm":
@@ -378,20 +282,15 @@ def gen_trajectories_cmd(
         raise Interrupted("interrupted: the scene in progress was not written") from None
 
 
-@app.command("render", cls=_defaults_from("sagebench.stages.render:RenderConfig"))
+@app.command("render", cls=settings_command("sagebench.settings.render:RenderConfig", before="--depth-out"))
 def render_cmd(
+    ctx: typer.Context,
     run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing, help="Run directory with scenes/<scene_id>/ from build-scene.")],
     scene: Annotated[str, typer.Option("--scene", help="Scene id (a directory under RUN_DIR/scenes).")],
     pose: Annotated[str, typer.Option("--pose", help="X,Y,YAW: camera position on the floor, m, and heading, rad.")],
     out: Annotated[Path, typer.Option("--out", help="PNG file to write.")],
-    camera_height: Annotated[float | None, typer.Option(help="Camera above the floor, m.")] = None,
-    pitch: Annotated[float | None, typer.Option(help="Camera tilt up, degrees (negative looks down).")] = None,
-    hfov: Annotated[float | None, typer.Option(help="Horizontal field of view, degrees.")] = None,
-    width: Annotated[int | None, typer.Option(help="Image width, px.")] = None,
-    height: Annotated[int | None, typer.Option(help="Image height, px.")] = None,
     depth_out: Annotated[Path | None, typer.Option("--depth-out", help="Also write depth, float32 .npy, m.")] = None,
     instance_out: Annotated[Path | None, typer.Option("--instance-out", help="Also write instance ids, int32 .npy.")] = None,
-    renderer: Annotated[str | None, typer.Option(help=RENDERER_HELP)] = None,
     force: ForceFile = False,
 ) -> None:
     """Render one view of a built scene's 3D Gaussians (on the CPU unless --renderer says otherwise).
@@ -405,57 +304,22 @@ def render_cmd(
     was hit) and with --instance-out the instance id per pixel (int32 .npy, 0 = background); never inside a
     sagebench run, nor over a file sagebench did not write (unless --force).
     """
-    from sagebench.stages.render import make_render_config, parse_pose, render_files
+    from sagebench.stages.render import parse_pose, render_files
 
-    config = make_render_config(camera_height=camera_height, hfov=hfov, pitch_deg=pitch, width=width, height=height,
-                                renderer=renderer)
+    config = settings(ctx)
     for path in render_files(run_dir, scene, parse_pose(pose), config, out, depth_out=depth_out,
                              instance_out=instance_out, force=force):
         typer.echo(f"wrote {path}")
 
 
-@app.command("export-usd", cls=_defaults_from("sagebench.stages.export_usd:ExportConfig"))
+@app.command("export-usd", cls=settings_command("sagebench.settings.export_usd:ExportConfig"))
 def export_usd_cmd(
+    ctx: typer.Context,
     run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing, help="Run directory that build-scene wrote (RUN/scenes/<id>/).")],
     scene: Annotated[str | None, typer.Option("--scene", help="Export only this scene id (default: every scene).")] = None,
     cache_dir: Annotated[
         Path | None, typer.Option("--cache-dir", help="Collider piece cache (default: the user cache directory).")
     ] = None,
-    workers: Annotated[int | None, typer.Option(help="Processes splitting meshes, decomposing pieces and measuring colliders.")] = None,
-    colliders: Annotated[
-        str | None, typer.Option(autocompletion=values_of("sagebench.stages.export_usd:ExportConfig", "--colliders"), help="quality (CoACD), balanced (hull, voxel or CoACD, whichever first fits the "
-                                      "agent band) or fast (hull or voxel).")
-    ] = None,
-    max_parts: Annotated[int | None, typer.Option(help="Part budget per object; parts are merged to stay within it.")] = None,
-    piece_limit: Annotated[
-        float | None, typer.Option(help="Safety stop, s: the export fails, naming the piece, when one method runs "
-                                        "longer on it (it never picks a method).")
-    ] = None,
-    band_tolerance: Annotated[
-        float | None, typer.Option(help="A method is good enough within this many cm of the piece's band footprint.")
-    ] = None,
-    coacd_threshold: Annotated[
-        float | None, typer.Option(help="CoACD concavity threshold; smaller gives more parts.")
-    ] = None,
-    coacd_max_hulls: Annotated[
-        int | None, typer.Option(help="Most CoACD parts per concave piece, -1 for the part budget.")
-    ] = None,
-    coacd_max_faces: Annotated[
-        int | None, typer.Option(help="CoACD is tried only on pieces of at most this many faces.")
-    ] = None,
-    coacd_preprocess: Annotated[
-        str | None, typer.Option(autocompletion=values_of("sagebench.stages.export_usd:ExportConfig", "--coacd-preprocess"),
-                                 help="CoACD manifold preprocessing: auto, on or off.")
-    ] = None,
-    usdz: Annotated[
-        bool | None, typer.Option("--usdz", help="Also write scene.usdz (the stage and its layers in one package).")
-    ] = None,
-    gaussians: Annotated[str | None, typer.Option(
-        autocompletion=values_of("sagebench.stages.export_usd:ExportConfig", "--gaussians"), help="particlefield: ParticleField3DGaussianSplat prims per object (Isaac Sim 6); nurec: "
-             "gaussians.usdz, NuRec as NVIDIA 3DGRUT's ply_to_usd writes it (Isaac Sim 5).")] = None,
-    layout: Annotated[str | None, typer.Option(
-        autocompletion=values_of("sagebench.stages.export_usd:ExportConfig", "--layout"), help="sagebench, or sage: also sage/<id>.usda in SAGE-3D's template form with its collision payload "
-             "sage/<id>_collision.usd (needs --gaussians nurec).")] = None,
     force: Force = False,
 ) -> None:
     """Decompose colliders and write each scene's USD stage and MuJoCo model.
@@ -474,30 +338,18 @@ def export_usd_cmd(
     """
     from sagebench.pipeline.stage_commands import export_usd
     from sagebench.run_folder import claim_run_dir
-    from sagebench.stages.export_usd import make_config
 
-    config = make_config(colliders=colliders, max_parts=max_parts, piece_limit=piece_limit,
-                         band_tolerance=band_tolerance, coacd_threshold=coacd_threshold,
-                         coacd_max_hulls=coacd_max_hulls, coacd_max_faces=coacd_max_faces,
-                         coacd_preprocess=coacd_preprocess, workers=workers, usdz=usdz, gaussians=gaussians,
-                         layout=layout)
+    config = settings(ctx)
     with claim_run_dir(run_dir, "export-usd", force=force):
         for result in export_usd(run_dir, config, scene_id=scene, cache_dir=cache_dir):
             typer.echo(result.line())
 
 
-@app.command("validate", cls=_defaults_from("sagebench.stages.validate:ValidateConfig"))
+@app.command("validate", cls=settings_command("sagebench.settings.validate:ValidateConfig"))
 def validate_cmd(
+    ctx: typer.Context,
     run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing, help="Run directory with scenes/<id>/ (build-scene, export-usd) and episodes/<id>/.")],
     scene: Annotated[str | None, typer.Option("--scene", help="Validate only this scene id (default: every scene).")] = None,
-    frames_per_scene: Annotated[
-        int | None, typer.Option(help="Trajectories per scene rendered at start, middle and goal.")
-    ] = None,
-    depth_tolerance: Annotated[
-        float | None, typer.Option(help="Largest median |splat - collider depth| per frame, m.")
-    ] = None,
-    workers: Annotated[int | None, typer.Option(help="Threads stepping the MuJoCo replays.")] = None,
-    renderer: Annotated[str | None, typer.Option(help=RENDERER_HELP + " Instance-id frames come from the CPU.")] = None,
     force: Force = False,
 ) -> None:
     """Replay every trajectory in MuJoCo, score it and spot-check appearance against physics.
@@ -517,10 +369,8 @@ def validate_cmd(
     """
     from sagebench.pipeline.stage_commands import validate
     from sagebench.run_folder import claim_run_dir
-    from sagebench.stages.validate import make_config
 
-    config = make_config(frames_per_scene=frames_per_scene, depth_tolerance=depth_tolerance, workers=workers,
-                         renderer=renderer)
+    config = settings(ctx)
     failed = False
     with claim_run_dir(run_dir, "validate", force=force):
         for result in validate(run_dir, config, scene_id=scene):
@@ -560,21 +410,12 @@ def export_vlnce_cmd(
             typer.echo(line)
 
 
-@app.command("export-training", cls=_defaults_from("sagebench.stages.export_training:TrainingExportConfig"))
+@app.command("export-training", cls=settings_command("sagebench.settings.export_training:TrainingExportConfig"))
 def export_training_cmd(
+    ctx: typer.Context,
     run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing,
                                             help="Run directory (build-scene, gen-trajectories, export-usd).")],
     out: Annotated[Path, typer.Option("--out", help="Directory to write: new, or an interrupted export to resume.")],
-    split: Annotated[str | None, typer.Option("--split", autocompletion=splits,
-                                              help="Export only this split (default: every split).")] = None,
-    depth: Annotated[bool | None, typer.Option("--depth", help="Also write each view's depth (16-bit PNG, mm).")] = None,
-    width: Annotated[int | None, typer.Option(help="View width, px.")] = None,
-    height: Annotated[int | None, typer.Option(help="View height, px.")] = None,
-    renderer: Annotated[str | None, typer.Option(help=RENDERER_HELP)] = None,
-    episodes_per_shard: Annotated[int | None, typer.Option(help="Episodes per tar shard.")] = None,
-    batch: Annotated[int | None, typer.Option(help="Episodes stepped and rendered together.")] = None,
-    workers: Annotated[int | None, typer.Option(help="Threads stepping MuJoCo.")] = None,
-    navila: Annotated[bool | None, typer.Option("--navila", help="Also write NaVILA's layout (OUT/navila/).")] = None,
 ) -> None:
     """Export imitation-learning data: each episode's reference path as discrete actions (SAGE-3D's derivation:
     turn towards each segment, then MOVE_FORWARD 0.25 m steps; TURN 15 degrees; STOP), executed in the
@@ -589,12 +430,10 @@ def export_training_cmd(
     OUT/navila/ (frames as PNG files and annotations_part_NNN.json as SAGE-3D builds NaVILA's training set).
     Deterministic; rerun the same command after an interruption to resume at the first unfinished shard.
     """
-    from sagebench.stages.export_training import make_config, run_export_training
+    from sagebench.stages.export_training import run_export_training
 
-    config = make_config(split=split, depth=depth, width=width, height=height, renderer=renderer,
-                         episodes_per_shard=episodes_per_shard, batch=batch, workers=workers, navila=navila)
+    config = settings(ctx)
     typer.echo(run_export_training(run_dir, out, config).summary())
-
 
 
 @app.command("export-sage")
@@ -622,15 +461,14 @@ def export_sage_cmd(
             typer.echo(line)
 
 
-@app.command("import-sage-episodes", cls=_defaults_from("sagebench.stages.import_sage:SageImportConfig"))
+@app.command("import-sage-episodes", cls=settings_command("sagebench.settings.import_sage_episodes:SageImportConfig"))
 def import_sage_episodes_cmd(
+    ctx: typer.Context,
     file: Annotated[Path, typer.Argument(metavar="FILE", callback=existing, help="GVLN trajectory file (SAGE-Bench's episodes for one scene).")],
     run: Annotated[Path, typer.Option("--run", callback=existing,
                                       help="Run directory holding the scene (scenes/<id>/ from build-scene).")],
     scene: Annotated[str | None, typer.Option(
         "--scene", help="Scene id in the run (default: the one named by the file's scene_name).")] = None,
-    goal_radius: Annotated[float | None, typer.Option(help="Success radius, m, where the file has none (SAGE-3D's).")] = None,
-    split: Annotated[str | None, typer.Option(help="Split of the rows where the file has none.")] = None,
     force: Force = False,
 ) -> None:
     """Turn SAGE-Bench's GVLN episodes for a scene into sagebench episodes, to roll out and evaluate them.
@@ -649,20 +487,17 @@ def import_sage_episodes_cmd(
     """
     from sagebench.pipeline.stage_commands import import_sage_episodes
     from sagebench.run_folder import claim_run_dir
-    from sagebench.stages.import_sage import make_config
 
-    config = make_config(goal_radius=goal_radius, split=split)
+    config = settings(ctx)
     with claim_run_dir(run, "import-sage-episodes", force=force):
         for line in import_sage_episodes(file, run, config, scene_id=scene).lines():
             typer.echo(line)
 
 
-@app.command("run")
+@app.command("run", cls=settings_command("sagebench.settings.run:RunConfig", overrides=True))
 def run_cmd(
+    ctx: typer.Context,
     config: Annotated[Path, typer.Argument(metavar="CONFIG", callback=existing, help="TOML run config (scenes, out, per-stage settings).")],
-    workers: Annotated[int | None, typer.Option(help="Scene-stage tasks at once (default: the config's, else 1).")] = None,
-    executor: Annotated[str | None, typer.Option(help="local or ray (default: the config's, else local).")] = None,
-    ray_address: Annotated[str | None, typer.Option("--ray-address", help="Ray cluster; none starts a local Ray.")] = None,
     force: Force = False,
 ) -> None:
     """Run build-scene, gen-trajectories, export-usd and validate over many scenes.
@@ -674,10 +509,12 @@ def run_cmd(
     """
     from sagebench.pipeline.config import load_run_config
     from sagebench.pipeline.run import run_pipeline
+    from sagebench.settings.option import fields_given
+    from sagebench.settings.run import RunConfig
 
     from sagebench.errors import Interrupted
 
-    cfg = load_run_config(config, workers=workers, executor=executor, ray_address=ray_address)
+    cfg = load_run_config(config, **fields_given(RunConfig, given(ctx)))
     try:
         summary = run_pipeline(cfg, config, force=force)
     except KeyboardInterrupt:  # click would print "Aborted!"; the workers end quietly (pipeline/executors.py)
@@ -717,8 +554,9 @@ def verify_cmd(
     typer.echo(f"ok: every file of {run_dir} matches {diff.against}" + (" and a regeneration" if regenerate else ""))
 
 
-@app.command("evaluate", cls=_defaults_from("sagebench.stages.evaluate:EvaluateConfig"))
+@app.command("evaluate", cls=settings_command("sagebench.settings.evaluate:EvaluateConfig", before="--visualize"))
 def evaluate_cmd(
+    ctx: typer.Context,
     run_dir: Annotated[Path, typer.Option("--run", callback=existing, help="Run directory with episodes/<id>/ (and scenes/<id>/scene.xml).")],
     predictions: Annotated[Path, typer.Option("--predictions", callback=existing, help="Agent predictions, JSON Lines (one object per episode).")],
     out: Annotated[Path | None, typer.Option("--out", help="Write the results here as JSON (default: print only).")] = None,
@@ -726,17 +564,6 @@ def evaluate_cmd(
     split: Annotated[str | None, typer.Option(
         "--split", autocompletion=splits,
         help="Score only this split's episodes: train, val_seen, val_unseen or test (default: all).")] = None,
-    allow_missing: Annotated[
-        bool, typer.Option("--allow-missing", help="Score episodes without a prediction as failures instead of stopping.")
-    ] = False,
-    all_episodes: Annotated[
-        bool, typer.Option("--all-episodes", help="With a rollout's predictions: score every episode of the run (or "
-                                                  "--scene/--split), not only those the rollout was asked to run.")
-    ] = False,
-    start_tolerance: Annotated[
-        float | None, typer.Option(help="Largest distance of the first pose from the episode's start, m.")
-    ] = None,
-    workers: Annotated[int | None, typer.Option(help="Threads replaying poses for collision intensity.")] = None,
     visualize: Annotated[Path | None, typer.Option(
         "--visualize", help="Also draw one picture per scored episode into this folder: new, empty or an earlier "
                             "--visualize output, outside RUN.")] = None,
@@ -768,10 +595,9 @@ def evaluate_cmd(
     errors (exit status 2, nothing written).
     """
     from sagebench.evaluation.pictures import PICTURES_INDEX
-    from sagebench.stages.evaluate import draw_pictures, evaluate, make_config
+    from sagebench.stages.evaluate import draw_pictures, evaluate
 
-    config = make_config(allow_missing=allow_missing, all_episodes=all_episodes, start_tolerance=start_tolerance,
-                         workers=workers)
+    config = settings(ctx)
     with (_claimed_folder(visualize, run_dir, "evaluate --visualize", PICTURES_INDEX, "--visualize")
           if visualize is not None else contextlib.nullcontext()):
         result = evaluate(run_dir, predictions, config, scene_id=scene, split=split, out=out, force=force)
@@ -798,8 +624,9 @@ def _claimed_folder(out: Path, run_dir: Path, command: str, marker: str, option:
         yield out
 
 
-@app.command("report", cls=_defaults_from("sagebench.report.write:ReportConfig"))
+@app.command("report", cls=settings_command("sagebench.settings.report:ReportConfig"))
 def report_cmd(
+    ctx: typer.Context,
     run_dir: Annotated[Path, typer.Argument(metavar="RUN", callback=existing,
                                             help="Run directory with episodes/<id>/ and scenes/<id>/ (build-scene, "
                                                  "gen-trajectories).")],
@@ -809,9 +636,6 @@ def report_cmd(
         "--predictions", callback=existing,
         help="Agent predictions (JSON Lines) to show and compare; repeat for more agents.")] = None,
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene (default: every scene).")] = None,
-    no_views: Annotated[bool, typer.Option("--no-views", help="Leave out the start and goal views (nothing is "
-                                                               "rendered).")] = False,
-    renderer: Annotated[str | None, typer.Option(help=RENDERER_HELP)] = None,
 ) -> None:
     """Write a static HTML report of a run and of agents' predictions: open OUT/index.html in a browser (no server,
     no network).
@@ -829,24 +653,20 @@ def report_cmd(
     Writes OUT/index.html, agents.html, scenes/, episodes/, img/ (the maps and the views), report.css, report.js
     and report.json (what the report shows, its files). OUT must be new, empty or an earlier report, outside RUN.
     """
-    from sagebench.report.write import REPORT_INDEX, make_config, write_report
+    from sagebench.report.write import REPORT_INDEX, write_report
 
-    config = make_config(views=False if no_views else None, renderer=renderer)
+    config = settings(ctx)
     with _claimed_folder(out, run_dir, "report", REPORT_INDEX, "--out"):
         for line in write_report(run_dir, predictions or [], out, config, scene_id=scene).lines():
             typer.echo(line)
 
 
-@app.command("baseline", cls=_defaults_from("sagebench.stages.rollout:BaselineConfig", "BASELINE_OPTIONS"))
+@app.command("baseline", cls=settings_command("sagebench.settings.baseline:BaselineConfig"))
 def baseline_cmd(
-    agent: Annotated[str, typer.Option("--agent", help="oracle, straight or random.", autocompletion=values_of(
-        "sagebench.stages.rollout:BaselineConfig", "--agent", "BASELINE_OPTIONS"))],
+    ctx: typer.Context,
     run_dir: Annotated[Path, typer.Option("--run", callback=existing, help="Run directory with episodes/<id>/ and scenes/<id>/scene.xml.")],
     out: Annotated[Path, typer.Option("--out", help="Predictions file to write (JSON Lines).")],
-    seed: Annotated[int | None, typer.Option(help="Seed of the random agent.")] = None,
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene's episodes (default: every scene).")] = None,
-    max_actions: Annotated[int | None, typer.Option(help="Actions per episode before it ends unstopped.")] = None,
-    workers: Annotated[int | None, typer.Option(help="Threads stepping the MuJoCo agents.")] = None,
     force: ForceFile = False,
 ) -> None:
     """Run a built-in policy closed-loop over every episode: `rollout --policy AGENT --obs none`.
@@ -861,57 +681,20 @@ def baseline_cmd(
     collision_intensity, ready for `sagebench evaluate`, and OUT's stem + _rollout.json (the rollout's record:
     its episodes, and that the baseline reads the pose and the episode). OUT is claimed as rollout claims it.
     """
-    from sagebench.stages.rollout import make_baseline_config, run_baseline
+    from sagebench.stages.rollout import run_baseline
 
-    config = make_baseline_config(agent_name=agent, seed=seed, max_actions=max_actions, workers=workers)
+    config = settings(ctx)
     typer.echo(run_baseline(run_dir, out, config, scene_id=scene, force=force).summary())
 
 
-@app.command("rollout", cls=_defaults_from("sagebench.stages.rollout:RolloutConfig"))
+@app.command("rollout", cls=settings_command("sagebench.settings.rollout:RolloutConfig"))
 def rollout_cmd(
+    ctx: typer.Context,
     run_dir: Annotated[Path, typer.Option("--run", callback=existing, help="Run directory (build-scene, gen-trajectories, export-usd).")],
     out: Annotated[Path, typer.Option("--out", help="Predictions file to write (JSON Lines).")],
-    policy: Annotated[str | None, typer.Option(
-        help="A policy server's http(s):// URL, oracle, straight, random, or vlnce:MODULE:NAME (a VLN-CE agent class "
-             "or object, run in-process).")] = None,
-    split: Annotated[str | None, typer.Option("--split", autocompletion=splits,
-                                              help="Only this split's episodes: train, val_seen, "
-                                                               "val_unseen or test.")] = None,
-    episode_id: Annotated[list[str] | None, typer.Option("--episode-id", help="Only this episode (repeat for "
-                                                                               "more).")] = None,
-    episodes: Annotated[int | None, typer.Option(help="Run a seeded sample of N of those episodes (default: all).")] = None,
     scene: Annotated[str | None, typer.Option("--scene", help="Only this scene's episodes (default: every scene).")] = None,
-    preset: Annotated[str | None, typer.Option(autocompletion=values_of("sagebench.stages.rollout:RolloutConfig", "--preset"), help="Another benchmark's settings: vlnce (success distance 3 m, "
-                                                    "VLN-CE's camera, actions and observations; the body stays the "
-                                                    "one the run's maps were built for).")] = None,
-    profile: Annotated[str | None, typer.Option(autocompletion=values_of("sagebench.stages.rollout:RolloutConfig", "--profile"), help="Observations: custom (--obs at --width x --height), vlnce, "
-                                                     "sage or full (privileged included).")] = None,
-    obs: Annotated[str | None, typer.Option(help="custom profile: images to render, rgb and/or depth, or none.")] = None,
-    privileged: Annotated[str | None, typer.Option(
-        help="Privileged observations to add, comma-separated: pose, gps_compass, instance.")] = None,
-    width: Annotated[int | None, typer.Option(help="Image width, px (default: the profile's).")] = None,
-    height: Annotated[int | None, typer.Option(help="Image height, px (default: the profile's).")] = None,
-    action_space: Annotated[str | None, typer.Option("--action-space", autocompletion=values_of("sagebench.stages.rollout:RolloutConfig", "--action-space"),
-                                                     help="discrete (STOP, MOVE_FORWARD, "
-                                                     "TURN_LEFT, TURN_RIGHT) or continuous (v m/s, omega rad/s, stop).")] = None,
-    max_steps: Annotated[int | None, typer.Option(help="Actions per episode before it is cut off.")] = None,
-    policy_timeout: Annotated[float | None, typer.Option(
-        help="Deadline of one policy request, s: connecting, sending and the whole reply.")] = None,
-    policy_retries: Annotated[int | None, typer.Option(
-        help="Retries of a policy request after a connection error, with backoff, within its deadline.")] = None,
-    policy_encoding: Annotated[str | None, typer.Option(
-        autocompletion=values_of("sagebench.stages.rollout:RolloutConfig", "--policy-encoding"), help="How images go to a policy server: raw, png (RGB as PNG) or json (base64, as before).")] = None,
-    max_policy_failures: Annotated[int | None, typer.Option(
-        help="Episodes the policy may fail (a request that failed) before the rollout stops.")] = None,
     resume: Annotated[bool, typer.Option("--resume", help="Run the episodes a killed or stopped rollout into OUT "
                                                           "did not finish, with its settings.")] = False,
-    workers: Annotated[int | None, typer.Option(help="Threads stepping MuJoCo and calling the policy server.")] = None,
-    threads: Annotated[int | None, typer.Option(
-        help="Cores the renderer's threads use, which wait passively when idle (default: every core this process "
-             "may run on).")] = None,
-    batch: Annotated[int | None, typer.Option(help="Episodes stepped together (results do not depend on it).")] = None,
-    seed: Annotated[int | None, typer.Option(help="Seed of the episode sample and of the random policy.")] = None,
-    renderer: Annotated[str | None, typer.Option(help=RENDERER_HELP)] = None,
     force: ForceFile = False,
 ) -> None:
     """Run a policy closed-loop in the simulator: it sees rendered views, acts (STOP, MOVE_FORWARD 0.25 m,
@@ -933,12 +716,7 @@ def rollout_cmd(
     """
     from sagebench.stages.rollout import make_config, run_rollout
 
-    config = make_config(policy=policy, split=split, episode_ids=tuple(episode_id or ()), episodes=episodes,
-                         preset=preset, profile=profile, obs=obs, privileged=privileged, width=width, height=height,
-                         action_space=action_space, max_steps=max_steps, policy_timeout=policy_timeout,
-                         policy_retries=policy_retries, policy_encoding=policy_encoding,
-                         max_policy_failures=max_policy_failures, workers=workers, threads=threads, batch=batch,
-                         seed=seed, resume=resume, renderer=renderer)
+    config = make_config(given(ctx), resume=resume)
     result = run_rollout(run_dir, out, config, scene_id=scene, resume=resume, force=force)
     typer.echo(result.summary())
     if not result.complete:

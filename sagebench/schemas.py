@@ -24,7 +24,7 @@ def _semantic_map_schema() -> dict[str, Any]:
 
 
 def _run_config_schema() -> dict[str, Any]:
-    from sagebench.pipeline.config import RunConfig
+    from sagebench.settings.run import RunConfig
 
     return RunConfig.model_json_schema(by_alias=True)
 

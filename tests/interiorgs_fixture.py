@@ -31,10 +31,9 @@ import trimesh
 
 from sagebench.render.gaussians import SH_C0, Gaussians
 from sagebench.scene.loader import LoadedScene, load_scene
-from sagebench.splats.config import SplatConfig
+from sagebench.settings.build_scene import BuildSceneConfig, SplatConfig
 from sagebench.splats.scene import sampled_gaussians
 from sagebench.topdown.builder import Topdown, compute_topdown
-from sagebench.topdown.config import BuildSceneConfig
 from sagebench.topdown.footprints import mesh_parts
 from sagebench.topdown.occupancy import band_occupancy
 from sagebench.topdown.raster import Grid, polygon_mask

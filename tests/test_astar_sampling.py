@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 
 from sagebench.astar.grid_astar import astar
-from sagebench.astar.sampling import GridMap, SamplingConfig, TargetSpec, sample_trajectories
+from sagebench.astar.sampling import GridMap, TargetSpec, sample_trajectories
 from sagebench.astar.shortcut import polyline_length
+from sagebench.settings.gen_trajectories import SamplingConfig
 
 RES = 0.05
 
@@ -100,7 +101,8 @@ def test_target_without_a_nearby_navigable_cell_is_reported_and_skipped():
 
 def test_demo_scene_gives_the_default_200_trajectories_on_navigable_cells(demo_built_run):
     from sagebench.episodes.targets import scene_targets
-    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, read_scene_inputs
+    from sagebench.settings.gen_trajectories import GenTrajectoriesConfig
+    from sagebench.stages.gen_trajectories import read_scene_inputs
 
     spec, smap, grid, _ = read_scene_inputs(demo_built_run / "scenes" / "demo_apartment_0")
     targets, names = scene_targets(spec, smap)

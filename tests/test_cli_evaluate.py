@@ -164,8 +164,8 @@ def test_absent_predictions_file_is_exit_2(demo_eval_run, tmp_path, run_cli):
 
 
 def test_splits_are_scored_apart_and_predictions_of_other_splits_are_left_out(demo_built_run, tmp_path, run_cli):
-    from sagebench.episodes.splits import SplitConfig
-    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, gen_trajectories
+    from sagebench.settings.gen_trajectories import GenTrajectoriesConfig, SplitConfig
+    from sagebench.stages.gen_trajectories import gen_trajectories
 
     run = tmp_path / "run"
     shutil.copytree(demo_built_run / "scenes", run / "scenes")

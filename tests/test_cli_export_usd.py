@@ -21,8 +21,8 @@ from sagebench.collider_export.bodies import DOOR_FLOOR_GAP_M
 from sagebench.collider_export.coacd_cache import CACHE_SUBDIR
 from sagebench.render.gaussians import Gaussians
 from sagebench.scene.loader import door_pose, load_scene
+from sagebench.settings.build_scene import BuildSceneConfig, SplatConfig
 from sagebench.stages.build_scene import build_scene
-from sagebench.stages.build_scene import make_config as make_build_config
 from sagebench.splats.ply import read_ply, write_ply
 from tests.test_collider_convex import u_prism
 from signals import as_from_a_terminal
@@ -79,14 +79,15 @@ def write_tiny_scene(src: Path) -> None:
 
 
 COUNTS = {0: 4, 1: 10, 2: 11, 3: 12, 4: 13, 5: 14}
+FEW_GAUSSIANS = BuildSceneConfig(splats=SplatConfig(object_density=1.0, structure_density=1.0))
 
 
-def make_run(tmp_path: Path, counts: dict[int, int] = COUNTS, **build: float) -> Path:
+def make_run(tmp_path: Path, counts: dict[int, int] = COUNTS) -> Path:
     """The tiny scene built (its maps record the agent's band, which export-usd judges colliders in), with
     `counts` Gaussians per instance id in place of the sampled ones."""
     src, run = tmp_path / "src", tmp_path / "run"
     write_tiny_scene(src)
-    build_scene(src, run, make_build_config(object_density=1.0, structure_density=1.0, **build))
+    build_scene(src, run, FEW_GAUSSIANS)
     write_ply(run / "scenes" / "tiny" / "gaussians.ply", _gaussians(counts))
     return run
 
@@ -365,7 +366,7 @@ def test_ctrl_c_stops_a_cold_export_and_a_rerun_reuses_every_finished_piece(tmp_
         "scene_id": "six", "units": "m", "up_axis": "Z",
         "rooms": [{"id": "room_0", "type": "kitchen", "polygon": [[0, 0], [7, 0], [7, 2], [0, 2]]}],
         "objects": objects}))
-    build_scene(src, run, make_build_config(object_density=1.0, structure_density=1.0))
+    build_scene(src, run, FEW_GAUSSIANS)
     args = ["export-usd", str(run), "--cache-dir", str(cache), "--colliders", "quality", "--coacd-max-hulls", "8"]
     pieces = cache / CACHE_SUBDIR  # beside the meshes' splits
     proc = subprocess.Popen([sys.executable, "-m", "sagebench", *args], stdout=subprocess.PIPE,

@@ -74,8 +74,8 @@ def test_other_seeds_round_trip(seed, tmp_path):
     """Two more synth apartments, through the library (maps only, no run): the same bars as the demo's."""
     from sagebench.importers.interiorgs import import_interiorgs, write_imported
     from sagebench.scene.synth import write_synth_scene
+    from sagebench.settings.build_scene import BuildSceneConfig
     from sagebench.topdown.builder import compute_topdown
-    from sagebench.topdown.config import BuildSceneConfig
 
     write_synth_scene(tmp_path / "scene", seed=seed)
     folder = tmp_path / f"0002_00000{seed}"

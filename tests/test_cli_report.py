@@ -221,7 +221,8 @@ def test_every_page_opens_in_chromium_with_no_error_and_every_image_drawn(browse
 
 def test_an_episode_page_in_chromium_shows_the_instruction_both_paths_and_the_metrics(browser, report,
                                                                                      demo_eval_run, agents):
-    from sagebench.stages.evaluate import evaluate, make_config
+    from sagebench.settings.evaluate import EvaluateConfig
+    from sagebench.stages.evaluate import evaluate
 
     e = load_episodes(demo_eval_run)[0]
     page = browser.open(report / "episodes" / f"{e.episode_id}.html")
@@ -235,7 +236,7 @@ def test_an_episode_page_in_chromium_shows_the_instruction_both_paths_and_the_me
     shown = page.evaluate("Array.from(document.querySelectorAll('#metrics tbody tr'))"
                           ".map((r) => Array.from(r.cells).map((c) => c.textContent.trim()))")
     for row, pred in zip(shown, agents):
-        score = evaluate(demo_eval_run, pred, make_config(allow_missing=True)).scores[0].metrics
+        score = evaluate(demo_eval_run, pred, EvaluateConfig(allow_missing=True)).scores[0].metrics
         assert row[:5] == [pred.stem, f"{score.sr:.3f}", f"{score.osr:.3f}", f"{score.spl:.3f}", f"{score.ne:.3f}"]
     assert page.evaluate("document.querySelectorAll('svg.map .contact').length") == 2
 

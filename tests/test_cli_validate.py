@@ -66,9 +66,9 @@ def test_demo_trajectories_all_pass(validated_run, tmp_path, run_cli):
 def test_the_replay_agent_is_the_body_the_map_was_built_for(validated_run, tmp_path):
     """Radius, clearance and height come from semantic_map.json (build-scene's record of the run's agent), not from
     a default: a map built for a wider, taller agent that rides higher gets that agent in the replay."""
-    from sagebench.config import AgentConfig
-    from sagebench.replay.physics import AGENT_GEOM, ReplayConfig
+    from sagebench.replay.physics import AGENT_GEOM
     from sagebench.replay.scene_model import open_replay_model
+    from sagebench.settings.shared import AgentConfig, ReplayConfig
 
     run = tmp_path / "run"
     shutil.copytree(validated_run / "scenes", run / "scenes")

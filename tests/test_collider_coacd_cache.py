@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from sagebench.collider_export.coacd_cache import CACHE_SUBDIR, CoacdParams, PartCache, PieceResult, cache_key
+from sagebench.collider_export.coacd_cache import CACHE_SUBDIR, PartCache, PieceResult, cache_key
 from sagebench.collider_export.convex import hull_part
-from sagebench.collider_export.methods import ColliderSettings
+from sagebench.settings.export_usd import CoacdParams, ColliderSettings
 from tests.test_collider_convex import u_prism
 
 SETTINGS = ColliderSettings(mode="quality", coacd=CoacdParams(preprocess_mode="off", max_convex_hull=8))

@@ -11,9 +11,9 @@ import trimesh
 from sagebench.collider_export.coacd_cache import PartCache
 from sagebench.collider_export import decompose
 from sagebench.collider_export.decompose import WHOLE_MESH_FACTOR, decompose_meshes, plan_pieces
-from sagebench.collider_export.methods import ColliderSettings
 from sagebench.collider_export.quality import measure
 from sagebench.scene.furniture import Catalogue
+from sagebench.settings.export_usd import ColliderSettings
 from tests.test_collider_convex import u_prism
 from tests.test_collider_pieces import inside_parts
 from tests.test_collider_quality import BAND

@@ -13,10 +13,10 @@ import pytest
 
 from sagebench.collider_export import methods
 from sagebench.collider_export.free_floor import FloorMap, covered_free_floor
-from sagebench.collider_export.methods import ColliderSettings
 from sagebench.scene.loader import door_pose, load_scene
+from sagebench.settings.export_usd import ColliderSettings, ExportConfig
 from sagebench.stages.build_scene import build_scene
-from sagebench.stages.export_usd import ExportConfig, agent_band, export_usd
+from sagebench.stages.export_usd import agent_band, export_usd
 from sagebench.topdown.grid_file import read_topdown_grids
 from sagebench.ui import SETTINGS
 

@@ -10,11 +10,12 @@ from scipy.spatial import ConvexHull
 from shapely.geometry import Polygon
 
 from sagebench.collider_export import pieces as pieces_mod
-from sagebench.collider_export.coacd_cache import CoacdParams, PartCache
+from sagebench.collider_export.coacd_cache import PartCache
 from sagebench.collider_export.convex import ConvexPart
-from sagebench.collider_export.methods import LADDERS, ColliderSettings, ladder
+from sagebench.collider_export.methods import LADDERS, ladder
 from sagebench.collider_export.pieces import Piece, decompose_pieces, piece_key
 from sagebench.errors import ColliderError
+from sagebench.settings.export_usd import CoacdParams, ColliderSettings
 from tests.test_collider_convex import u_prism
 from tests.test_collider_quality import BAND
 

@@ -9,11 +9,11 @@ import pytest
 import trimesh
 
 from sagebench.collider_export.convex import hull_part
-from sagebench.config import AgentConfig
 from sagebench.collider_export.quality import (
     BandReach, _distances, _inside, band_errors, band_in_mesh_frame, band_polygons, inside_reference, measure,
     measure_objects, measure_placed, part_planes,
 )
+from sagebench.settings.shared import AgentConfig
 
 # an L: [0,2]x[0,1] plus [0,1]x[1,2], 1 m tall; its hull adds the triangle (1,1) (2,1) (1,2), 0.5 m^2 x 1 m
 BAND = AgentConfig().band  # the default agent's over a floor at z = 0, as z in the meshes' frame (m)

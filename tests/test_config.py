@@ -1,4 +1,4 @@
-"""sagebench/config.py: the agent's body and camera are declared there once, checked, and re-typed nowhere else."""
+"""sagebench/settings/shared.py: the agent's body and camera are declared there once, checked, and re-typed nowhere else."""
 
 from __future__ import annotations
 
@@ -9,12 +9,13 @@ from pathlib import Path
 import pytest
 
 import sagebench
-from sagebench.config import AgentConfig, CameraConfig
 from sagebench.errors import ConfigError
-from sagebench.stages.build_scene import make_config
+from sagebench.settings.build_scene import BuildSceneConfig
+from sagebench.settings.option import from_options
+from sagebench.settings.shared import AgentConfig, CameraConfig
 
 ROOT = Path(sagebench.__file__).parent
-DECLARED_IN = ROOT / "config.py"
+DECLARED_IN = ROOT / "settings" / "shared.py"
 FACTS = {0.2, 1.2, 0.05}  # the default radius, height (and camera height) and clearance, m
 # names under which a module would re-declare them: constants, fields, parameters
 NAMED = re.compile(r"radius|height|clearance|band|agent|robot|floor", re.IGNORECASE)
@@ -54,7 +55,7 @@ def restated_facts(source: str) -> list[str]:
     return found
 
 
-def test_the_agents_body_and_band_are_declared_in_config_py_only():
+def test_the_agents_body_and_band_are_declared_in_settings_shared_only():
     restated = {str(p.relative_to(ROOT)): hits for p in sorted(ROOT.rglob("*.py")) if p != DECLARED_IN
                 for hits in [restated_facts(p.read_text(encoding="utf-8"))] if hits}
     assert restated == {}
@@ -86,6 +87,7 @@ def test_the_band_is_the_body_and_must_have_a_top_above_its_bottom():
     with pytest.raises(ValueError, match=r"0\.5 must be above the band's bottom, clearance \(0\.6\)"):
         AgentConfig(clearance=0.6, height=0.5)
     with pytest.raises(ConfigError, match=r"^--band-max: 0\.04 must be above the band's bottom, clearance \(0\.05\)$"):
-        make_config(band_max=0.04)
-    assert make_config(band_min=0.1, band_max=1.8, agent_radius=0.3).agent == AgentConfig(radius=0.3, clearance=0.1,
+        from_options(BuildSceneConfig, {"--band-max": 0.04})
+    given = {"--band-min": 0.1, "--band-max": 1.8, "--agent-radius": 0.3}
+    assert from_options(BuildSceneConfig, given).agent == AgentConfig(radius=0.3, clearance=0.1,
                                                                                             height=1.8)

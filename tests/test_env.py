@@ -20,10 +20,10 @@ from sagebench.navsim.actions import Action
 from sagebench.navsim.protocol import decode_request
 from sagebench.navsim.policies import RandomWalk, built_in
 from sagebench.navsim.rollout import rollout
-from sagebench.navsim.simulator import EnvConfig, Simulator
-from sagebench.replay.physics import ReplayConfig
+from sagebench.navsim.simulator import Simulator
 from sagebench.errors import first_error
-from sagebench.navsim.actions import ActionConfig
+from sagebench.settings.rollout import EnvConfig
+from sagebench.settings.shared import ActionConfig, ReplayConfig
 
 BLIND = EnvConfig(observations=(), privileged=("pose",))  # the built-in baselines steer by the pose
 

@@ -8,7 +8,8 @@ from collections import Counter
 import pytest
 from pydantic import ValidationError
 
-from sagebench.episodes.splits import SplitConfig, assign_splits, scene_split
+from sagebench.episodes.splits import assign_splits, scene_split
+from sagebench.settings.gen_trajectories import SplitConfig
 
 TRAJ = [f"{i:016x}" for i in range(200)]
 

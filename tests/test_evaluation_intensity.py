@@ -8,11 +8,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from sagebench.evaluation.intensity import (
-    STEP_REPLAY, blocked_fraction, derive_intensity, pure_turns, replay_intensity,
-)
+from sagebench.evaluation.intensity import blocked_fraction, derive_intensity, pure_turns, replay_intensity
 from sagebench.replay.contact import ContactProbe, contact_share
 from sagebench.replay.physics import build_replay_model, replay_one
+from sagebench.settings.evaluate import STEP_REPLAY
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Imports point down: cli -> pipeline, report -> stages -> library packages -> scene/fileio/errors/config.
+"""Imports point down: cli -> pipeline, report -> stages -> library packages -> scene/fileio/errors/settings.
 
 Every `import` in the package (module level, inside functions and under TYPE_CHECKING alike) is read with
 `ast`; a module may import only from its own layer or below, no stage imports another stage, and the
@@ -16,11 +16,12 @@ ROOT = Path(sagebench.__file__).parent
 
 # Top-level modules and packages of sagebench by layer; a package not named here counts as a library package.
 LAYERS = {
-    "cli": 4, "cli_examples": 4, "__main__": 4, "schemas": 4,  # schemas gathers every model, the run config's included
+    "cli": 4, "cli_examples": 4, "cli_settings": 4, "__main__": 4,
+    "schemas": 4,  # schemas gathers every model, the run config's included
     "pipeline": 3,
     "report": 3,  # reads finished outputs through the stages' readers (evaluate's scores, render's views)
     "stages": 2,
-    "scene": 0, "fileio": 0, "input_files": 0, "errors": 0, "config": 0, "ui": 0, "run_layout": 0, "http_client": 0,
+    "scene": 0, "fileio": 0, "input_files": 0, "errors": 0, "settings": 0, "ui": 0, "run_layout": 0, "http_client": 0,
     "__init__": 0,
 }
 LIBRARY = 1

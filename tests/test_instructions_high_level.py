@@ -8,10 +8,11 @@ import pytest
 from shapely.geometry import Point, Polygon, shape
 
 from sagebench.instructions import instructions_for
-from sagebench.instructions.base import HIGH_LEVEL_TYPES, TrajectoryText, make_context
+from sagebench.instructions.base import TrajectoryText, make_context
 from sagebench.instructions.grounding import Grounder
 from sagebench.instructions.high_level import describe, scenario_data
 from sagebench.instructions.naming import ObjectInfo, RoomInfo
+from sagebench.settings.gen_trajectories import HIGH_LEVEL_TYPES
 
 # ---------------------------------------------------------------- an inline kitchen with two red chairs
 
@@ -132,7 +133,8 @@ def demo(demo_built_run):
     from sagebench.astar.sampling import sample_trajectories
     from sagebench.episodes.rows import episode_rows
     from sagebench.episodes.targets import scene_context, scene_targets
-    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, read_scene_inputs
+    from sagebench.settings.gen_trajectories import GenTrajectoriesConfig
+    from sagebench.stages.gen_trajectories import read_scene_inputs
 
     spec, smap, grid, _ = read_scene_inputs(demo_built_run / "scenes" / "demo_apartment_0")
     config = GenTrajectoriesConfig()
@@ -212,7 +214,7 @@ def test_demo_next_to_relations_hold_in_the_semantic_map(demo):
 
 def test_demo_same_seed_same_text_other_seed_other_wording(demo):
     from sagebench.episodes.rows import episode_rows
-    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig
+    from sagebench.settings.gen_trajectories import GenTrajectoriesConfig
 
     ctx, _, rows, (spec, _, _, trajs, names, _) = demo
     again = episode_rows(spec.scene_id, trajs, names, GenTrajectoriesConfig(), ctx).rows

@@ -21,9 +21,10 @@ from signals import as_from_a_terminal
 from sagebench.instructions.base import TrajectoryText, make_context
 from sagebench.instructions.high_level import scenario_data
 from sagebench.instructions.llm import LLMInstructor
-from sagebench.instructions.llm_client import ChatClient, LLMConfig
+from sagebench.instructions.llm_client import ChatClient
 from sagebench.instructions.naming import ObjectInfo, RoomInfo
 from sagebench.instructions.prompt import build_prompt, estimate_tokens, parse_answer
+from sagebench.settings.gen_trajectories import LLMConfig
 
 BOUND_S = 20.0  # far above what any call here takes
 
@@ -231,7 +232,8 @@ def test_cli_exits_1_and_writes_nothing_when_no_answer_comes(fake_llm, run_cli, 
 
 def test_a_server_dying_mid_run_keeps_the_answers_and_warns_once(fake_llm, run, tmp_path, capsys):
     from sagebench.episodes.shards import read_episodes
-    from sagebench.stages.gen_trajectories import gen_trajectories, make_config
+    from sagebench.settings.gen_trajectories import GenTrajectoriesConfig, LLMConfig
+    from sagebench.stages.gen_trajectories import gen_trajectories
 
     def respond(body, n):
         if n <= 3:
@@ -240,9 +242,8 @@ def test_a_server_dying_mid_run_keeps_the_answers_and_warns_once(fake_llm, run, 
         return Reply(mode="not_http")
 
     server = fake_llm(respond)
-    config = make_config(per_scene=8, instructions="llm", llm={
-        "base_url": server.url, "model": "fake", "cache_dir": tmp_path / "cache", "concurrency": 1, "backoff_s": 0.01,
-        "min_share": 0})
+    config = GenTrajectoriesConfig(per_scene=8, instructions="llm", llm=LLMConfig(
+        base_url=server.url, model="fake", cache_dir=tmp_path / "cache", concurrency=1, backoff_s=0.01, min_share=0))
     (result,) = bounded(BOUND_S, gen_trajectories, run, config)
     assert "3 of 8 high-level rows from the model (38 %), 5 template" in result.summary()
     assert capsys.readouterr().err.count("stopped asking after 6 consecutive failed requests") == 1

@@ -19,10 +19,10 @@ from sagebench.instructions.llm_client import (
     ANSWER_SCHEMA,
     STOP,
     ChatClient,
-    LLMConfig,
     LLMError,
     LLMUnavailable,
 )
+from sagebench.settings.gen_trajectories import LLMConfig
 
 BOUND_S = 10.0  # every call below is expected to take well under a second or two
 

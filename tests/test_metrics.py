@@ -12,10 +12,11 @@ from hypothesis.extra.numpy import arrays
 
 from profiles import examples
 
-from sagebench.metrics import MetricConfig, score_episode
+from sagebench.metrics import score_episode
 from sagebench.metrics.dtw import dtw
 from sagebench.metrics.episode import path_smoothness
 from sagebench.metrics.polyline import distance_to_polyline, resample
+from sagebench.settings.shared import MetricConfig
 
 
 def _poses(xy, yaw=None) -> np.ndarray:

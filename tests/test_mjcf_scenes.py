@@ -17,10 +17,10 @@ PUSH_NM = 60.0  # a firm push: about 75 N at a door's handle
 @pytest.fixture(scope="module")
 def catalogue_run(tmp_path_factory) -> Path:
     """The seed-0 apartment furnished from the CC0 fixtures, built and exported (fast colliders)."""
-    from sagebench.collider_export.methods import ColliderSettings
     from sagebench.scene.synth import write_synth_scene
+    from sagebench.settings.export_usd import ColliderSettings, ExportConfig
     from sagebench.stages.build_scene import build_scene
-    from sagebench.stages.export_usd import ExportConfig, export_usd
+    from sagebench.stages.export_usd import export_usd
 
     root = tmp_path_factory.mktemp("catalogue")
     write_synth_scene(root / "scene", seed=0, furniture=FIXTURE)

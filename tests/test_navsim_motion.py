@@ -8,9 +8,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from sagebench.navsim.actions import Action, ActionConfig, continuous_commands, discrete_commands
-from sagebench.navsim.motion import Agents, MotionConfig, blocked_share
-from sagebench.replay.physics import ReplayConfig, build_replay_model
+from sagebench.navsim.actions import Action, continuous_commands, discrete_commands
+from sagebench.navsim.motion import Agents, blocked_share
+from sagebench.replay.physics import build_replay_model
+from sagebench.settings.rollout import MotionConfig
+from sagebench.settings.shared import ActionConfig, ReplayConfig
 
 WALL_X = 2.95  # the room's wall face (conftest.room_mjcf); agent radius 0.2
 

@@ -15,8 +15,9 @@ from hypothesis import strategies as st
 from profiles import examples
 
 from sagebench.episodes.episode import Episode
-from sagebench.navsim.actions import Action, ActionConfig
+from sagebench.navsim.actions import Action
 from sagebench.navsim.policies import PolicyConfig, built_in, oracle_targets
+from sagebench.settings.shared import ActionConfig
 
 ACTIONS = ActionConfig()
 

@@ -14,8 +14,9 @@ from fake_policy import FakePolicy
 from sagebench.env import NavEnv
 from sagebench.env.gym_env import observation_space
 from sagebench.navsim.observe import observe
-from sagebench.navsim.profiles import PROFILES, DepthFormat, gps_compass, resolve
-from sagebench.navsim.simulator import EnvConfig, Simulator
+from sagebench.navsim.profiles import DepthFormat, gps_compass, resolve
+from sagebench.navsim.simulator import Simulator
+from sagebench.settings.rollout import PROFILES, EnvConfig
 
 PRIVILEGED_KEYS = {"pose", "gps", "compass", "instance"}
 # VLN-CE R2R: RGB_SENSOR 224x224 uint8, DEPTH_SENSOR 256x256 (MIN_DEPTH 0, MAX_DEPTH 10, NORMALIZE_DEPTH) as

@@ -164,9 +164,9 @@ def test_quality_spreads_both_its_passes_over_the_executor(workspace, run_cli, d
     tasks of their own before the export, which then finds every piece it looks up in the cache."""
     from sagebench.collider_export.coacd_cache import PartCache
     from sagebench.collider_export.decompose import mode_passes
-    from sagebench.collider_export.methods import ColliderSettings
     from sagebench.collider_export.pieces import piece_key
-    from sagebench.stages.export_usd import ExportConfig, scene_pieces
+    from sagebench.settings.export_usd import ColliderSettings, ExportConfig
+    from sagebench.stages.export_usd import scene_pieces
 
     extra = '[export_usd]\ncolliders = { mode = "quality" }\n'
     code, out, err = run_cli("-q", "run", _config(workspace, "quality", extra), "--workers", "2")

@@ -5,9 +5,8 @@ from __future__ import annotations
 import json
 import shutil
 
-
-from sagebench.config import AgentConfig
 from sagebench.episodes.shards import read_episodes
+from sagebench.settings.shared import AgentConfig
 
 from sagebench import stamps
 from sagebench.pipeline import tasks

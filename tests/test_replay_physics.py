@@ -9,15 +9,8 @@ import numpy as np
 import pytest
 
 from sagebench.metrics.polyline import distance_to_polyline
-from sagebench.replay.physics import (
-    AGENT_GEOM,
-    ReplayConfig,
-    agent_prism,
-    build_replay_model,
-    replay_batch,
-    replay_one,
-    time_limit,
-)
+from sagebench.replay.physics import AGENT_GEOM, agent_prism, build_replay_model, replay_batch, replay_one, time_limit
+from sagebench.settings.shared import ReplayConfig
 
 
 @pytest.fixture(scope="module")

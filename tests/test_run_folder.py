@@ -407,10 +407,11 @@ def test_force_never_replaces_an_input_or_a_folder_above_one(case, interiorgs_sr
 @pytest.fixture(scope="module")
 def made_predictions(made_run, tmp_path_factory) -> Path:
     """The oracle's predictions over made_run (and their record), outside it. Read-only."""
-    from sagebench.stages.rollout import make_baseline_config, run_baseline
+    from sagebench.settings.baseline import BaselineConfig
+    from sagebench.stages.rollout import run_baseline
 
     out = tmp_path_factory.mktemp("made_predictions") / "oracle.jsonl"
-    run_baseline(made_run, out, make_baseline_config(agent_name="oracle"))
+    run_baseline(made_run, out, BaselineConfig(agent_name="oracle"))
     return out
 
 

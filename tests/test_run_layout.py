@@ -24,9 +24,9 @@ SCENE = "demo_apartment_0"
 
 
 def _settings() -> dict[str, dict]:
-    from sagebench.stages.export_usd import ExportConfig
+    from sagebench.settings.export_usd import ExportConfig
+    from sagebench.settings.validate import ValidateConfig
     from sagebench.stages.gen_trajectories import GenTrajectoriesConfig
-    from sagebench.stages.validate import ValidateConfig
     from sagebench.topdown.builder import BuildSceneConfig
 
     return {"build_scene": BuildSceneConfig().model_dump(mode="json"),
@@ -105,9 +105,10 @@ def _evaluate(run: Path, out: Path) -> bytes:
 
 
 def _render(run: Path, out: Path) -> bytes:
-    from sagebench.stages.render import make_render_config, render_view
+    from sagebench.settings.render import RenderConfig
+    from sagebench.stages.render import render_view
 
-    frame = render_view(run, SCENE, (1.0, 1.0, 0.5), make_render_config(width=32, height=24))
+    frame = render_view(run, SCENE, (1.0, 1.0, 0.5), RenderConfig(width=32, height=24))
     return frame.rgb.tobytes() + frame.depth.tobytes()
 
 
@@ -121,7 +122,7 @@ def _export_vlnce(run: Path, out: Path) -> bytes:
 def _rollout(run: Path, out: Path) -> bytes:
     from sagebench.stages.rollout import make_config, run_rollout
 
-    run_rollout(run, out / "r.jsonl", make_config(width=16, height=12, episodes=2, max_steps=3))
+    run_rollout(run, out / "r.jsonl", make_config({"--width": 16, "--height": 12, "--episodes": 2, "--max-steps": 3}))
     return (out / "r.jsonl").read_bytes() + (out / "r_contact_sheet.png").read_bytes()
 
 

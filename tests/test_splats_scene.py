@@ -10,15 +10,9 @@ import trimesh
 
 from sagebench.render.gaussians import Gaussians, logit
 from sagebench.scene.loader import load_scene
+from sagebench.settings.build_scene import SplatConfig
 from sagebench.splats.ply import write_ply
-from sagebench.splats.scene import (
-    SplatConfig,
-    quat_multiply,
-    room_views,
-    sampled_gaussians,
-    scene_gaussians,
-    trained_gaussians,
-)
+from sagebench.splats.scene import quat_multiply, room_views, sampled_gaussians, scene_gaussians, trained_gaussians
 
 
 @pytest.fixture(scope="module")

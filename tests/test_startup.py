@@ -1,4 +1,5 @@
-"""Start-up stays cheap: `--help` and refusing a bad scene import none of the heavy libraries.
+"""Start-up stays cheap: `--help` (of the CLI and of every command) and refusing a bad scene import none of the
+heavy libraries.
 
 Checked in a fresh interpreter (this test process has imported everything already); the times themselves
 are in `python -m benchmarks cli`.
@@ -47,3 +48,23 @@ def test_the_probe_sees_a_heavy_import(tmp_path):
     """A command that needs trimesh does import it, so an empty list above is not a blind probe."""
     got = _probe("synth-scene", "--seed", "0", "--out", str(tmp_path / "s"))
     assert got["code"] in (0, None) and "trimesh" in got["heavy"]
+
+
+EVERY_HELP = """
+import json, sys
+import typer.main
+from sagebench.cli import app, main
+for name in typer.main.get_command(app).commands:
+    try:
+        main([name, "--help"])
+    except SystemExit:
+        pass
+print(json.dumps(sorted(m for m in %r if m in sys.modules)))
+""" % (HEAVY,)
+
+
+def test_every_commands_help_imports_no_heavy_library():
+    """A command's --help is made from its settings model alone (sagebench/settings/ imports pydantic only), not
+    from the stage that runs it."""
+    proc = subprocess.run([sys.executable, "-c", EVERY_HELP], capture_output=True, text=True, timeout=120)
+    assert json.loads(proc.stdout.strip().splitlines()[-1]) == []

@@ -17,9 +17,11 @@ from meshes import wall_with_openings
 from sagebench.errors import ConfigError, SceneError
 from sagebench.scene import assets
 from sagebench.scene.loader import load_scene
-from sagebench.config import AgentConfig
 from sagebench.episodes.targets import scene_targets
-from sagebench.stages.build_scene import BuildSceneConfig, build_scene, make_config
+from sagebench.settings.build_scene import BuildSceneConfig
+from sagebench.settings.option import from_options
+from sagebench.settings.shared import AgentConfig
+from sagebench.stages.build_scene import build_scene
 from sagebench.stages.gen_trajectories import read_scene_inputs
 from sagebench.topdown.builder import category_names, paint_categories, paint_instances, semantic_report
 from sagebench.topdown.passages import PASSAGE
@@ -203,7 +205,7 @@ def test_table_top_blocks_at_default_band_and_only_legs_below_it(tmp_path):
     np.testing.assert_array_equal(blocked & inside(arrays), top & inside(arrays))
     assert sem.instances[1].blocks
 
-    arrays, _ = _load(build_scene(scene, tmp_path / "run2", make_config(band_max=0.5)).out_dir)
+    arrays, _ = _load(build_scene(scene, tmp_path / "run2", from_options(BuildSceneConfig, {"--band-max": 0.5})).out_dir)
     legs = np.zeros_like(top)
     for sx in (-1, 1):
         for sy in (-1, 1):
@@ -293,11 +295,11 @@ def test_no_rooms_and_no_floor_is_an_error(tmp_path):
 
 def test_config_errors_name_the_option():
     with pytest.raises(ConfigError, match=r"^--band-max: 0.4 must be above the band's bottom, clearance \(0.5\)$"):
-        make_config(band_min=0.5, band_max=0.4)
+        from_options(BuildSceneConfig, {"--band-min": 0.5, "--band-max": 0.4})
     with pytest.raises(ConfigError, match="^--agent-radius: "):
-        make_config(agent_radius=-1.0)
-    assert make_config() == BuildSceneConfig()
-    assert make_config(agent_radius=0.3).agent.radius == 0.3
+        from_options(BuildSceneConfig, {"--agent-radius": -1.0})
+    assert from_options(BuildSceneConfig, {}) == BuildSceneConfig()
+    assert from_options(BuildSceneConfig, {"--agent-radius": 0.3}).agent.radius == 0.3
 
 
 # ---------------------------------------------------------------- the builder's own steps, on inline inputs

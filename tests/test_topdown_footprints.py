@@ -11,7 +11,7 @@ from inline_scene import inline_scene
 from meshes import prism, wall_with_openings
 
 from sagebench.scene import assets
-from sagebench.topdown.config import BuildSceneConfig
+from sagebench.settings.build_scene import BuildSceneConfig
 from sagebench.topdown.footprints import (band_section, footprint, footprint_reference, mesh_parts, object_footprints,
                                           sample_surface)
 

@@ -50,7 +50,7 @@ def test_floor_outside_the_main_region_has_its_own_colour_and_legend_entry():
     of its navigable cells is drawn in the unreachable tint, the main region's in the navigable one."""
     from pathlib import Path
 
-    from sagebench.config import AgentConfig
+    from sagebench.settings.shared import AgentConfig
 
     house = Path(__file__).parent / "fixtures" / "concave_house"
     td = compute_topdown(load_scene(house), BuildSceneConfig(agent=AgentConfig(radius=0.25)))

@@ -8,7 +8,8 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from sagebench.navsim.actions import Action, ActionConfig
+from sagebench.navsim.actions import Action
+from sagebench.settings.shared import ActionConfig
 from sagebench.training.actions import path_actions
 
 M, L, R, S = Action.MOVE_FORWARD, Action.TURN_LEFT, Action.TURN_RIGHT, Action.STOP

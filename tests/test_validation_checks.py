@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from sagebench.replay.physics import ReplayRecord, build_replay_model, replay_batch
-from sagebench.validation.checks import CheckConfig, judge
+from sagebench.settings.validate import CheckConfig
+from sagebench.validation.checks import judge
 
 
 @pytest.fixture(scope="module")

@@ -36,11 +36,11 @@ from typing import Any
 
 import numpy as np
 
-from sagebench.config import AgentConfig, CameraConfig
 from sagebench.episodes.episode import Episode
 from sagebench.navsim.actions import Action
 from sagebench.navsim.protocol import decode_request
-from sagebench.navsim.simulator import EnvConfig
+from sagebench.settings.rollout import EnvConfig
+from sagebench.settings.shared import AgentConfig, CameraConfig
 
 PRESETS = ("vlnce",)
 VLNCE_SUCCESS_DISTANCE = 3.0  # m, vlnce_task.yaml TASK.SUCCESS.SUCCESS_DISTANCE

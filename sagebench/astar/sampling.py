@@ -23,39 +23,12 @@ from typing import Literal
 
 import cv2
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy import ndimage
 from shapely.geometry import MultiPolygon, Point, Polygon
 
 from sagebench.astar.grid_astar import Workspace, astar
 from sagebench.astar.shortcut import polyline_length, shortcut_indices, waypoints
-
-PairKind = Literal["object-object", "object-room", "room-object", "room-room"]
-
-
-class SamplingConfig(BaseModel):
-    """How many trajectories per scene, between what, and how long (metres)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    per_scene: int = Field(default=200, ge=1, description="Distinct trajectories wanted per scene.")
-    seed: int = Field(default=0, ge=0, description="Seed of every random choice.")
-    min_geodesic_m: float = Field(default=2.0, ge=0, description="Shortest accepted path, m.")
-    max_geodesic_m: float = Field(default=20.0, gt=0, description="Longest accepted path, m.")
-    approach_max_m: float = Field(default=1.0, gt=0, description="Farthest a stand point may be from a footprint, m.")
-    approach_tolerance_m: float = Field(
-        default=0.1, ge=0, description="Stand points within this of the nearest one count as nearest, m.")
-    pair_mix: dict[PairKind, float] = Field(
-        default={"object-object": 0.6, "object-room": 0.15, "room-object": 0.15, "room-room": 0.1},
-        description="Relative share of each (start kind)-(goal kind) pair.")
-
-    @model_validator(mode="after")
-    def _range(self) -> SamplingConfig:
-        if self.min_geodesic_m >= self.max_geodesic_m:
-            raise ValueError(f"min_geodesic_m ({self.min_geodesic_m}) must be below max_geodesic_m ({self.max_geodesic_m})")
-        if not any(v > 0 for v in self.pair_mix.values()) or any(v < 0 for v in self.pair_mix.values()):
-            raise ValueError("pair_mix needs non-negative shares, at least one positive")
-        return self
+from sagebench.settings.gen_trajectories import SamplingConfig
 
 
 @dataclass(frozen=True)

@@ -17,42 +17,17 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib.metadata import version
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel
 
 from sagebench import ui
 from sagebench.collider_export.convex import ConvexPart, ConvexSplit
 from sagebench.fileio import write_bytes
+from sagebench.settings.export_usd import CoacdParams
 
 CACHE_SUBDIR = "colliders-v4"  # bumped whenever a method's parts change for the same settings (v4: one-thread CoACD)
 SPLIT_VERSION = 2  # bumped whenever convex.split_convex splits the same mesh differently
-
-
-class CoacdParams(BaseModel):
-    """The CoACD settings sagebench exposes; every one of them is part of the cache key.
-
-    The search settings are cut from CoACD's own defaults (resolution 2000, 150 MCTS iterations of depth 3
-    over 20 nodes): on the 19 pieces of the real-furniture bench scene whose hull misses the agent band, this
-    took 44 CPU s against 157 s with 3 pieces over 40 s, for the same band errors (16 against 15 of them
-    within 2 cm) and median surface distance (0.9 against 1.1 cm); on 15 pieces drawn from the rest, 12
-    against 29 CPU s, same band errors and surface distances.
-    """
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    threshold: float = Field(default=0.05, gt=0, le=1, description="Concavity threshold; smaller gives more, tighter parts.")
-    max_convex_hull: int = Field(default=-1, ge=-1, description="Cap on parts per piece; -1 for no cap.")
-    preprocess_mode: Literal["auto", "on", "off"] = Field(
-        default="auto", description="Manifold preprocessing; 'off' is much faster on clean watertight meshes."
-    )
-    preprocess_resolution: int = Field(default=50, gt=0)
-    resolution: int = Field(default=1000, gt=0, description="Sampling resolution of the concavity metric.")
-    mcts_iterations: int = Field(default=60, gt=0, description="Monte Carlo tree search iterations per cut.")
-    mcts_max_depth: int = Field(default=2, gt=0, description="Cuts the tree search looks ahead.")
-    mcts_nodes: int = Field(default=10, gt=0, description="Candidate cutting planes per tree node.")
-    seed: int = Field(default=0, ge=0)
 
 
 @dataclass(frozen=True)

@@ -11,10 +11,11 @@ import numpy as np
 from sagebench.collider_export.coacd_cache import PartCache, PieceResult, split_key
 from sagebench.collider_export.convex import ConvexPart, ConvexSplit, merge_parts, split_convex, weld
 from sagebench.collider_export.fanout import map_processes
-from sagebench.collider_export.methods import ColliderSettings, band_error_cm, ladder
+from sagebench.collider_export.methods import band_error_cm, ladder
 from sagebench.collider_export.pieces import Piece, decompose_pieces
 from sagebench.collider_export.quality import BandReach
 from sagebench.collider_export.vertex_limit import within_vertex_limit
+from sagebench.settings.export_usd import ColliderSettings
 
 
 WHOLE_MESH_FACTOR = 4

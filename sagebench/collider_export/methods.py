@@ -22,15 +22,14 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
 
-from sagebench.collider_export.coacd_cache import CoacdParams, run_coacd
+from sagebench.collider_export.coacd_cache import run_coacd
 from sagebench.collider_export.convex import ConvexPart, hull_part
 from sagebench.collider_export.quality import band_errors
 from sagebench.collider_export.repair import close_holes
 from sagebench.collider_export.voxel import voxel_parts
+from sagebench.settings.export_usd import ColliderSettings
 
-Mode = Literal["quality", "balanced", "fast"]
 Method = Literal["hull", "voxel", "coacd"]
 UNSHAPING = frozenset({"piece_limit_s"})  # ColliderSettings fields that never change the parts
 
@@ -39,24 +38,6 @@ LADDERS: dict[str, tuple[Method, ...]] = {
     "balanced": ("hull", "voxel", "coacd"),
     "quality": ("coacd", "voxel", "hull"),
 }
-
-
-class ColliderSettings(BaseModel):
-    """How concave pieces become colliders; every field but the safety limit shapes the parts (cache key)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    mode: Mode = Field(default="balanced", description="quality: CoACD, else voxel, else hull; balanced: hull, "
-                                                        "voxel or CoACD; fast: hull or voxel; each by measured quality.")
-    coacd: CoacdParams = CoacdParams()
-    max_parts: int = Field(default=32, ge=1, description="Part budget per object; parts are merged to stay within it.")
-    coacd_max_faces: int = Field(default=4000, ge=0,
-                                 description="CoACD is tried only on pieces of at most this many faces.")
-    piece_limit_s: float = Field(default=600.0, gt=0, description="Safety stop, s: an export whose method runs "
-                                                                   "longer on one piece fails, naming the piece.")
-    band_tolerance_cm: float = Field(default=2.0, gt=0, description="A method is good enough when its agent-band "
-                                                                    "footprint is within this of the piece's, cm.")
-    voxel_pitch: float = Field(default=0.02, ge=0.01, le=0.1, description="Voxel size of the voxel method, m.")
 
 
 def ladder(settings: ColliderSettings, faces: int) -> tuple[Method, ...]:

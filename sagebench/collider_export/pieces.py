@@ -25,9 +25,9 @@ from sagebench import ui
 from sagebench.collider_export.coacd_cache import PartCache, PieceResult, cache_key
 from sagebench.collider_export.convex import ConvexPart, hull_part
 from sagebench.collider_export.fanout import worker_context
-from sagebench.collider_export.methods import UNSHAPING, ColliderSettings, Method, band_error_cm, good_enough, run_method
+from sagebench.collider_export.methods import UNSHAPING, Method, band_error_cm, good_enough, run_method
 from sagebench.errors import ColliderError
-
+from sagebench.settings.export_usd import ColliderSettings
 
 
 @dataclass(frozen=True)

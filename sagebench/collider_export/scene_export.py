@@ -13,12 +13,11 @@ import trimesh
 
 from sagebench import ui
 from sagebench.collider_export.coacd_cache import PartCache, coacd_version
-from sagebench.collider_export.config import ExportConfig
 from sagebench.collider_export.convex import hull_part
 from sagebench.collider_export.decompose import (MeshColliders, decompose_meshes, mode_passes, plan_pieces,
                                                  tolerance_cause)
 from sagebench.collider_export.free_floor import FloorMap, check_free_floor
-from sagebench.collider_export.methods import UNSHAPING, ColliderSettings
+from sagebench.collider_export.methods import UNSHAPING
 from sagebench.collider_export.door_gap import clear_floor
 from sagebench.collider_export.mjcf_writer import MjcfBody, mjcf_model, room_lights, scene_body
 from sagebench.collider_export.pieces import Piece
@@ -29,6 +28,7 @@ from sagebench.fileio import dumps_json
 from sagebench.render.gaussians import Gaussians, mean_colour
 from sagebench.run_layout import COLLIDERS, COLLIDERS_INDEX, GAUSSIANS, MJCF, NUREC, SAGE, USD, USDZ
 from sagebench.scene.loader import SCENE_FILE, LoadedScene, door_pose, read_mesh, resolve_mesh_path
+from sagebench.settings.export_usd import ColliderSettings, ExportConfig
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,9 @@ import numpy as np
 from gymnasium import spaces
 
 from sagebench.navsim.actions import Action
-from sagebench.navsim.simulator import EnvConfig, Simulator, StepResult
+from sagebench.navsim.profiles import env_sensors
+from sagebench.navsim.simulator import Simulator, StepResult
+from sagebench.settings.rollout import EnvConfig
 from sagebench.threads import share_cores
 from sagebench.vlnce.vocab import TOKENS_PER_INSTRUCTION
 
@@ -38,7 +40,7 @@ def action_space(config: EnvConfig) -> spaces.Space:
 def observation_space(config: EnvConfig, instructions: Sequence[str] = (), vocabulary: int = 0) -> spaces.Dict:
     """The observation dict's space (the profile's keys); the instruction's charset holds printable ASCII and every
     character used; token ids are below `vocabulary` (its size)."""
-    sensors = config.sensors()
+    sensors = env_sensors(config)
     size = {k: (h, w) for k, (w, h) in sensors.images.items()}
     low, high = sensors.depth.bounds()
     charset = sorted(set(string.printable) | {ch for text in instructions for ch in text})

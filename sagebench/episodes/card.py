@@ -16,8 +16,8 @@ import pyarrow.parquet as pq
 
 from sagebench.episodes.schema import field_descriptions
 from sagebench.episodes.shards import split_pattern
-from sagebench.episodes.splits import SPLITS
 from sagebench.run_layout import EPISODES, PREVIEWS, REPORTS, SCENE_FILE, SCENES, SHARDS, VALIDATION
+from sagebench.settings.shared import SPLITS
 
 SIZE_CATEGORIES = ((1_000, "n<1K"), (10_000, "1K<n<10K"), (100_000, "10K<n<100K"), (1_000_000, "100K<n<1M"),
                    (10_000_000, "1M<n<10M"), (100_000_000, "10M<n<100M"), (1_000_000_000, "100M<n<1B"))

@@ -12,7 +12,6 @@ import numpy as np
 
 from sagebench import ui
 from sagebench.astar.sampling import Trajectory
-from sagebench.episodes.config import GenTrajectoriesConfig
 from sagebench.episodes.ids import episode_id
 from sagebench.episodes.splits import assign_splits
 from sagebench.instructions import instructions_for
@@ -20,6 +19,7 @@ from sagebench.instructions.balance import TypeBalance
 from sagebench.instructions.base import SceneContext, TrajectoryText
 from sagebench.instructions.execution import BlockedMap
 from sagebench.instructions.high_level import balanced
+from sagebench.settings.gen_trajectories import GenTrajectoriesConfig
 
 
 @dataclass(frozen=True)

@@ -17,9 +17,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from sagebench.episodes.schema import EPISODE_SCHEMA
-from sagebench.episodes.splits import SPLITS
 from sagebench.errors import DataError
 from sagebench.fileio import write_bytes
+from sagebench.settings.shared import SPLITS
 
 ROW_GROUP_BYTES = 16 * 2**20  # compressed; readers (HF's viewer, DuckDB) fetch a row group at a time
 

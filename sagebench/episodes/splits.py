@@ -12,30 +12,9 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Sequence
-from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
-
-SPLITS = ("train", "val_seen", "val_unseen", "test")
-Split = Literal["train", "val_seen", "val_unseen", "test"]
-
-
-class SplitConfig(BaseModel):
-    """Split fractions and their seed (defaults here, nowhere else)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    val_unseen: float = Field(default=0.1, ge=0, le=1, description="Share of scenes held out for val_unseen.")
-    test: float = Field(default=0.1, ge=0, le=1, description="Share of scenes held out for test.")
-    val_seen: float = Field(default=0.1, ge=0, le=1,
-                            description="Share of the seen scenes' trajectories for val_seen (the rest: train).")
-    seed: int = Field(default=0, ge=0, description="Seed of the split hashes.")
-
-    @model_validator(mode="after")
-    def _fractions(self) -> SplitConfig:
-        if self.val_unseen + self.test > 1:
-            raise ValueError(f"val_unseen + test is {self.val_unseen + self.test:g} of the scenes (at most 1)")
-        return self
+from sagebench.settings.gen_trajectories import SplitConfig
+from sagebench.settings.shared import Split
 
 
 def _unit(seed: int, key: str) -> float:

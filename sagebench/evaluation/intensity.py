@@ -35,12 +35,8 @@ import mujoco
 import numpy as np
 
 from sagebench.replay.contact import CONTACT_DISTANCE, contact_share
-from sagebench.replay.physics import ReplayConfig, ReplayModel, replay_batch
+from sagebench.replay.physics import ReplayModel, replay_batch
 
-# Replay settings for single agent steps: a step ends within 5 mm of its target (not 2 cm: the deadbeat drive
-# lands on it exactly, so short steps do not fall short), a blocked step gives up after 0.5 s without progress
-# (not 2 s), and the time limit's slack is 1 s, since a step is short.
-STEP_REPLAY = ReplayConfig(stall_time=0.5, time_slack=1.0, waypoint_tolerance=0.005)
 ICP_NOTE = ("measured: c(t) from sagebench rollout's simulator; self-reported: the agent's own; derived: evaluate "
             "replayed each step from pose t-1 towards pose t, c(t) = the larger of the share of the motion contact "
             f"blocked and the share of the step within {CONTACT_DISTANCE} m of a collider; a turn in place counts "

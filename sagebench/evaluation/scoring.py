@@ -14,8 +14,9 @@ import numpy as np
 
 from sagebench.episodes.episode import Episode
 from sagebench.evaluation.predictions import Prediction
-from sagebench.metrics import EpisodeMetrics, MetricConfig, NavigableMap, score_episode
+from sagebench.metrics import EpisodeMetrics, NavigableMap, score_episode
 from sagebench.metrics.on_foot import GoalField
+from sagebench.settings.shared import MetricConfig
 
 METRIC_NAMES = ("sr", "osr", "spl", "ne", "ne_straight", "ndtw", "sdtw", "csr", "icp", "ps", "path_length")
 # which distance to the goal each metric stands on (evaluate reports this with the scores)

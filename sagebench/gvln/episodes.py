@@ -35,12 +35,12 @@ from pydantic import (
 )
 
 from sagebench.episodes.ids import episode_id
-from sagebench.episodes.splits import Split
 from sagebench.errors import DataError, first_error
 from sagebench.gvln.frame import SAGE_Z, sage_rotation, to_sage_xy, wrap, yaw_from_sage_rotation
 from sagebench.input_files import read_json
 from sagebench.metrics.on_foot import NavigableMap
 from sagebench.scene.model import SceneSpec
+from sagebench.settings.shared import Split
 
 ITEM_KINDS = ("object", "door", "window")
 # sagebench's instruction types -> SAGE-3D's spelling (prompt_traj_to_instruction.json); the rest are the same

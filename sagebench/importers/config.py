@@ -1,30 +1,7 @@
-"""Settings and output names of the InteriorGS importer, apart from the importer (so a command line parses them cheaply)."""
+"""Output names of the InteriorGS importer, apart from the importer (so a command line reads them cheaply); its
+settings are sagebench/settings/import_interiorgs.py."""
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
-
 REPORT_FILE = "interiorgs_import.json"  # what the import matched and measured; marks a directory it wrote
 OCCUPANCY_PICTURE = "occupancy_check.png"
-
-
-class InteriorGSConfig(BaseModel):
-    """How an InteriorGS scene folder becomes a sagebench scene (metres)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    voxel: float = Field(default=0.04, gt=0, le=0.5, description="Voxel side of the object surfaces, m.")
-    min_opacity: float = Field(default=0.5, gt=0, description="Summed opacity a voxel needs to be solid.")
-    max_parts: int = Field(default=24, ge=1, description="Convex parts per object surface at most.")
-    box_margin: float = Field(
-        default=0.02, ge=0,
-        description="Boxes are grown by this for the test (Gaussians on an object's surface lie on its box), m.")
-    structure_margin: float = Field(
-        default=0.008, ge=0,
-        description="Gaussians this close to a wall, floor or ceiling belong to it even inside an object's box "
-                    "(less than a rug is thick), m.")
-    structure_reach: float = Field(
-        default=0.05, ge=0, description="Gaussians in no object box go to a structure this close, else background, m.")
-    min_occupancy_iou: float = Field(
-        default=0.8, ge=0, le=1,
-        description="Warn when the free cells of occupancy.png and of the imported geometry agree less (IoU).")

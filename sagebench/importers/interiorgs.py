@@ -29,7 +29,7 @@ from sagebench import ui
 from sagebench.errors import DataError, first_error
 from sagebench.fileio import dumps_json, write_bytes
 from sagebench.importers.boxes import BoxError, OrientedBox, box_from_corners, box_owner
-from sagebench.importers.config import OCCUPANCY_PICTURE, REPORT_FILE, InteriorGSConfig
+from sagebench.importers.config import OCCUPANCY_PICTURE, REPORT_FILE
 from sagebench.importers.interiorgs_files import (
     LABELS, STRUCTURE, InteriorGSFolder, WallSegment, read_folder,
 )
@@ -41,10 +41,11 @@ from sagebench.importers.interiorgs_structure import (
 from sagebench.render.gaussians import Gaussians
 from sagebench.run_layout import SCENE_FILE
 from sagebench.scene.model import Door, Room, SceneObject, SceneSpec
+from sagebench.settings.build_scene import BuildSceneConfig
+from sagebench.settings.import_interiorgs import InteriorGSConfig
 from sagebench.splat_geometry.surface import SurfaceSettings, gaussian_points, object_surface
 from sagebench.splats.ply import read_ply, write_ply
 from sagebench.splats.scene import TRAINED_FILES
-from sagebench.topdown.config import BuildSceneConfig
 
 STRUCTURAL_LABELS = frozenset({"wall", "floor", "ceiling"})  # built from structure.json, not from their boxes
 DOOR_REACH_M = 0.2  # a door label belongs to a DOOR opening when its centre is within the opening's width plus this

@@ -12,7 +12,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from sagebench.importers.interiorgs_files import is_interiorgs_folder
-from sagebench.topdown.config import BuildSceneConfig
+from sagebench.settings.build_scene import BuildSceneConfig
 
 
 @contextlib.contextmanager

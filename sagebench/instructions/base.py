@@ -13,9 +13,9 @@ from sagebench.instructions.execution import BlockedMap
 from sagebench.instructions.naming import ObjectInfo, RoomInfo, object_names, room_names
 from sagebench.instructions.relations import Layout, layout, rooms_joined
 from sagebench.instructions.sight import SightMap
+from sagebench.settings.gen_trajectories import HIGH_LEVEL_TYPES
 
 Level = Literal["high", "low"]
-HIGH_LEVEL_TYPES = ("Add_Object", "Scenario_Driven", "Relative_Relationship", "Attribute_Based", "Area_Based")
 
 
 @dataclass(frozen=True)

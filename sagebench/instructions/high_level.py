@@ -24,9 +24,10 @@ from importlib import resources
 import numpy as np
 
 from sagebench.instructions.balance import TypeBalance, balance_types
-from sagebench.instructions.base import HIGH_LEVEL_TYPES, Instruction, SceneContext, TrajectoryText
+from sagebench.instructions.base import Instruction, SceneContext, TrajectoryText
 from sagebench.instructions.naming import ObjectInfo, door_peers, door_place, words
 from sagebench.instructions.relations import NEXT_TO_M, between, nearest, next_to, rooms_along, side_as_seen
+from sagebench.settings.gen_trajectories import HIGH_LEVEL_TYPES
 
 _MATERIAL_ADJ = {"wood": "wooden", "wool": "woollen"}
 _ADJ_KEYS = (("colour",), ("material",), ("state",), ("colour", "material"), ("state", "colour"),

@@ -17,8 +17,9 @@ import numpy as np
 from sagebench.instructions import high_level as templates
 from sagebench.instructions.base import Instruction, SceneContext, TrajectoryText
 from sagebench.instructions.grounding import Grounder, reason
-from sagebench.instructions.llm_client import ChatClient, LLMConfig, LLMError, LLMUnavailable
+from sagebench.instructions.llm_client import ChatClient, LLMError, LLMUnavailable
 from sagebench.instructions.prompt import PromptTooLong, build_prompt, parse_answer, retry_prompt
+from sagebench.settings.gen_trajectories import LLMConfig
 
 
 @dataclass(frozen=True)

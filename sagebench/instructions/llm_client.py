@@ -30,9 +30,6 @@ import urllib.parse
 from collections import Counter
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Literal
-
-from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from sagebench.errors import ConfigError
 from sagebench.fileio import dumps_json, write_text
@@ -47,6 +44,7 @@ from sagebench.http_client import (
     retried,
     retry_after_s,
 )
+from sagebench.settings.gen_trajectories import LLMConfig
 
 RETRY_STATUS = frozenset({408, 409, 425, 429, 500, 502, 503, 504})
 API_KEY_ENV = "SAGEBENCH_LLM_API_KEY"  # the only variable read for the bearer token unless the CLI names another
@@ -55,44 +53,6 @@ ANSWER_SCHEMA = {"type": "object", "properties": {"instruction": {"type": "strin
                  "required": ["instruction"], "additionalProperties": False}
 FORMATS = ("json_schema", "json_object", "none")  # what response_format "auto" tries, in this order
 REMOTE_CONCURRENCY = 4  # requests in flight to a server elsewhere that reports no slots
-
-
-class LLMConfig(BaseModel):
-    """The chat model and how to call it (defaults here, nowhere else)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    base_url: str | None = Field(default=None, description="OpenAI-compatible API root, e.g. http://localhost:8000/v1.")
-    model: str | None = Field(default=None, description="Model name sent with each request.")
-    cache_dir: Path | None = Field(default=None, description="Answer cache (default: the user cache directory).")
-    concurrency: int | None = Field(default=None, ge=1, le=64, description=(
-        "Requests in flight at once (default: the slots the server reports, as a llama.cpp server does at /props, "
-        "else 1 for a server on this machine or the local network and 4 for another)."))
-    timeout_s: float = Field(default=60.0, gt=0, description="Deadline of one whole HTTP attempt (from sending it to its last byte), s.")
-    max_attempts: int = Field(default=3, ge=1, description="HTTP attempts per request (429, 5xx, timeouts retried).")
-    backoff_s: float = Field(default=1.0, ge=0, description="First retry delay, s; doubles per attempt.")
-    breaker_failures: int = Field(default=6, ge=1,
-                                  description="Consecutive failed attempts (all threads) after which no request is sent.")
-    answer_attempts: int = Field(default=2, ge=1, description="Answers asked for before the template is kept.")
-    temperature: float = Field(default=0.0, ge=0, description="Sampling temperature sent with each request.")
-    max_tokens: int = Field(default=200, ge=16, description="Longest answer the server may generate, tokens.")
-    response_format: Literal["auto", "json_schema", "json_object", "none"] = Field(
-        default="auto", description=("How to ask for JSON: auto (json_schema, else json_object, else none, decided by "
-                                     "the first request), or always one of those."))
-    prompt_tokens: int = Field(default=3000, ge=500,
-                               description="Prompt budget, tokens (estimated); a longer scene map is shortened.")
-    min_share: float = Field(default=0.5, ge=0, le=1,
-                             description="Fail when fewer high-level rows than this share come from the model "
-                                         "(any share fails when none do).")
-    refresh: bool = Field(default=False, description="Ask again even for prompts the cache holds an answer to.")
-
-    @field_validator("base_url")
-    @classmethod
-    def _http_url(cls, url: str | None) -> str | None:
-        parsed = urllib.parse.urlparse(url or "http://x")
-        if parsed.scheme not in ("http", "https") or not parsed.hostname:
-            raise ValueError(f"must be an http(s) URL such as http://localhost:8000/v1, got {url!r}")
-        return url
 
 
 class LLMError(Exception):

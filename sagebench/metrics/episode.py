@@ -24,15 +24,7 @@ import numpy as np
 from sagebench.metrics.dtw import dtw
 from sagebench.metrics.on_foot import GoalField
 from sagebench.metrics.polyline import distance_to_polyline, path_length, resample
-
-
-@dataclass(frozen=True)
-class MetricConfig:
-    """Constants of the metrics; defaults are the paper's where it gives one, else docs/metrics.md's."""
-
-    ndtw_threshold: float = 3.0  # d_th, m (habitat / VLN-CE)
-    resample_spacing: float = 0.25  # reference resampling for nDTW and CSR, m
-    corridor_radius: float = 1.0  # CSR r_tol, m (the paper gives none)
+from sagebench.settings.shared import MetricConfig
 
 
 @dataclass(frozen=True)

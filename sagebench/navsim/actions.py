@@ -13,9 +13,8 @@ import math
 from enum import IntEnum
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
 
-from sagebench.replay.physics import ReplayConfig
+from sagebench.settings.shared import ActionConfig, ReplayConfig
 
 
 class Action(IntEnum):
@@ -23,32 +22,6 @@ class Action(IntEnum):
     MOVE_FORWARD = 1
     TURN_LEFT = 2
     TURN_RIGHT = 3
-
-
-class ActionConfig(BaseModel):
-    """What one action does (defaults: VLN-CE's 0.25 m and 15 degrees)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    control_interval: float = Field(default=0.5, gt=0, le=5, description="Seconds one action lasts.")
-    forward_step: float = Field(default=0.25, gt=0, description="MOVE_FORWARD distance, m.")
-    turn_deg: float = Field(default=15.0, gt=0, le=180, description="TURN_LEFT / TURN_RIGHT angle, degrees.")
-
-
-def beyond_limits(actions: ActionConfig, replay: ReplayConfig) -> str | None:
-    """Why the discrete actions ask for more than the replay's drive holds (the speed and turn rate it can stop
-    against a wall without tunnelling), naming the fields; None when they do not. Settings that hold both
-    (EnvConfig) refuse such a pair."""
-    speed = actions.forward_step / actions.control_interval
-    if speed > replay.max_speed + 1e-12:
-        return (f"actions.forward_step / actions.control_interval ({actions.forward_step:g} m / "
-                f"{actions.control_interval:g} s = {speed:g} m/s) exceeds replay.max_speed ({replay.max_speed:g} m/s)")
-    rate = math.radians(actions.turn_deg) / actions.control_interval
-    if rate > replay.max_turn_rate + 1e-12:
-        return (f"actions.turn_deg / actions.control_interval ({actions.turn_deg:g} deg / "
-                f"{actions.control_interval:g} s = {rate:.4g} rad/s) exceeds replay.max_turn_rate "
-                f"({replay.max_turn_rate:g} rad/s)")
-    return None
 
 
 def discrete_commands(actions: np.ndarray, config: ActionConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

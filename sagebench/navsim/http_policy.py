@@ -27,7 +27,8 @@ from concurrent.futures import ThreadPoolExecutor
 from sagebench.episodes.episode import Episode
 from sagebench.http_client import Client, HTTPFailure, parse_json, public_url, retried
 from sagebench.navsim.policies import PolicyFailure
-from sagebench.navsim.protocol import Encoding, encode_request, parse_action, request_fields
+from sagebench.navsim.protocol import encode_request, parse_action, request_fields
+from sagebench.settings.rollout import Encoding
 
 
 class RequestFailed(Exception):

@@ -26,21 +26,11 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench.replay.physics import ReplayModel
+from sagebench.settings.rollout import MotionConfig
 
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
-
-
-class MotionConfig(BaseModel):
-    """Collision recovery (the interval itself is the action's)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    recovery_depth: float = Field(default=0.01, ge=0,
-                                  description="An end pose penetrating deeper than this is recovered, m "
-                                              "(validate's penetration tolerance).")
 
 
 @dataclass(frozen=True)

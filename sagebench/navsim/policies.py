@@ -25,7 +25,8 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from sagebench.episodes.episode import Episode
-from sagebench.navsim.actions import Action, ActionConfig
+from sagebench.navsim.actions import Action
+from sagebench.settings.shared import ActionConfig
 
 BUILT_IN = ("oracle", "straight", "random")
 

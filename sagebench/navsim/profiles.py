@@ -26,25 +26,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 
+from sagebench.settings.rollout import PRIVILEGED, EnvConfig, check_profile
 from sagebench.vlnce.vocab import TOKENS_PER_INSTRUCTION
-
-ProfileName = Literal["custom", "vlnce", "sage", "full"]
-PROFILES: tuple[str, ...] = ("custom", "vlnce", "sage", "full")
-PrivilegedKey = Literal["pose", "gps_compass", "instance"]
-PRIVILEGED: tuple[str, ...] = ("pose", "gps_compass", "instance")
-CameraKey = Literal["rgb", "depth"]  # the images a custom profile may name (instance is privileged)
-
-
-class ProfileError(ValueError):
-    """A profile does not allow what was asked; `field` names the setting (profile, width, observations)."""
-
-    def __init__(self, message: str, field: str):
-        super().__init__(message)
-        self.field = field
 
 
 @dataclass(frozen=True)
@@ -136,15 +122,9 @@ def resolve(profile: str, *, width: int | None = None, height: int | None = None
             observations: tuple[str, ...] | None = None, privileged: tuple[str, ...] = ()) -> Sensors:
     """The sensors of `profile` with the sizes and privileged observations asked for (None: the profile's);
     a combination the profile does not allow is a ProfileError saying why."""
+    check_profile(profile, width=width, height=height, observations=observations)
     extra = tuple(k for k in PRIVILEGED if k in privileged)
-    if observations is not None and profile != "custom":
-        raise ProfileError(f"the {profile} profile sets the images itself; observations are for the custom profile",
-                           "observations")
-    if "instance" in (observations or ()):
-        raise ProfileError("instance ids are privileged: ask for them with --privileged instance", "observations")
     if profile == "vlnce":
-        if width is not None or height is not None:
-            raise ProfileError("the vlnce profile's sizes are VLN-CE's (rgb 224x224, depth 256x256)", "width")
         images = {"rgb": VLNCE_RGB, "depth": VLNCE_DEPTH}
         return Sensors("vlnce", _with_instance(images, VLNCE_RGB, extra), VLNCE_DEPTH_FORMAT, tokens=True,
                        bump=False, privileged=extra)
@@ -156,11 +136,15 @@ def resolve(profile: str, *, width: int | None = None, height: int | None = None
     if profile == "full":
         return Sensors("full", {"rgb": size, "depth": size, "instance": size}, DepthFormat(), tokens=True, bump=True,
                        privileged=PRIVILEGED)
-    if profile != "custom":
-        raise ProfileError(f"{profile!r} is not a profile (one of {', '.join(PROFILES)})", "profile")
     keys = ("rgb", "depth") if observations is None else tuple(dict.fromkeys(observations))
     return Sensors("custom", _with_instance({k: size for k in keys}, size, extra), DepthFormat(), tokens=False,
                    bump=True, privileged=extra)
+
+
+def env_sensors(config: EnvConfig) -> Sensors:
+    """The observations an environment's settings give a policy."""
+    return resolve(config.profile, width=config.width, height=config.height, observations=config.observations,
+                   privileged=config.privileged)
 
 
 def _with_instance(images: dict[str, tuple[int, int]], size: tuple[int, int], privileged: tuple[str, ...]

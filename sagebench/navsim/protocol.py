@@ -21,14 +21,13 @@ import io
 import json
 import struct
 from collections.abc import Mapping
-from typing import Literal
 
 import cv2
 import numpy as np
 
 from sagebench.navsim.actions import Action
+from sagebench.settings.rollout import Encoding
 
-Encoding = Literal["raw", "png", "json"]
 ENCODINGS: tuple[str, ...] = ("raw", "png", "json")
 FRAME_TYPE = "application/x-sagebench-frame"
 JSON_TYPE = "application/json"

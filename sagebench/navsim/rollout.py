@@ -15,12 +15,12 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from sagebench.episodes.splits import SPLITS
 from sagebench.errors import ConfigError
 from sagebench.evaluation.predictions import Prediction
 from sagebench.episodes.episode import Episode
 from sagebench.navsim.policies import Policy, PolicyFailure
 from sagebench.navsim.simulator import Simulator
+from sagebench.settings.shared import SPLITS
 
 SHEET_FRAMES = 64  # frames kept per sheet episode (every 2^k-th), enough to pick its middle
 

@@ -17,64 +17,21 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from sagebench.config import CameraConfig
 from sagebench.evaluation.predictions import Prediction
 from sagebench.episodes.episode import Episode
 from sagebench.metrics.on_foot import GoalField, distances_on_foot
-from sagebench.navsim.actions import ActionConfig, beyond_limits, continuous_commands, discrete_commands
-from sagebench.navsim.motion import Agents, MotionConfig, wrap
+from sagebench.navsim.actions import continuous_commands, discrete_commands
+from sagebench.navsim.motion import Agents, wrap
 from sagebench.navsim.observe import observe
-from sagebench.navsim.profiles import PrivilegedKey, ProfileName, Sensors, gps_compass, resolve
+from sagebench.navsim.profiles import Sensors, env_sensors, gps_compass
 from sagebench.navsim.world import World, open_world, run_episodes, run_vocabulary
-from sagebench.render.backends import RendererChoice
 from sagebench.replay.contact import ContactProbe
-from sagebench.replay.physics import ReplayConfig
+from sagebench.settings.rollout import EnvConfig
 
 POSE_DECIMALS = 6  # predictions are written to the micrometre / microradian
-
-
-class EnvConfig(BaseModel):
-    """The closed-loop environment's settings (defaults here, nowhere else)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    profile: ProfileName = Field(default="custom", description="Observation profile: custom, vlnce, sage or full "
-                                                               "(sagebench.navsim.profiles).")
-    width: int | None = Field(default=None, ge=1, le=4096, description="Image width, px (default: the profile's).")
-    height: int | None = Field(default=None, ge=1, le=4096, description="Image height, px (default: the profile's).")
-    camera: CameraConfig = CameraConfig()
-    observations: tuple[str, ...] | None = Field(
-        default=None, description="custom profile: images to render, of rgb and depth (default both; none: the "
-                                  "instruction only).")
-    privileged: tuple[PrivilegedKey, ...] = Field(
-        default=(), description="Privileged observations to add: pose, gps_compass, instance (full has them all).")
-    success_distance: float | None = Field(
-        default=None, gt=0, description="Success radius instead of each episode's goal_radius, m.")
-    max_steps: int = Field(default=500, ge=1, description="Actions per episode before it is cut off.")
-    action_space: Literal["discrete", "continuous"] = Field(default="discrete", description="Which action space.")
-    actions: ActionConfig = ActionConfig()
-    motion: MotionConfig = MotionConfig()
-    replay: ReplayConfig = ReplayConfig()
-    renderer: RendererChoice = Field(default="auto", description=(
-        "Renderer backend: gsplat on a CUDA GPU when installed (auto), else the CPU splat renderer."))
-
-    @model_validator(mode="after")
-    def _checked(self) -> EnvConfig:
-        self.sensors()  # the profile allows the observations asked for
-        problem = beyond_limits(self.actions, self.replay)
-        if problem:
-            raise ValueError(problem)
-        return self
-
-    def sensors(self) -> Sensors:
-        """The observations this config gives a policy."""
-        return resolve(self.profile, width=self.width, height=self.height, observations=self.observations,
-                       privileged=self.privileged)
 
 
 @dataclass
@@ -131,7 +88,7 @@ class Simulator:
     def __init__(self, run_dir: Path, config: EnvConfig = EnvConfig(), *, scene_id: str | None = None,
                  threads: int = 1):
         self.run_dir, self.config, self.threads = Path(run_dir), config, threads
-        self.sensors = config.sensors()
+        self.sensors = env_sensors(config)
         episodes, self.instructions = run_episodes(self.run_dir, scene_id)
         if config.success_distance is not None:
             episodes = [replace(e, goal_radius=config.success_distance) for e in episodes]

@@ -14,8 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from sagebench.evaluation.scoring import Episode
-from sagebench.navsim.actions import Action, ActionConfig
+from sagebench.navsim.actions import Action
 from sagebench.navsim.policies import Oracle
+from sagebench.settings.shared import ActionConfig
 
 MAX_ACTIONS = 100_000  # a reference path the oracle has not finished by then is a bug, not a long path
 

@@ -15,9 +15,10 @@ from sagebench.episodes.episode import Episode
 from sagebench.metrics.on_foot import NavigableMap
 from sagebench.render.backends import Renderer, open_renderer
 from sagebench.render.chunks import PackedGaussians, pack
-from sagebench.replay.physics import ReplayConfig, ReplayModel
+from sagebench.replay.physics import ReplayModel
 from sagebench.replay.scene_model import open_replay_model
 from sagebench.run_layout import GAUSSIANS, TOPDOWN, run_episodes_dir, run_scene_dir, run_scenes
+from sagebench.settings.shared import ReplayConfig
 from sagebench.topdown.grid_file import read_topdown_grids
 from sagebench.vlnce.vocab import Vocabulary
 

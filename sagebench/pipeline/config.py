@@ -1,44 +1,16 @@
-"""The TOML run config of `sagebench run`: which scenes, where to, and each stage's settings."""
+"""Reading the TOML run config of `sagebench run` (its model: sagebench/settings/run.py) and finding its scenes."""
 
 from __future__ import annotations
 
 import glob
 import tomllib
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import ValidationError
 
-from sagebench.collider_export.config import ExportConfig
-from sagebench.episodes.config import GenTrajectoriesConfig
 from sagebench.errors import ConfigError, first_error
-from sagebench.topdown.config import BuildSceneConfig
-from sagebench.validation.config import ValidateConfig
-
-# Settings that change how fast a run goes but never what it writes; they stay out of the manifest.
-EXECUTION_KEYS = frozenset({"out", "workers", "executor", "ray_address", "cache_dir"})
-
-
-class RunConfig(BaseModel):
-    """A multi-scene run. Relative paths are relative to the config file's directory."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    scenes: list[str] = Field(min_length=1, description="Scene directories or glob patterns.")
-    out: Path = Field(description="Run directory.")
-    seed: int | None = Field(default=None, description="When set, the seed of every stage that has none of its own.")
-    workers: int = Field(default=1, ge=1, description="Scene-stage tasks run at once (local executor).")
-    executor: Literal["local", "ray"] = "local"
-    ray_address: str | None = Field(default=None, description="Ray cluster address; none starts a local Ray.")
-    cache_dir: Path | None = Field(default=None, description="CoACD cache (default: the user cache directory).")
-    build_scene: BuildSceneConfig = BuildSceneConfig()
-    gen_trajectories: GenTrajectoriesConfig = GenTrajectoriesConfig()
-    export_usd: ExportConfig = ExportConfig()
-    validate_: ValidateConfig = Field(default=ValidateConfig(), alias="validate")
-
-    def outputs_config(self) -> dict[str, Any]:
-        """What determines the outputs (the manifest's `config`): everything but execution settings."""
-        return self.model_dump(mode="json", by_alias=True, exclude=set(EXECUTION_KEYS))
+from sagebench.settings.run import RunConfig
 
 
 def load_run_config(path: Path, **overrides: Any) -> RunConfig:

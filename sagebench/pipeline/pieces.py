@@ -51,7 +51,8 @@ class PieceOutcome:
 def plan_export(task: Task) -> tuple[PieceTask, ...]:
     """The pieces of TASK's export (an export_usd Task) missing from the cache, one per cache key; none when the
     stage is up to date, or when the scene cannot be read (its export task then reports why). Never raises."""
-    from sagebench.stages.export_usd import ExportConfig, part_cache, scene_pieces
+    from sagebench.settings.export_usd import ExportConfig
+    from sagebench.stages.export_usd import part_cache, scene_pieces
 
     try:
         with ui.collect_warnings():
@@ -73,7 +74,7 @@ def plan_export(task: Task) -> tuple[PieceTask, ...]:
 
 def run_piece(task: PieceTask) -> PieceOutcome:
     """Decompose one piece into the cache; never raises (a failed piece is decomposed again by its export)."""
-    from sagebench.collider_export.methods import ColliderSettings
+    from sagebench.settings.export_usd import ColliderSettings
     from sagebench.stages.export_usd import decompose_piece
 
     start = time.perf_counter()

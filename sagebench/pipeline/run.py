@@ -12,7 +12,7 @@ from pathlib import Path
 from sagebench import ui
 from sagebench.episodes.card import card_text
 from sagebench.errors import ConfigError
-from sagebench.pipeline.config import RunConfig, resolve_scenes
+from sagebench.pipeline.config import resolve_scenes
 from sagebench.pipeline.executors import make_executor
 from sagebench.pipeline.kernels import compile_kernels
 from sagebench.pipeline.pieces import PieceOutcome
@@ -25,6 +25,7 @@ from sagebench.run_layout import (
 )
 from sagebench.run_folder import check_scenes_apart, claim_run_dir
 from sagebench.scene.loader import parse_spec
+from sagebench.settings.run import RunConfig
 
 
 @dataclass

@@ -19,11 +19,15 @@ from sagebench import stamps
 from sagebench.run_layout import run_scenes, stage_files
 
 if TYPE_CHECKING:
-    from sagebench.stages.build_scene import BuildSceneConfig, BuildSceneResult
-    from sagebench.stages.export_usd import ExportConfig, ExportResult
+    from sagebench.settings.build_scene import BuildSceneConfig
+    from sagebench.settings.export_usd import ExportConfig
+    from sagebench.settings.import_sage_episodes import SageImportConfig
+    from sagebench.settings.validate import ValidateConfig
+    from sagebench.stages.build_scene import BuildSceneResult
+    from sagebench.stages.export_usd import ExportResult
     from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, SceneEpisodes
-    from sagebench.stages.import_sage import SageImport, SageImportConfig
-    from sagebench.stages.validate import SceneValidation, ValidateConfig
+    from sagebench.stages.import_sage import SageImport
+    from sagebench.stages.validate import SceneValidation
 
 R = TypeVar("R")
 

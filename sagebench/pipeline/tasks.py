@@ -47,7 +47,8 @@ class Outcome:
 
 
 def _run_build(t: Task) -> tuple[str, bool]:
-    from sagebench.stages.build_scene import BuildSceneConfig, build_scene
+    from sagebench.settings.build_scene import BuildSceneConfig
+    from sagebench.stages.build_scene import build_scene
 
     return build_scene(t.source, t.run_dir, BuildSceneConfig.model_validate(t.settings)).summary(), True
 
@@ -60,7 +61,8 @@ def _run_gen(t: Task) -> tuple[str, bool]:
 
 
 def _run_export(t: Task) -> tuple[str, bool]:
-    from sagebench.stages.export_usd import ExportConfig, export_usd
+    from sagebench.settings.export_usd import ExportConfig
+    from sagebench.stages.export_usd import export_usd
 
     (result,) = export_usd(t.run_dir, scene_id=t.scene_id, config=ExportConfig.model_validate(t.settings),
                            cache_dir=t.cache_dir)
@@ -68,7 +70,8 @@ def _run_export(t: Task) -> tuple[str, bool]:
 
 
 def _run_validate(t: Task) -> tuple[str, bool]:
-    from sagebench.stages.validate import ValidateConfig, validate_run
+    from sagebench.settings.validate import ValidateConfig
+    from sagebench.stages.validate import validate_run
 
     (result,) = validate_run(t.run_dir, ValidateConfig.model_validate(t.settings), scene_id=t.scene_id,
                              against_records=False)  # run: the stamps vouch for its inputs; the manifest comes after

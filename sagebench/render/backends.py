@@ -16,7 +16,7 @@ import sys
 from collections.abc import Collection, Sequence
 from importlib import metadata
 from pathlib import Path
-from typing import Literal, Protocol
+from typing import Protocol
 
 import numpy as np
 
@@ -28,7 +28,6 @@ from sagebench.render.gaussians import Gaussians
 from sagebench.render.observations import fields_for, observation_arrays
 from sagebench.render.splat_reference import Frame
 
-RendererChoice = Literal["auto", "cpu", "gsplat"]
 CHOICES: tuple[str, ...] = ("auto", "cpu", "gsplat")
 Background = tuple[float, float, float]
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sagebench.config import CameraConfig
+from sagebench.settings.shared import CameraConfig
 
 
 @dataclass(frozen=True)

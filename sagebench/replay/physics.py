@@ -34,9 +34,8 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
 
-from sagebench.config import AgentConfig
+from sagebench.settings.shared import AgentConfig, ReplayConfig
 
 AGENT_BODY = "sagebench_agent"
 HEADING_BODY = "sagebench_agent_heading"
@@ -49,24 +48,6 @@ LATERAL_FORCE_FRACTION = 0.1  # of the forward force cap
 PRISM_SIDES = 32
 _CONTACT_DATA = 1 | 8  # contact sensor fields: found, dist (mjtConDataField bits)
 _REDUCE_MINDIST = 1
-
-
-class ReplayConfig(BaseModel):
-    """The replay's physics step and the path-following controller's limits."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    timestep: float = Field(default=0.05, gt=0, le=0.2, description="Physics and control step, s.")
-    max_speed: float = Field(default=0.8, gt=0, description="Forward speed limit, m/s.")
-    max_turn_rate: float = Field(default=1.5, gt=0, description="Turn-rate limit, rad/s.")
-    turn_in_place: float = Field(default=0.1, gt=0, lt=math.pi / 2,
-                                 description="Heading error above which the agent turns without driving, rad.")
-    waypoint_tolerance: float = Field(default=0.02, gt=0, description="A waypoint counts as reached this close, m.")
-    yaw_tolerance: float = Field(default=1e-3, gt=0, description="A turn-in-place waypoint's yaw is reached this close, rad.")
-    time_factor: float = Field(default=1.5, ge=1, description="Time limit = time_factor x ideal time + time_slack.")
-    time_slack: float = Field(default=3.0, ge=0, description="Seconds added to the time limit.")
-    stall_time: float = Field(default=2.0, gt=0,
-                              description="The replay stops when the agent came no nearer its waypoint for this long, s.")
 
 
 @dataclass(frozen=True)

@@ -8,9 +8,10 @@ from pathlib import Path
 import mujoco
 
 from sagebench.errors import DataError
-from sagebench.replay.physics import ReplayConfig, ReplayModel, build_replay_model
+from sagebench.replay.physics import ReplayModel, build_replay_model
 from sagebench.run_layout import MJCF, REPLAY_MODEL, SCENE_FILE, SEMANTIC_MAP, require, run_scene_dir
 from sagebench.scene.loader import parse_spec
+from sagebench.settings.shared import ReplayConfig
 from sagebench.topdown.semantic_map import read_semantic_map
 
 

@@ -10,7 +10,8 @@ from pathlib import Path
 
 from sagebench.errors import ConfigError
 from sagebench.evaluation.scoring import EpisodeScore
-from sagebench.stages.evaluate import Evaluation, evaluate, make_config
+from sagebench.settings.evaluate import EvaluateConfig
+from sagebench.stages.evaluate import Evaluation, evaluate
 
 
 @dataclass(frozen=True)
@@ -35,7 +36,7 @@ def score_agents(run_dir: Path, predictions: Sequence[Path], scene_id: str | Non
     if len(seen) < len(paths):
         raise ConfigError("a predictions file is given twice", field="--predictions")
     names = agent_names(paths)
-    config = make_config(allow_missing=True)
+    config = EvaluateConfig(allow_missing=True)
     return [Agent(name, evaluate(run_dir, p, config, scene_id=scene_id)) for name, p in zip(names, paths)]
 
 

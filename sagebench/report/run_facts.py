@@ -13,12 +13,12 @@ import pyarrow.parquet as pq
 from sagebench.episodes.card import card_licence, scene_licences, size_category
 from sagebench.episodes.episode import NO_LEVEL
 from sagebench.episodes.shards import read_episodes
-from sagebench.episodes.splits import SPLITS
 from sagebench.errors import DataError
 from sagebench.run_layout import (
     CONTRACT, DATASET_CARD, MANIFEST, REPORT, TOPDOWN, TOPDOWN_PNG, VALIDATION_SHARD, require, run_episodes_dir,
     run_reports_dir, run_scene_dir, run_scenes, run_validation_dir,
 )
+from sagebench.settings.shared import SPLITS
 from sagebench.topdown.grid_file import TopdownGrids, read_topdown_grids
 
 

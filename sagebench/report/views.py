@@ -7,7 +7,8 @@ from __future__ import annotations
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 
-from sagebench.stages.render import RenderConfig, jpeg_bytes, render_views
+from sagebench.settings.render import RenderConfig
+from sagebench.stages.render import jpeg_bytes, render_views
 
 Pose = tuple[float, float, float]  # x, y, yaw
 CHUNK = 64  # views rendered at once: the frames of a chunk are in memory together

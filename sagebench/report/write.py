@@ -12,40 +12,19 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from pydantic import BaseModel, ConfigDict, Field
-
 from sagebench import ui
-from sagebench.config import from_options
 from sagebench.fileio import listed_files, remove_unlisted, write_bytes, write_json
-from sagebench.render.backends import RendererChoice
 from sagebench.report import pages
 from sagebench.report.agents import Agent, score_agents
 from sagebench.report.html import CSS, CSS_FILE, JS, JS_FILE
 from sagebench.report.run_facts import RunFacts, SceneFacts, read_run
 from sagebench.report.svg import map_frame
 from sagebench.report.views import render_thumbnails, start_and_goal
-from sagebench.stages.render import RenderConfig
+from sagebench.settings.render import RenderConfig
+from sagebench.settings.report import ReportConfig
 
 REPORT_INDEX = "report.json"
 THUMBNAIL = (160, 120)  # the start and goal views, px
-
-
-class ReportConfig(BaseModel):
-    """Settings of report (defaults here, nowhere else); the CLI maps its options onto these fields."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    views: bool = Field(default=True, description="Render each trajectory's start and goal views from the Gaussians.")
-    renderer: RendererChoice = Field(default="cpu", description="Renderer of the views: cpu, gsplat or auto.")
-
-
-# report's options and the ReportConfig fields they set
-OPTIONS = {"--no-views": "views", "--renderer": "renderer"}
-
-
-def make_config(**fields: object) -> ReportConfig:
-    """A ReportConfig from the options given (None = keep the default); a bad value is a ConfigError."""
-    return from_options(ReportConfig, fields, OPTIONS)
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,6 @@ from scipy import ndimage
 from shapely import affinity
 from shapely.geometry import Polygon, box as rect
 
-from sagebench.config import AgentConfig
 from sagebench.errors import ConfigError
 from sagebench.fileio import dumps_json, staged_dir, write_bytes
 from sagebench.input_files import read_regular
@@ -29,6 +28,7 @@ from sagebench.scene import assets
 from sagebench.scene.furniture import CATEGORY_NOUNS, Catalogue, CatalogueEntry
 from sagebench.scene.loader import SCENE_FILE, yaw_quaternion
 from sagebench.scene.model import Door, Room, SceneObject, SceneSpec, Transform
+from sagebench.settings.shared import AgentConfig
 
 WALL_T = 0.1  # wall thickness, m
 CEILING = 2.7  # m

@@ -16,13 +16,13 @@ import shapely
 from shapely.geometry import Polygon
 
 from sagebench import ui
-from sagebench.config import CameraConfig
 from sagebench.errors import DataError, SceneError
 from sagebench.render.camera import Camera, agent_camera
 from sagebench.render.gaussians import Gaussians, concat
 from sagebench.scene.loader import SCENE_FILE, LoadedScene, frame_matrix, parse_spec
+from sagebench.settings.build_scene import SplatConfig
+from sagebench.settings.shared import CameraConfig
 from sagebench.splats.assign import assign_instances
-from sagebench.splats.config import SplatConfig
 from sagebench.splats.from_mesh import mesh_gaussians, rotmat_to_quat
 from sagebench.splats.ply import read_ply
 from sagebench.splats.prune import PruneReport, prune

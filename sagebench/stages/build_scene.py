@@ -12,33 +12,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sagebench.config import from_options
 from sagebench.fileio import dumps_json, staged_dir, write_bytes
 from sagebench.run_layout import GAUSSIANS, SEMANTIC_MAP, TOPDOWN, TOPDOWN_PNG, run_scene_dir
 from sagebench.scene.checks import check_floor_known
 from sagebench.scene.loader import SCENE_FILE, LoadedScene, load_scene, write_normalised_scene
-from sagebench.topdown.config import BuildSceneConfig
+from sagebench.settings.build_scene import BuildSceneConfig
 
 if TYPE_CHECKING:
     from sagebench.render.gaussians import Gaussians
     from sagebench.splats.prune import PruneReport
     from sagebench.topdown.raster import Grid
     from sagebench.topdown.semantic_map import RoomReach
-
-# build-scene's options and the BuildSceneConfig fields they set (their defaults and error names come from here)
-OPTIONS = {"--resolution": "resolution", "--band-min": "agent.clearance", "--band-max": "agent.height",
-           "--sample-density": "sample_density", "--wall-gap": "wall_gap", "--agent-radius": "agent.radius",
-           "--seed": "seed", "--object-density": "splats.object_density",
-           "--structure-density": "splats.structure_density", "--prune": "splats.prune"}
-
-
-def make_config(*, agent_radius: float | None = None, band_min: float | None = None, band_max: float | None = None,
-                prune: float | None = None, object_density: float | None = None,
-                structure_density: float | None = None, **fields: object) -> BuildSceneConfig:
-    """A BuildSceneConfig from the options given (None = keep the default); a bad value is a ConfigError."""
-    given = {**fields, "agent": {"radius": agent_radius, "clearance": band_min, "height": band_max},
-             "splats": {"prune": prune, "object_density": object_density, "structure_density": structure_density}}
-    return from_options(BuildSceneConfig, given, OPTIONS)
 
 
 @dataclass(frozen=True)

@@ -14,15 +14,12 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench import ui
-from sagebench.config import from_options
 from sagebench.episodes.episode import Episode
 from sagebench.episodes.load import load_episodes
-from sagebench.episodes.splits import SPLITS
 from sagebench.errors import ConfigError, DataError
-from sagebench.evaluation.intensity import ICP_NOTE, STEP_REPLAY, derive_intensity
+from sagebench.evaluation.intensity import ICP_NOTE, derive_intensity
 from sagebench.evaluation.pictures import write_pictures
 from sagebench.evaluation.predictions import Prediction, check_on_map, match_episodes, read_predictions
 from sagebench.evaluation.record import RolloutRecord, read_record, record_path
@@ -31,38 +28,15 @@ from sagebench.evaluation.scoring import (
 )
 from sagebench.fileio import write_json
 from sagebench.input_files import read_regular
-from sagebench.metrics import MetricConfig, NavigableMap
-from sagebench.replay.physics import ReplayConfig, ReplayModel
+from sagebench.metrics import NavigableMap
+from sagebench.replay.physics import ReplayModel
 from sagebench.replay.scene_model import open_replay_model
 from sagebench.run_folder import Output, claim_output_file
 from sagebench.run_layout import SEMANTIC_MAP, TOPDOWN, run_scene_dir
+from sagebench.settings.evaluate import EvaluateConfig
+from sagebench.settings.shared import SPLITS
 from sagebench.topdown.grid_file import read_topdown_grids
 from sagebench.topdown.semantic_map import read_semantic_map
-
-
-class EvaluateConfig(BaseModel):
-    """Settings of evaluate (defaults here, nowhere else); the CLI maps its options onto these fields."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    metrics: MetricConfig = MetricConfig()
-    replay: ReplayConfig = STEP_REPLAY
-    start_tolerance: float = Field(
-        default=0.10, gt=0, description="The first pose must lie this close to the episode's start (XY), m.")
-    allow_missing: bool = Field(default=False, description="Score episodes without a prediction as failures.")
-    all_episodes: bool = Field(default=False, description="Score every episode of the run (or --scene/--split), "
-                                                          "not only those the rollout was asked to run.")
-    workers: int = Field(default=2, ge=1, description="Threads replaying poses for collision intensity.")
-
-
-# evaluate's options and the EvaluateConfig fields they set (their defaults and error names come from here)
-OPTIONS = {"--workers": "workers", "--start-tolerance": "start_tolerance", "--allow-missing": "allow_missing",
-           "--all-episodes": "all_episodes"}
-
-
-def make_config(**fields: object) -> EvaluateConfig:
-    """A EvaluateConfig from the options given (None = keep the default); a bad value is a ConfigError."""
-    return from_options(EvaluateConfig, fields, OPTIONS)
 
 
 # ---------------------------------------------------------------- inputs

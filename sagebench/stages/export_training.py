@@ -11,19 +11,9 @@ import time
 from pathlib import Path
 
 from sagebench import ui
-from sagebench.config import from_options
+from sagebench.settings.export_training import TrainingExportConfig
 from sagebench.threads import share_cores
-from sagebench.training.export import TrainingExport, TrainingExportConfig, export_training
-
-# export-training's options and the TrainingExportConfig fields they set (defaults and error names come from there)
-OPTIONS = {"--split": "split", "--depth": "depth", "--width": "width", "--height": "height", "--renderer": "renderer",
-           "--episodes-per-shard": "episodes_per_shard", "--batch": "batch", "--workers": "workers",
-           "--navila": "navila"}
-
-
-def make_config(**fields: object) -> TrainingExportConfig:
-    """A TrainingExportConfig from the options given (None = default); a bad value is a ConfigError naming it."""
-    return from_options(TrainingExportConfig, fields, OPTIONS)
+from sagebench.training.export import TrainingExport, export_training
 
 
 def run_export_training(run_dir: Path, out: Path, config: TrainingExportConfig) -> TrainingExport:

@@ -14,42 +14,17 @@ from pathlib import Path
 
 from sagebench import ui
 from sagebench.collider_export.coacd_cache import PartCache, PieceResult
-from sagebench.collider_export.config import ExportConfig
 from sagebench.collider_export.free_floor import FloorMap
-from sagebench.collider_export.methods import ColliderSettings
 from sagebench.collider_export.pieces import Piece, decompose_pieces
 from sagebench.collider_export.scene_export import ExportResult, build_export, plan_scene_pieces
-from sagebench.config import from_options
 from sagebench.fileio import staged_dir, write_bytes, write_text
 from sagebench.render.gaussians import Gaussians
 from sagebench.run_layout import (COLLIDERS, GAUSSIANS, MJCF, NUREC, SAGE, SEMANTIC_MAP, TOPDOWN, USDZ, run_scene_dir,
                                    run_scenes)
 from sagebench.scene.loader import load_scene
+from sagebench.settings.export_usd import ColliderSettings, ExportConfig
 from sagebench.topdown.grid_file import read_topdown_grids
 from sagebench.topdown.semantic_map import read_semantic_map
-
-
-# export-usd's options and the ExportConfig fields they set (their defaults and error names come from here)
-OPTIONS = {"--colliders": "colliders.mode", "--max-parts": "colliders.max_parts",
-           "--piece-limit": "colliders.piece_limit_s", "--band-tolerance": "colliders.band_tolerance_cm",
-           "--coacd-threshold": "colliders.coacd.threshold",
-           "--coacd-max-faces": "colliders.coacd_max_faces", "--coacd-max-hulls": "colliders.coacd.max_convex_hull",
-           "--coacd-preprocess": "colliders.coacd.preprocess_mode", "--workers": "workers", "--usdz": "usdz",
-           "--gaussians": "gaussians", "--layout": "layout"}
-
-
-def make_config(
-    *, colliders: str | None = None, max_parts: int | None = None, piece_limit: float | None = None,
-    band_tolerance: float | None = None, coacd_threshold: float | None = None, coacd_max_faces: int | None = None,
-    coacd_max_hulls: int | None = None, coacd_preprocess: str | None = None, workers: int | None = None,
-    usdz: bool | None = None, gaussians: str | None = None, layout: str | None = None,
-) -> ExportConfig:
-    """An ExportConfig from the options given (None = keep the default); a bad value is a ConfigError."""
-    coacd = {"threshold": coacd_threshold, "max_convex_hull": coacd_max_hulls, "preprocess_mode": coacd_preprocess}
-    given = {"mode": colliders, "max_parts": max_parts, "piece_limit_s": piece_limit,
-             "band_tolerance_cm": band_tolerance, "coacd_max_faces": coacd_max_faces, "coacd": coacd}
-    return from_options(ExportConfig, {"colliders": given, "workers": workers, "usdz": usdz, "gaussians": gaussians,
-                                       "layout": layout}, OPTIONS)
 
 
 def default_cache_dir() -> Path:

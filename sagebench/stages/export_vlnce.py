@@ -17,13 +17,12 @@ import pyarrow as pa
 
 from sagebench.episodes.load import episode_from_row
 from sagebench.episodes.shards import read_episodes
-from sagebench.episodes.splits import SPLITS
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import write_bytes, write_text
 from sagebench.run_layout import CONTRACT, require, run_episodes_dir, run_scene_dir, run_scenes
 from sagebench.scene.loader import load_scene
-from sagebench.metrics.episode import MetricConfig
 from sagebench.navsim.teacher import teacher_path
+from sagebench.settings.shared import SPLITS, MetricConfig
 from sagebench.vlnce.episodes import dataset_bytes, scene_glb_path
 from sagebench.vlnce.gt import gt_bytes, gt_entry
 from sagebench.vlnce.overrides import DATA, GT, opts_text, vlnce_opts

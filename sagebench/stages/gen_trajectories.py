@@ -8,6 +8,7 @@ directory whole; the preview lives outside episodes/ so that directory reads as 
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -16,8 +17,6 @@ import numpy as np
 
 from sagebench import ui
 from sagebench.astar.sampling import GridMap, SamplingResult, sample_trajectories
-from sagebench.config import from_options
-from sagebench.episodes.config import GenTrajectoriesConfig
 from sagebench.episodes.preview import render_paths
 from sagebench.episodes.rows import episode_rows
 from sagebench.episodes.shards import write_shards
@@ -32,6 +31,8 @@ from sagebench.run_layout import (
 )
 from sagebench.scene.loader import parse_spec
 from sagebench.scene.model import SceneSpec
+from sagebench.settings.gen_trajectories import GenTrajectoriesConfig
+from sagebench.settings.option import from_options, settings_of
 from sagebench.topdown.grid_file import read_topdown_grids
 from sagebench.topdown.semantic_map import SemanticMap, read_semantic_map
 
@@ -39,26 +40,15 @@ if TYPE_CHECKING:
     from sagebench.instructions.llm import LLMInstructor
 
 
-def make_config(**fields: object) -> GenTrajectoriesConfig:
-    """A config from the options given (None = keep the default); a bad value is a ConfigError naming the option.
+def make_config(given: Mapping[str, object]) -> GenTrajectoriesConfig:
+    """The settings from the options given ({"--per-scene": 8}); a bad value is a ConfigError naming the option.
 
     An --llm-* option without --instructions llm is an error even when it repeats the default.
     """
-    llm = fields.get("llm") or {}
-    if isinstance(llm, dict) and llm and fields.get("instructions") != "llm":
-        option = {path: opt for opt, path in OPTIONS.items()}[f"llm.{next(iter(llm))}"]
-        raise ConfigError("used only with --instructions llm", field=option)
-    return from_options(GenTrajectoriesConfig, fields, OPTIONS)
-
-
-# gen-trajectories' options and the GenTrajectoriesConfig fields they set (their defaults and error names come from here)
-OPTIONS = {"--per-scene": "per_scene", "--seed": "seed", "--shard-mb": "shard_mb", "--instructions": "instructions",
-           "--min-geodesic": "min_geodesic_m", "--max-geodesic": "max_geodesic_m", "--goal-radius": "goal_radius_m",
-           "--llm-base-url": "llm.base_url", "--llm-model": "llm.model", "--llm-cache-dir": "llm.cache_dir",
-           "--llm-concurrency": "llm.concurrency", "--llm-timeout": "llm.timeout_s", "--llm-attempts": "llm.max_attempts",
-           "--llm-temperature": "llm.temperature", "--llm-max-tokens": "llm.max_tokens",
-           "--llm-min-share": "llm.min_share", "--llm-response-format": "llm.response_format",
-           "--llm-refresh": "llm.refresh"}
+    llm = [s.name for s in settings_of(GenTrajectoriesConfig) if s.path.startswith("llm.") and s.name in given]
+    if llm and given.get("--instructions") != "llm":
+        raise ConfigError("used only with --instructions llm", field=llm[0])
+    return from_options(GenTrajectoriesConfig, given)
 
 
 @dataclass(frozen=True)

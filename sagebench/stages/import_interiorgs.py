@@ -12,19 +12,13 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from sagebench.config import from_options
 from sagebench.errors import ConfigError
 from sagebench.fileio import staged_dir
-from sagebench.importers.config import REPORT_FILE, InteriorGSConfig
+from sagebench.importers.config import REPORT_FILE
 from sagebench.input_files import read_regular
 from sagebench.run_folder import check_scene_out
 from sagebench.run_layout import SCENE_FILE
-
-OPTIONS = {"--voxel": "voxel", "--min-opacity": "min_opacity", "--max-parts": "max_parts"}
-
-
-def make_config(**fields: object) -> InteriorGSConfig:
-    return from_options(InteriorGSConfig, fields, OPTIONS)
+from sagebench.settings.import_interiorgs import InteriorGSConfig
 
 
 @dataclass(frozen=True)

@@ -15,11 +15,7 @@ from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
-from pydantic import BaseModel, ConfigDict, Field
-
-from sagebench.config import from_options
 from sagebench.episodes.shards import write_shards
-from sagebench.episodes.splits import Split
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import staged_dir
 from sagebench.gvln.episodes import SNAP_M, read_gvln, rows_from_gvln
@@ -27,24 +23,11 @@ from sagebench.input_files import read_input
 from sagebench.metrics import NavigableMap
 from sagebench.run_layout import CONTRACT, SCENE_FILE, SCENES, TOPDOWN, require, run_episodes_dir, run_scene_dir
 from sagebench.scene.loader import parse_spec
+from sagebench.settings.import_sage_episodes import SageImportConfig
 from sagebench.stamps import check_reads
 from sagebench.topdown.grid_file import read_topdown_grids
 
 SHARD_BYTES = 128 * 2**20
-OPTIONS = {"--goal-radius": "goal_radius", "--split": "split"}
-
-
-class SageImportConfig(BaseModel):
-    """What a GVLN file does not say about its episodes (defaults here, nowhere else)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    goal_radius: float = Field(default=0.5, gt=0, description="Success radius, m (episodes_adapter.py's default).")
-    split: Split = Field(default="test", description="Split of the rows.")
-
-
-def make_config(**fields: object) -> SageImportConfig:
-    return from_options(SageImportConfig, fields, OPTIONS)
 
 
 @dataclass(frozen=True)

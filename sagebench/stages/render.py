@@ -13,43 +13,18 @@ from pathlib import Path
 import cv2
 import numpy as np
 from numpy.lib import format as npy_format
-from pydantic import BaseModel, ConfigDict, Field
 
-from sagebench.config import CameraConfig, from_options
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import write_bytes
 from sagebench.input_files import read_regular
 from sagebench.png_mark import is_marked, marked
-from sagebench.render.backends import RendererChoice, open_renderer
+from sagebench.render.backends import open_renderer
 from sagebench.render.camera import agent_camera
 from sagebench.render.splat_reference import Frame
 from sagebench.run_folder import Output, claim_output_file
 from sagebench.run_layout import CONTRACT, GAUSSIANS, SCENE_FILE, run_scene_dir
 from sagebench.scene.loader import parse_spec
-
-
-class RenderConfig(BaseModel):
-    """The view: the agent's camera (CameraConfig), tilted by pitch_deg."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    camera: CameraConfig = CameraConfig()
-    pitch_deg: float = Field(default=0.0, gt=-90, lt=90, description="Camera tilt up (negative: down), degrees.")
-    width: int = Field(default=640, ge=1, le=8192, description="Image width, px.")
-    height: int = Field(default=480, ge=1, le=8192, description="Image height, px.")
-    renderer: RendererChoice = Field(default="cpu", description=(
-        "Renderer backend: cpu (the reference), gsplat (CUDA GPU), or auto (gsplat when it can run here)."))
-
-
-# render's options and the RenderConfig fields they set (their defaults and error names come from here)
-OPTIONS = {"--camera-height": "camera.height", "--hfov": "camera.hfov_deg", "--pitch": "pitch_deg",
-           "--width": "width", "--height": "height", "--renderer": "renderer"}
-
-
-def make_render_config(*, camera_height: float | None = None, hfov: float | None = None, **fields: object) -> RenderConfig:
-    """A RenderConfig from the options given (None = default); a bad value is a ConfigError naming the option."""
-    given = {**fields, "camera": {"height": camera_height, "hfov_deg": hfov}}
-    return from_options(RenderConfig, given, OPTIONS)
+from sagebench.settings.render import RenderConfig
 
 
 def parse_pose(text: str) -> tuple[float, float, float]:

@@ -14,16 +14,14 @@ from __future__ import annotations
 import importlib
 import re
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
 
 import cv2
-from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench import ui
 from sagebench.adapters.vlnce import PRESETS, VlnceAgents, body_note, preset_differences, preset_env
-from sagebench.config import from_options
 from sagebench.errors import ConfigError, DataError, Interrupted
 from sagebench.evaluation.record import (
     Observed, RolloutRecord, is_record, is_rollout_predictions, read_record, record_path,
@@ -31,101 +29,45 @@ from sagebench.evaluation.record import (
 from sagebench.fileio import write_bytes
 from sagebench.navsim.http_policy import HttpPolicy
 from sagebench.navsim.policies import BUILT_IN, Policy, built_in
-from sagebench.navsim.profiles import PRIVILEGED, ProfileError, Sensors, resolve
-from sagebench.navsim.protocol import Encoding
+from sagebench.navsim.profiles import Sensors
 from sagebench.navsim.resumable import run_into
 from sagebench.navsim.rollout import contact_sheet, select_episodes
-from sagebench.navsim.simulator import EnvConfig, Simulator
+from sagebench.navsim.simulator import Simulator
 from sagebench.png_mark import is_marked, marked
 from sagebench.run_folder import Output, claim_output_file
+from sagebench.settings.baseline import BaselineConfig
+from sagebench.settings.option import from_options, parsed
+from sagebench.settings.rollout import EnvConfig, ProfileError, RolloutConfig, check_profile
 from sagebench.threads import share_cores
-
-
-class RolloutConfig(BaseModel):
-    """Settings of rollout (defaults here, nowhere else); the CLI maps its options onto these fields."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    policy: str = Field(default="oracle", description="An http(s):// URL of a policy server, oracle, straight, "
-                                                      "random, or vlnce:MODULE:NAME (a VLN-CE agent in-process).")
-    split: str | None = Field(default=None, description="Run only this split's episodes.")
-    episode_ids: tuple[str, ...] = Field(default=(), description="Run only these episodes.")
-    episodes: int | None = Field(default=None, ge=1, description="Run a seeded sample of this many episodes.")
-    seed: int = Field(default=0, description="Seed of the episode sample and of the random policy.")
-    preset: Literal["vlnce"] | None = Field(default=None, description="Another benchmark's settings: vlnce.")
-    workers: int = Field(default=2, ge=1, description="Threads stepping MuJoCo and calling the policy server.")
-    threads: int | None = Field(default=None, ge=1, description="Cores the renderer's threads use (default: every "
-                                                                "core this process may run on).")
-    batch: int = Field(default=8, ge=1, description="Episodes stepped together.")
-    policy_timeout: float = Field(default=60.0, gt=0, description="Deadline of one policy request: connecting, "
-                                                                  "sending and the whole reply, s.")
-    policy_retries: int = Field(default=3, ge=0, description="Retries of a policy request after a connection "
-                                                             "error, with backoff, within its deadline.")
-    policy_encoding: Encoding = Field(default="raw", description="How images go to a policy server: raw, png "
-                                                                 "(RGB as PNG) or json (base64 PNG and .npy).")
-    max_policy_failures: int = Field(default=10, ge=0, description="Episodes the policy may fail before the "
-                                                                   "rollout stops.")
-    sheet_episodes: int = Field(default=4, ge=0, description="Episodes shown on the contact sheet.")
-    env: EnvConfig = EnvConfig()
-
-    def decisive(self) -> dict:
-        """The settings that decide the predictions (the record keeps them for --resume)."""
-        return self.model_dump(mode="json", include={"policy", "seed", "preset", "env"})
 
 
 AGENT_SPEC = re.compile(r"vlnce:(?P<module>[\w.]+):(?P<name>\w+)")  # a VLN-CE agent (class or object) to import
 
-# rollout's options and the RolloutConfig fields they set (their defaults and error names come from here)
-OPTIONS = {"--policy": "policy", "--split": "split", "--episode-id": "episode_ids", "--episodes": "episodes",
-           "--seed": "seed", "--preset": "preset", "--workers": "workers", "--threads": "threads", "--batch": "batch",
-           "--policy-timeout": "policy_timeout", "--policy-retries": "policy_retries",
-           "--policy-encoding": "policy_encoding", "--max-policy-failures": "max_policy_failures",
-           "--profile": "env.profile", "--width": "env.width", "--height": "env.height",
-           "--max-steps": "env.max_steps", "--obs": "env.observations", "--privileged": "env.privileged",
-           "--action-space": "env.action_space", "--renderer": "env.renderer"}
 # options that decide the predictions: a resumed rollout takes them from its record
 DECISIVE_OPTIONS = ("--split", "--episode-id", "--episodes", "--seed", "--preset", "--profile", "--width", "--height",
                     "--max-steps", "--obs", "--privileged", "--action-space")
 PROFILE_FIELDS = {"profile": "--profile", "width": "--width", "observations": "--obs"}
 
 
-def parse_names(text: str, allowed: tuple[str, ...], option: str) -> tuple[str, ...]:
-    """'rgb,depth' -> ('rgb', 'depth'); 'none' -> (); a name not in `allowed` is a ConfigError naming `option`."""
-    names = () if text.strip() == "none" else tuple(p.strip() for p in text.split(",") if p.strip())
-    bad = [n for n in names if n not in allowed]
-    if bad == ["instance"] and option == "--obs":
-        raise ConfigError("instance ids are privileged: ask for them with --privileged instance", field=option)
-    if bad or not text.strip():
-        raise ConfigError(f"{(bad[0] if bad else text)!r} is not one of {', '.join(allowed)} (or none)", field=option)
-    return names
-
-
-def make_config(*, width: int | None = None, height: int | None = None, max_steps: int | None = None,
-                obs: str | None = None, profile: str | None = None, privileged: str | None = None,
-                action_space: str | None = None, renderer: str | None = None, resume: bool = False,
-                **fields: object) -> RolloutConfig:
-    """A RolloutConfig from the options given (None = default); a bad value is a ConfigError naming the option.
-    With `resume`, options that decide the predictions are refused (the record's are used)."""
-    given = {"--width": width, "--height": height, "--max-steps": max_steps, "--obs": obs, "--profile": profile,
-             "--privileged": privileged, "--action-space": action_space,
-             **{opt: fields.get(path) for opt, path in OPTIONS.items() if "." not in path}}
+def make_config(given: Mapping[str, object], *, resume: bool = False) -> RolloutConfig:
+    """A RolloutConfig from the options given ({"--width": 320}; None = default) over --preset's settings; a bad
+    value is a ConfigError naming the option. With `resume`, options that decide the predictions are refused (the
+    record's are used)."""
     if resume:
-        _refuse_on_resume(given, fields.get("policy"))
-    env = {"profile": profile, "width": width, "height": height, "max_steps": max_steps, "action_space": action_space,
-           "renderer": renderer,
-           "observations": parse_names(obs, ("rgb", "depth"), "--obs") if obs is not None else None,
-           "privileged": parse_names(privileged, PRIVILEGED, "--privileged") if privileged is not None else None}
-    preset = fields.get("preset")
+        _refuse_on_resume(given, given.get("--policy"))
+    given = parsed(RolloutConfig, given)
+    preset = given.get("--preset")
     if preset is not None and preset not in PRESETS:
         raise ConfigError(f"{preset!r} is not a preset (one of {', '.join(PRESETS)})", field="--preset")
     base = preset_env(preset) if preset is not None else {}
-    merged = {**base, **{k: v for k, v in env.items() if v is not None}}
+    profile, observations = (given[o] if given.get(o) is not None else base.get(k)
+                             for k, o in (("profile", "--profile"), ("observations", "--obs")))
     try:
-        resolve(merged.get("profile", "custom"), width=width, height=height,
-                observations=merged.get("observations"), privileged=merged.get("privileged") or ())
+        check_profile(profile or "custom", width=given.get("--width"), height=given.get("--height"),
+                      observations=observations)
     except ProfileError as err:
         raise ConfigError(str(err), field=PROFILE_FIELDS[err.field]) from None
-    config = from_options(RolloutConfig, {**fields, "env": merged}, OPTIONS)
+    config = from_options(RolloutConfig, given, {"env": base})
     p = config.policy
     if p not in BUILT_IN and not p.startswith(("http://", "https://")) and not AGENT_SPEC.fullmatch(p):
         raise ConfigError(f"{p!r} is neither an http(s):// URL, vlnce:MODULE:NAME nor one of {', '.join(BUILT_IN)}",
@@ -136,12 +78,11 @@ def make_config(*, width: int | None = None, height: int | None = None, max_step
         raise ConfigError("a VLN-CE agent needs the vlnce profile and discrete actions (--preset vlnce)",
                           field="--profile")
     if p in BUILT_IN and "pose" not in config.env.privileged:  # the baselines steer by the pose: say so
-        env_fields = {**merged, "privileged": (*config.env.privileged, "pose")}
-        config = from_options(RolloutConfig, {**fields, "env": env_fields}, OPTIONS)
+        config = from_options(RolloutConfig, {**given, "--privileged": (*config.env.privileged, "pose")}, {"env": base})
     return config
 
 
-def _refuse_on_resume(given: dict[str, object], policy: object) -> None:
+def _refuse_on_resume(given: Mapping[str, object], policy: object) -> None:
     """A ConfigError for an option that decides the predictions, or a built-in policy, given with --resume."""
     clash = [opt for opt in DECISIVE_OPTIONS if given.get(opt) not in (None, ())]
     if clash:
@@ -301,31 +242,6 @@ def observed(sensors: Sensors, policy: str) -> Observed:
         seen["privileged"] = [*seen["privileged"], "episode"]
         seen["keys"]["episode"] = "the goal and the reference path (a built-in baseline)"
     return Observed.model_validate(seen)
-
-
-class BaselineConfig(BaseModel):
-    """Settings of baseline (defaults here, nowhere else); the CLI maps its options onto these fields."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    agent_name: Literal["oracle", "straight", "random"] = Field(default="oracle", description="Which baseline.")
-    seed: int = Field(default=0, ge=0, description="Seed of the random agent's walks.")
-    max_actions: int = Field(default=500, ge=1, description="Actions per episode before it ends unstopped.")
-    workers: int = Field(default=2, ge=1, description="Threads stepping the MuJoCo agents.")
-
-    def rollout(self) -> RolloutConfig:
-        """The rollout these settings name."""
-        return RolloutConfig(policy=self.agent_name, seed=self.seed, workers=self.workers, sheet_episodes=0,
-                             env=EnvConfig(observations=(), privileged=("pose",), max_steps=self.max_actions))
-
-
-# baseline's options and the BaselineConfig fields they set (their defaults and error names come from here)
-BASELINE_OPTIONS = {"--agent": "agent_name", "--max-actions": "max_actions", "--workers": "workers", "--seed": "seed"}
-
-
-def make_baseline_config(**fields: object) -> BaselineConfig:
-    """A BaselineConfig from the options given (None = keep the default); a bad value is a ConfigError."""
-    return from_options(BaselineConfig, fields, BASELINE_OPTIONS)
 
 
 @dataclass(frozen=True)

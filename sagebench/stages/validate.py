@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from sagebench import ui
-from sagebench.config import from_options
 from sagebench.fileio import dumps_json, staged_dir, write_bytes, write_text
 from sagebench.episodes.load import read_trajectories
 from sagebench.instructions.execution import BlockedMap
+from sagebench.settings.validate import ValidateConfig
 from sagebench.topdown.grid_file import read_topdown_grids
 from sagebench.replay.physics import replay_batch
 from sagebench.replay.scene_model import open_replay_model
@@ -31,20 +31,10 @@ from sagebench.scene.loader import parse_spec
 from sagebench.splats.ply import read_ply
 from sagebench.stamps import check_stamped, stamped_places
 from sagebench.validation.checks import base_action_executable, judge
-from sagebench.validation.config import ValidateConfig
 from sagebench.validation.frames import FrameCheck, pick_frames, spot_checks
 from sagebench.validation.ledger import check_listed
 from sagebench.validation.report import report, table_bytes
 from sagebench.validation.usd_stage import check_stage
-
-# validate's options and the ValidateConfig fields they set (their defaults and error names come from here)
-OPTIONS = {"--frames-per-scene": "frames_per_scene", "--depth-tolerance": "depth_tolerance", "--workers": "workers",
-           "--renderer": "renderer"}
-
-
-def make_config(**fields: object) -> ValidateConfig:
-    """A ValidateConfig from the options given (None = keep the default); a bad value is a ConfigError."""
-    return from_options(ValidateConfig, fields, OPTIONS)
 
 
 @dataclass(frozen=True)

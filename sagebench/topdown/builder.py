@@ -20,12 +20,12 @@ import numpy as np
 import shapely
 from shapely.geometry.base import BaseGeometry
 
-from sagebench.config import AgentConfig
 from sagebench.errors import ConfigError, SceneError
 from sagebench.scene.checks import NO_FLOOR
 from sagebench.scene.loader import SCENE_FILE, LoadedScene
 from sagebench.scene.model import Room, SceneObject, SceneSpec
-from sagebench.topdown.config import BuildSceneConfig
+from sagebench.settings.build_scene import BuildSceneConfig
+from sagebench.settings.shared import AgentConfig
 from sagebench.topdown.footprints import mesh_parts, object_footprints
 from sagebench.topdown.occupancy import blockers, scene_occupancy
 from sagebench.topdown.passages import Passages, open_passages

@@ -23,7 +23,7 @@ from sagebench.ui import track
 
 if TYPE_CHECKING:
     from sagebench.scene.loader import LoadedScene
-    from sagebench.topdown.config import BuildSceneConfig
+    from sagebench.settings.build_scene import BuildSceneConfig
 
 MIN_PART_POINTS = 16  # even a tiny part gets enough samples for a hull
 BAND_SECTION_KINDS = frozenset({"wall"})  # footprint: where they stand in the band (doorways stay open), not hulls

@@ -7,10 +7,10 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from sagebench.config import AgentConfig
 from sagebench.errors import DataError, first_error
 from sagebench.input_files import read_input
 from sagebench.scene.model import DoorState, Kind
+from sagebench.settings.shared import AgentConfig
 
 XY = tuple[float, float]
 DECIMALS = 4  # lengths in semantic_map.json are rounded to 0.1 mm: stable text, far below a grid cell

@@ -17,7 +17,8 @@ import math
 
 import numpy as np
 
-from sagebench.navsim.actions import Action, ActionConfig
+from sagebench.navsim.actions import Action
+from sagebench.settings.shared import ActionConfig
 
 
 def path_actions(path: np.ndarray, start_yaw: float, config: ActionConfig = ActionConfig()) -> list[Action]:

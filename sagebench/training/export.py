@@ -22,20 +22,18 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from sagebench import __version__
-from sagebench.config import CameraConfig
-from sagebench.episodes.splits import SPLITS
 from sagebench.errors import ConfigError
 from sagebench.fileio import dumps_json, remove_temporaries, write_text
-from sagebench.navsim.actions import Action, ActionConfig
-from sagebench.navsim.simulator import EnvConfig, Simulator
-from sagebench.render.backends import RendererChoice, choose_backend
+from sagebench.navsim.actions import Action
+from sagebench.navsim.simulator import Simulator
+from sagebench.render.backends import choose_backend
 from sagebench.run_layout import (
     COLLIDERS, COLLIDERS_INDEX, GAUSSIANS, MJCF, SHARDS, TOPDOWN, run_episodes_dir, run_scene_dir,
 )
 from sagebench.run_folder import claim_export_dir
+from sagebench.settings.export_training import TrainingExportConfig
 from sagebench.training.actions import path_actions
 from sagebench.training.navila import write_navila
 from sagebench.training.shards import chunks, depth_png, open_shard, rgb_png, sample_json, sample_key, shard_samples
@@ -45,36 +43,6 @@ INDEX_FILE = "index.json"
 SHARD_DIR = "shards"
 FORMAT = "sagebench-training-webdataset/1"
 NOT_IN_SHARDS = {"renderer", "batch", "workers", "navila"}  # recorded as the backend used, or not shaping the shards
-
-
-class TrainingExportConfig(BaseModel):
-    """Settings of export-training (defaults here, nowhere else)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    split: str | None = Field(default=None, description="Only this split's episodes (default: every split).")
-    depth: bool = Field(default=False, description="Also write each view's expected depth.")
-    width: int = Field(default=224, ge=8, le=4096, description="View width, px.")
-    height: int = Field(default=224, ge=8, le=4096, description="View height, px.")
-    renderer: RendererChoice = Field(default="auto", description="Renderer: auto, cpu or gsplat.")
-    episodes_per_shard: int = Field(default=32, ge=1, description="Episodes per tar shard.")
-    batch: int = Field(default=8, ge=1, description="Episodes stepped (and rendered) together.")
-    workers: int = Field(default=2, ge=1, description="Threads stepping MuJoCo.")
-    navila: bool = Field(default=False, description="Also write NaVILA's layout (navila/) from the shards.")
-    camera: CameraConfig = CameraConfig()  # the body is the one the run's maps were built for
-    actions: ActionConfig = ActionConfig()
-
-    @field_validator("split")
-    @classmethod
-    def _known_split(cls, value: str | None) -> str | None:
-        if value is not None and value not in SPLITS:
-            raise ValueError(f"{value!r} is not one of {', '.join(SPLITS)}")
-        return value
-
-    def env(self) -> EnvConfig:
-        return EnvConfig(width=self.width, height=self.height, camera=self.camera, actions=self.actions,
-                         observations=("rgb", "depth") if self.depth else ("rgb",), privileged=("pose",),
-                         max_steps=1_000_000, renderer=self.renderer)
 
 
 @dataclass(frozen=True)

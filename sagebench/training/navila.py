@@ -17,7 +17,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from sagebench.fileio import dumps_json, staged_dir, write_bytes, write_text
-from sagebench.navsim.actions import ActionConfig
+from sagebench.settings.shared import ActionConfig
 
 SAMPLES_PER_PART = 10000  # create_navila_dataset.py's default
 NAVILA_DIR = "navila"

@@ -20,29 +20,18 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench.instructions.execution import BlockedMap, execute_sentence
-from sagebench.metrics import MetricConfig, score_episode
+from sagebench.metrics import score_episode
 from sagebench.metrics.polyline import distance_to_polyline, path_length
 from sagebench.replay.physics import ReplayRecord
+from sagebench.settings.shared import MetricConfig
+from sagebench.settings.validate import CheckConfig
 
 if TYPE_CHECKING:
     from sagebench.episodes.load import Trajectory
 
 REASONS = ("collision", "goal_not_reached", "left_corridor", "incomplete", "instruction_not_executable")
-
-
-class CheckConfig(BaseModel):
-    """Tolerances of the verdict."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    penetration_tolerance: float = Field(
-        default=0.01, ge=0, description="Deepest contact allowed, m (MuJoCo soft-contact slack; reference paths keep clear).")
-    deviation_tolerance: float = Field(
-        default=0.10, ge=0, description="How far contact may push the agent off the commanded polyline, m.")
-    min_csr: float = Field(default=1.0, ge=0, le=1, description="Lowest CSR that passes.")
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ from sagebench import ui
 from sagebench.episodes.load import Trajectory
 from sagebench.replay.physics import AGENT_BODY, ReplayModel, ReplayRecord
 from sagebench.run_layout import CONTACT_SHEET, FRAMES
-from sagebench.validation.config import ValidateConfig
+from sagebench.settings.validate import ValidateConfig
 
 if TYPE_CHECKING:
     from sagebench.render.gaussians import Gaussians

@@ -10,8 +10,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from sagebench.episodes.load import Trajectory
+from sagebench.settings.validate import ValidateConfig
 from sagebench.validation.checks import REASONS, Verdict
-from sagebench.validation.config import ValidateConfig
 from sagebench.validation.frames import FrameCheck
 
 METRICS = ("csr", "icp", "ps", "ndtw", "final_distance", "path_length", "max_penetration", "max_deviation", "steps")
