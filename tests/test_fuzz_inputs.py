@@ -678,7 +678,7 @@ PREDICTION_CASES: list[tuple[str, Callable[[Path], None], str]] = [
     ("missing-rows", _pred(lambda rows: "".join(json.dumps(r) + "\n" for r in rows[1:])),
      "pred.jsonl: 1 of 12 episodes have no prediction"),
     ("not-utf8", lambda run: (run / "baselines" / "pred.jsonl").write_bytes(b"\xff\xfe{}\n"), "pred.jsonl: cannot read"),
-    ("a-directory", lambda run: (run / "baselines" / "pred.jsonl").mkdir(), "pred.jsonl: cannot read"),
+    ("a-directory", lambda run: (run / "baselines" / "pred.jsonl").mkdir(), "pred.jsonl: is a directory, not a file"),
     ("deleted", lambda run: None, "pred.jsonl: does not exist"),
 ]
 
