@@ -257,11 +257,6 @@ SCENE_CASES = [(cid, _as_text(spec), f"scene.json: {field}: ") for cid, spec, fi
 SCENE_CASES += [(cid, _as_text(spec), expect) for cid, spec, expect in MEANING_CASES]
 
 
-@pytest.fixture(scope="module")
-def tiny_scene(tmp_path_factory) -> Path:
-    return write_scene(tmp_path_factory.mktemp("tiny") / "tiny")
-
-
 def test_the_tiny_scene_is_valid(tiny_scene, run_cli, tmp_path):
     assert run_cli("check-scene", tiny_scene)[0] == 0
 
@@ -459,23 +454,6 @@ def test_a_trained_ply_link_leaving_the_scene_is_refused(tiny_scene, run_cli, tm
 
 
 # ---------------------------------------------------------------- a built run: outputs, predictions, run.toml
-
-
-@pytest.fixture(scope="module")
-def tiny_run(tiny_scene, tmp_path_factory) -> Path:
-    """The tiny scene built (few Gaussians), 8 trajectories, exported, and the oracle's predictions. Read-only."""
-    from sagebench.stages.rollout import make_baseline_config as baseline_config
-    from sagebench.stages.rollout import run_baseline
-    from sagebench.stages.build_scene import build_scene, make_config
-    from sagebench.stages.export_usd import export_usd
-    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, gen_trajectories
-
-    run = tmp_path_factory.mktemp("tiny_run")
-    build_scene(tiny_scene, run, make_config(object_density=20.0, structure_density=5.0))
-    gen_trajectories(run, GenTrajectoriesConfig(per_scene=4, seed=0, min_geodesic_m=1.0))
-    export_usd(run, cache_dir=tmp_path_factory.mktemp("tiny_coacd"))
-    run_baseline(run, run / "baselines" / "oracle.jsonl", baseline_config(agent_name="oracle"))
-    return run
 
 
 TS = "scenes/tiny"

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from test_fuzz_inputs import snapshot, tiny_run, tiny_scene  # noqa: F401 - fixtures
+from test_fuzz_inputs import snapshot
 
 TOML = 'scenes = ["{scene}"]\nout = "{out}"\nseed = 0\n[gen_trajectories]\nper_scene = 2\nmin_geodesic_m = 1.0\n' \
        '[validate]\nframes_per_scene = 0\n[export_usd.colliders]\nmode = "fast"\n'
@@ -113,21 +113,6 @@ def test_a_failed_llm_run_leaves_no_stale_shards_listed(fake_llm, tiny_scene, ru
 
 
 # ---------------------------------------------------------------- validate and verify read what they check
-
-
-@pytest.fixture(scope="module")
-def made_run(tiny_scene, tmp_path_factory) -> Path:
-    """The tiny scene through `sagebench run` (a manifest, several shards). Read-only: copy it."""
-    from sagebench.cli import main
-
-    root = tmp_path_factory.mktemp("made")
-    config = root / "t.toml"
-    config.write_text(TOML.format(scene=tiny_scene, out=root / "out").replace("per_scene = 2", "per_scene = 8"))
-    with pytest.raises(SystemExit) as done:
-        main(["-q", "run", str(config)])
-    assert done.value.code in (0, None)
-    assert len(list((root / "out" / "episodes" / "tiny").glob("part-*.parquet"))) >= 2
-    return root / "out"
 
 
 def _flip_geodesic(run: Path) -> None:

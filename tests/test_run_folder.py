@@ -16,8 +16,8 @@ import sys
 from pathlib import Path
 
 import pytest
-from test_fuzz_inputs import snapshot, tiny_run, tiny_scene  # noqa: F401 - fixtures
-from test_fuzz_safety import TOML, _toml, made_run, refused  # noqa: F401 - fixtures
+from test_fuzz_inputs import snapshot
+from test_fuzz_safety import TOML, _toml, refused
 
 def _writers(scene: Path, out: Path, config: Path) -> dict[str, list]:
     """Every command that writes into a run directory, aimed at `out`."""

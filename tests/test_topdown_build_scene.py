@@ -296,8 +296,9 @@ def test_config_errors_name_the_option():
 
 
 @pytest.fixture(scope="module")
-def demo_built(demo_scene_dir, tmp_path_factory) -> Path:
-    return build_scene(demo_scene_dir, tmp_path_factory.mktemp("run")).out_dir
+def demo_built(demo_built_run) -> Path:
+    """conftest's build of the demo apartment at the default settings. Read-only."""
+    return demo_built_run / "scenes" / "demo_apartment_0"
 
 
 def test_outputs_follow_the_contract(demo_built):
