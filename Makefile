@@ -8,7 +8,7 @@ LOCK := constraints.txt
 DEMO_OUT := out/demo
 SEED ?= 0
 
-.PHONY: demo test explore bench schemas docs mutants lock install clean
+.PHONY: demo test test-slow explore bench schemas docs mutants lock install clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -23,9 +23,13 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/sagebench demo --seed $(SEED) --out $(DEMO_OUT)
 
-# CI's profile: the same hypothesis examples on every run (tests/profiles.py)
+# CI's profile: the same hypothesis examples on every run (tests/profiles.py). The few end-to-end tests on full demo
+# apartments (marked slow) are left to test-slow; CI (.ci/run) runs both
 test: $(STAMP)
-	$(BIN)/python -m pytest -n 2 --hypothesis-profile=ci
+	$(BIN)/python -m pytest -n 2 --hypothesis-profile=ci -m "not slow"
+
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest -n 2 --hypothesis-profile=ci -m slow
 
 # before a release: the property tests alone, ten times the examples, from a fresh seed (printed; pass
 # EXPLORE_SEED=N to replay one); a failure found becomes an explicit @example on its test

@@ -1,15 +1,17 @@
-"""Fixtures shared across test files: the CLI runner and the demo scene."""
+"""Fixtures shared across test files: the CLI runner, the demo scene and its runs, the tiny scene and its runs."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 from hypothesis import settings
 
 import profiles  # noqa: F401 - registers the hypothesis profiles
 from fake_llm import FakeLLM
+from shared_fixtures import built_once
 
 from sagebench.cli import main
 from sagebench.ui import SETTINGS
@@ -33,46 +35,59 @@ def run_cli(capsys) -> Callable[..., tuple[int, str, str]]:
 
 
 @pytest.fixture(scope="session")
-def demo_scene_dir(tmp_path_factory) -> Path:
-    """The default demo apartment (seed 0), written once per test session. Do not modify it."""
+def demo_scene_dir(tmp_path_factory) -> Iterator[Path]:
+    """The default demo apartment (seed 0), written once per test run (shared_fixtures.py). Do not modify it."""
     from sagebench.scene.synth import write_synth_scene
 
-    out = tmp_path_factory.mktemp("demo") / "demo_apartment_0"
-    write_synth_scene(out, seed=0)
-    return out
+    def build(folder: Path) -> Path:
+        write_synth_scene(folder / "demo_apartment_0", seed=0)
+        return folder / "demo_apartment_0"
+
+    with built_once(tmp_path_factory, "demo_scene", build) as scene:
+        yield scene
 
 
 @pytest.fixture(scope="session")
-def demo_built_run(demo_scene_dir, tmp_path_factory) -> Path:
+def demo_built_run(demo_scene_dir, tmp_path_factory) -> Iterator[Path]:
     """A run directory holding build-scene's output for the demo apartment (scenes/demo_apartment_0/).
 
     Shared and read-only: copy `scenes/` into your own run directory before writing into one.
     """
     from sagebench.stages.build_scene import build_scene
 
-    run = tmp_path_factory.mktemp("demo_run")
-    build_scene(demo_scene_dir, run)
-    return run
+    def build(folder: Path) -> Path:
+        build_scene(demo_scene_dir, folder / "run")
+        return folder / "run"
+
+    with built_once(tmp_path_factory, "demo_run", build) as run:
+        yield run
 
 
 @pytest.fixture(scope="session")
-def interiorgs_demo(demo_scene_dir, tmp_path_factory):
+def interiorgs_demo(demo_scene_dir, tmp_path_factory) -> Iterator[tuple[Path, Any]]:
     """The demo apartment as an InteriorGS scene folder (tests/interiorgs_fixture.py), with what the folder does not
     say (each Gaussian's and label's instance, the mesh maps): (folder, Truth). Do not modify it."""
     from interiorgs_fixture import write_interiorgs_folder
 
-    out = tmp_path_factory.mktemp("interiorgs") / "0001_839920"
-    return out, write_interiorgs_folder(demo_scene_dir, out)
+    def build(folder: Path) -> tuple[Path, Any]:
+        out = folder / "0001_839920"
+        return out, write_interiorgs_folder(demo_scene_dir, out)
+
+    with built_once(tmp_path_factory, "interiorgs", build) as found:
+        yield found
 
 
 @pytest.fixture(scope="session")
-def interiorgs_imported(interiorgs_demo, tmp_path_factory) -> Path:
+def interiorgs_imported(interiorgs_demo, tmp_path_factory) -> Iterator[Path]:
     """`sagebench import-interiorgs` of the demo folder: the scene directory it wrote. Do not modify it."""
     from sagebench.stages.import_interiorgs import import_interiorgs_scene
 
-    out = tmp_path_factory.mktemp("interiorgs_imported") / "scene"
-    import_interiorgs_scene(interiorgs_demo[0], out)
-    return out
+    def build(folder: Path) -> Path:
+        import_interiorgs_scene(interiorgs_demo[0], folder / "scene")
+        return folder / "scene"
+
+    with built_once(tmp_path_factory, "interiorgs_imported", build) as scene:
+        yield scene
 
 
 @pytest.fixture(scope="session")
@@ -98,7 +113,7 @@ def room_mjcf() -> str:
 
 
 @pytest.fixture(scope="session")
-def demo_eval_run(demo_built_run, tmp_path_factory) -> Path:
+def demo_eval_run(demo_built_run, tmp_path_factory) -> Iterator[Path]:
     """The demo apartment with 8 trajectories (their episode rows) and scene.xml, for evaluate and baseline tests.
 
     Shared and read-only: copy it before writing into it.
@@ -108,11 +123,64 @@ def demo_eval_run(demo_built_run, tmp_path_factory) -> Path:
     from sagebench.stages.export_usd import export_usd
     from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, gen_trajectories
 
-    run = tmp_path_factory.mktemp("eval_run")
-    shutil.copytree(demo_built_run / "scenes", run / "scenes")
-    gen_trajectories(run, GenTrajectoriesConfig(per_scene=8, seed=0))
-    export_usd(run, cache_dir=tmp_path_factory.mktemp("eval_coacd_cache"))
-    return run
+    def build(folder: Path) -> Path:
+        run = folder / "run"
+        shutil.copytree(demo_built_run / "scenes", run / "scenes")
+        gen_trajectories(run, GenTrajectoriesConfig(per_scene=8, seed=0))
+        export_usd(run, cache_dir=folder / "coacd_cache")
+        return run
+
+    with built_once(tmp_path_factory, "eval_run", build) as run:
+        yield run
+
+
+@pytest.fixture(scope="session")
+def tiny_scene(tmp_path_factory) -> Iterator[Path]:
+    """The tiny valid scene of tests/test_fuzz_inputs.py (one room, 5 objects). Do not modify it."""
+    from test_fuzz_inputs import write_scene
+
+    with built_once(tmp_path_factory, "tiny_scene", lambda folder: write_scene(folder / "tiny")) as scene:
+        yield scene
+
+
+@pytest.fixture(scope="session")
+def tiny_run(tiny_scene, tmp_path_factory) -> Iterator[Path]:
+    """The tiny scene built (few Gaussians), 4 trajectories, exported, and the oracle's predictions. Read-only."""
+    from sagebench.settings.baseline import BaselineConfig
+    from sagebench.settings.build_scene import BuildSceneConfig, SplatConfig
+    from sagebench.stages.build_scene import build_scene
+    from sagebench.stages.export_usd import export_usd
+    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, gen_trajectories
+    from sagebench.stages.rollout import run_baseline
+
+    def build(folder: Path) -> Path:
+        run = folder / "run"
+        build_scene(tiny_scene, run, BuildSceneConfig(splats=SplatConfig(object_density=20.0, structure_density=5.0)))
+        gen_trajectories(run, GenTrajectoriesConfig(per_scene=4, seed=0, min_geodesic_m=1.0))
+        export_usd(run, cache_dir=folder / "coacd_cache")
+        run_baseline(run, run / "baselines" / "oracle.jsonl", BaselineConfig(agent_name="oracle"))
+        return run
+
+    with built_once(tmp_path_factory, "tiny_run", build) as run:
+        yield run
+
+
+@pytest.fixture(scope="session")
+def made_run(tiny_scene, tmp_path_factory) -> Iterator[Path]:
+    """The tiny scene through `sagebench run` (a manifest, several shards). Read-only: copy it."""
+    from test_fuzz_safety import TOML
+
+    def build(folder: Path) -> Path:
+        config = folder / "t.toml"
+        config.write_text(TOML.format(scene=tiny_scene, out=folder / "out").replace("per_scene = 2", "per_scene = 8"))
+        with pytest.raises(SystemExit) as done:
+            main(["-q", "run", str(config)])
+        assert done.value.code in (0, None)
+        assert len(list((folder / "out" / "episodes" / "tiny").glob("part-*.parquet"))) >= 2
+        return folder / "out"
+
+    with built_once(tmp_path_factory, "made_run", build) as run:
+        yield run
 
 
 @pytest.fixture

@@ -38,19 +38,19 @@ def agent_server():
         thread.join(timeout=10)
 
 
-def test_an_agent_runs_unchanged_in_process_and_over_http_with_identical_results(demo_eval_run, tmp_path, run_cli,
+def test_an_agent_runs_unchanged_in_process_and_over_http_with_identical_results(tiny_run, tmp_path, run_cli,
                                                                                agent_server):
     import vlnce_agents
 
     inproc, http, one = tmp_path / "in.jsonl", tmp_path / "http.jsonl", tmp_path / "one.jsonl"
-    code, stdout, err = run_cli("rollout", "--run", demo_eval_run, "--out", inproc, "--policy",
+    code, stdout, err = run_cli("rollout", "--run", tiny_run, "--out", inproc, "--policy",
                                 "vlnce:vlnce_agents:DepthAgent", *VLNCE_RUN)
     assert code == 0, err
     assert stdout.startswith("preset: success distance 3 m (default: each episode's goal_radius); camera height 1.25 m "
                              "(default 1.2); observations: the vlnce profile (default custom); agent body: the run's "
                              "maps', radius 0.2 m, height 1.2 m, not VLN-CE's radius 0.1 m, height 1.5 m (build-scene "
                              "--agent-radius 0.1 --band-max 1.5 builds a run for it)\n")
-    code, _, err = run_cli("rollout", "--run", demo_eval_run, "--out", http, "--policy",
+    code, _, err = run_cli("rollout", "--run", tiny_run, "--out", http, "--policy",
                            agent_server(vlnce_agents.DepthAgent), *VLNCE_RUN)
     assert code == 0, err
     assert http.read_bytes() == inproc.read_bytes()
@@ -58,7 +58,7 @@ def test_an_agent_runs_unchanged_in_process_and_over_http_with_identical_results
     assert len(rows) == 3 and all(r["stopped"] for r in rows) and max(len(r["poses"]) for r in rows) >= 5
     moved = [np.hypot(*np.diff(np.array(r["poses"])[:, :2], axis=0).T).sum() for r in rows]
     assert max(moved) > 0.5  # it walked, not only turned
-    assert run_cli("rollout", "--run", demo_eval_run, "--out", one, "--policy", "vlnce:vlnce_agents:ONE_AGENT",
+    assert run_cli("rollout", "--run", tiny_run, "--out", one, "--policy", "vlnce:vlnce_agents:ONE_AGENT",
                    *VLNCE_RUN)[0] == 0
     assert one.read_bytes() == inproc.read_bytes()  # one object, one episode at a time: the same
     # what the agent saw: VLN-CE's shapes and dtypes
@@ -123,24 +123,24 @@ def test_anything_else_is_refused(reply):
         vlnce_action(reply)
 
 
-def test_a_vlnce_agent_without_the_vlnce_profile_is_refused(demo_eval_run, tmp_path, run_cli):
-    code, _, err = run_cli("rollout", "--run", demo_eval_run, "--out", tmp_path / "p.jsonl", "--policy",
+def test_a_vlnce_agent_without_the_vlnce_profile_is_refused(tiny_run, tmp_path, run_cli):
+    code, _, err = run_cli("rollout", "--run", tiny_run, "--out", tmp_path / "p.jsonl", "--policy",
                            "vlnce:vlnce_agents:DepthAgent")
     assert code == 2 and err == ("error: --profile: a VLN-CE agent needs the vlnce profile and discrete actions "
                                  "(--preset vlnce)\n")
-    code, _, err = run_cli("rollout", "--run", demo_eval_run, "--out", tmp_path / "p.jsonl", "--policy",
+    code, _, err = run_cli("rollout", "--run", tiny_run, "--out", tmp_path / "p.jsonl", "--policy",
                            "vlnce:vlnce_agents:Nobody", "--preset", "vlnce")
     assert code == 2 and err.startswith("error: --policy: cannot run 'vlnce:vlnce_agents:Nobody': ")
     assert not list(tmp_path.iterdir())
 
 
-def test_the_preset_scores_success_within_3_m(demo_eval_run, tmp_path, run_cli):
+def test_the_preset_scores_success_within_3_m(tiny_run, tmp_path, run_cli):
     out, res = tmp_path / "s.jsonl", tmp_path / "r.json"
-    assert run_cli("rollout", "--run", demo_eval_run, "--out", out, "--policy", "straight", "--preset", "vlnce",
+    assert run_cli("rollout", "--run", tiny_run, "--out", out, "--policy", "straight", "--preset", "vlnce",
                    "--obs", "none")[0] == 2  # the vlnce profile renders its own images
-    assert run_cli("rollout", "--run", demo_eval_run, "--out", out, "--policy", "straight", "--preset", "vlnce",
+    assert run_cli("rollout", "--run", tiny_run, "--out", out, "--policy", "straight", "--preset", "vlnce",
                    "--episodes", "6", "--max-steps", "40")[0] == 0
-    code, stdout, _ = run_cli("evaluate", "--run", demo_eval_run, "--predictions", out, "--out", res)
+    code, stdout, _ = run_cli("evaluate", "--run", tiny_run, "--predictions", out, "--out", res)
     data = json.loads(res.read_text())
     stopped = {json.loads(t)["episode_id"]: json.loads(t)["stopped"] for t in out.read_text().splitlines()}
     assert code == 0 and data["rollout"]["success_distance"] == 3.0 and "success within 3 m" in stdout

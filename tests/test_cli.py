@@ -82,6 +82,7 @@ def test_schemas_command_writes_every_schema(run_cli, tmp_path):
     assert schema["title"] == "SceneSpec"
 
 
+@pytest.mark.slow  # the README's first command, end to end on the demo apartment: CI runs it (make test-slow)
 def test_demo_runs_the_whole_pipeline_and_verifies(run_cli, tmp_path):
     out = tmp_path / "demo"
     code, stdout, err = run_cli("-q", "demo", "--out", out)

@@ -18,12 +18,12 @@ def test_builds_the_demo_scene(run_cli, demo_scene_dir, tmp_path):
     assert json.loads((scene / "semantic_map.json").read_text())["agent_radius"] == 0.25
 
 
-def test_options_map_onto_the_config(run_cli, demo_scene_dir, tmp_path):
-    code, _, err = run_cli("build-scene", demo_scene_dir, "--out", tmp_path, "--resolution", "0.1", "--band-max", "0.5")
+def test_options_map_onto_the_config(run_cli, tiny_scene, tmp_path):
+    code, _, err = run_cli("build-scene", tiny_scene, "--out", tmp_path, "--resolution", "0.1", "--band-max", "0.5")
     assert code == 0, err
-    with np.load(tmp_path / "scenes" / "demo_apartment_0" / "topdown.npz") as z:
+    with np.load(tmp_path / "scenes" / "tiny" / "topdown.npz") as z:
         assert float(z["resolution"]) == 0.1
-    band = json.loads((tmp_path / "scenes" / "demo_apartment_0" / "semantic_map.json").read_text())["band_m"]
+    band = json.loads((tmp_path / "scenes" / "tiny" / "semantic_map.json").read_text())["band_m"]
     assert band == [0.05, 0.5]
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import shutil
 import subprocess
 import sys
 import time
@@ -318,14 +319,12 @@ def test_gaussians_of_an_unknown_object_are_an_error(tmp_path, run_cli):
     assert _hashes(run) == before
 
 
-def test_demo_scene_exports_with_exact_parts_only(demo_scene_dir, tmp_path, run_cli):
+def test_demo_scene_exports_with_exact_parts_only(demo_built_run, tmp_path, run_cli):
     """The demo apartment after build-scene: no CoACD needed, every object and Gaussian in the stage."""
-    from sagebench.stages.build_scene import build_scene
-
-    built = build_scene(demo_scene_dir, tmp_path / "run")
+    shutil.copytree(demo_built_run / "scenes", tmp_path / "run" / "scenes")
     code, out, _ = run_cli("export-usd", tmp_path / "run", "--cache-dir", tmp_path / "cache")
     assert code == 0 and "(209 exact; pieces: none; 0 cached)" in out  # office chairs on four casters each
-    scene_dir = built.out_dir
+    scene_dir = tmp_path / "run" / "scenes" / "demo_apartment_0"
     g = read_ply(scene_dir / "gaussians.ply")
     stage = Usd.Stage.Open(str(scene_dir / "scene.usda"))
     spec = load_scene(scene_dir).spec

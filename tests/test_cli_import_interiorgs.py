@@ -69,6 +69,7 @@ def test_build_scene_takes_the_folder_and_the_navigable_map_agrees(interiorgs_de
     assert _navigable_iou(truth, tmp_path / "run" / "scenes" / folder.name) >= 0.90
 
 
+@pytest.mark.slow  # two more full apartments, for CI (make test-slow): the demo's round trip runs in make test
 @pytest.mark.parametrize("seed", [1, 2])
 def test_other_seeds_round_trip(seed, tmp_path):
     """Two more synth apartments, through the library (maps only, no run): the same bars as the demo's."""

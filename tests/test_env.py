@@ -52,8 +52,8 @@ def test_actions_beyond_the_envs_own_replay_limits_are_refused_naming_the_fields
     assert fast.actions.forward_step / fast.actions.control_interval == 2.0
 
 
-def test_gymnasium_makes_and_accepts_the_env(demo_eval_run):
-    made = gymnasium.make("sagebench.env:sagebench/Nav-v0", run_dir=str(demo_eval_run),
+def test_gymnasium_makes_and_accepts_the_env(tiny_run):
+    made = gymnasium.make("sagebench.env:sagebench/Nav-v0", run_dir=str(tiny_run),
                           config={"width": 32, "height": 24, "max_steps": 5, "privileged": ["pose", "instance"]})
     env = made.unwrapped
     assert isinstance(env, NavEnv) and made.spec.id == ENV_ID and env.metadata["render_fps"] == 2.0
@@ -116,19 +116,19 @@ def test_a_policy_that_only_turns_scores_the_smoothness_of_15_degree_turns(demo_
     assert path_smoothness(yaw) == pytest.approx(1 - 15 / 180, abs=1e-6)  # PS penalises the turn per step
 
 
-def test_vectorised_equals_sequential_byte_for_byte(demo_eval_run):
+def test_vectorised_equals_sequential_byte_for_byte(tiny_run):
     cfg = EnvConfig(width=32, height=24, observations=("rgb", "depth"), max_steps=25)
-    ids = Simulator(demo_eval_run, cfg).order[:4]
-    together = rollout(Simulator(demo_eval_run, cfg, threads=2), RandomWalk(seed=5), ids, batch=4, sheet=4)
-    alone = rollout(Simulator(demo_eval_run, cfg), RandomWalk(seed=5), ids, batch=1, sheet=4)
+    ids = Simulator(tiny_run, cfg).order[:4]
+    together = rollout(Simulator(tiny_run, cfg, threads=2), RandomWalk(seed=5), ids, batch=4, sheet=4)
+    alone = rollout(Simulator(tiny_run, cfg), RandomWalk(seed=5), ids, batch=1, sheet=4)
     assert [p.model_dump_json() for p in together.predictions] == [p.model_dump_json() for p in alone.predictions]
     for a, b in zip(together.views, alone.views):
         assert [f.tobytes() for f in a.frames + [a.last]] == [f.tobytes() for f in b.frames + [b.last]]
     assert together.steps == alone.steps > 4
-    vec = VectorNavEnv(demo_eval_run, cfg)
+    vec = VectorNavEnv(tiny_run, cfg)
     obs, _ = vec.reset(ids[:2])
     results = vec.step([Action.MOVE_FORWARD, Action.TURN_LEFT])
-    single = NavEnv(demo_eval_run, cfg)
+    single = NavEnv(tiny_run, cfg)
     single.reset(options={"episode_id": ids[1]})
     o, *_ = single.step(Action.TURN_LEFT)
     assert results[1].observation["rgb"].tobytes() == o["rgb"].tobytes()
@@ -138,13 +138,13 @@ def test_vectorised_equals_sequential_byte_for_byte(demo_eval_run):
 # async: each env in a process of its own, made from the spec; spawned, since this process has rendered already
 # and numba's OpenMP threads do not survive a fork (docs/rollout.md)
 @pytest.mark.parametrize("mode, vector_kwargs", [("sync", {}), ("async", {"context": "spawn"})])
-def test_gymnasiums_own_vector_envs_step_each_env_as_alone_and_autoreset_to_the_next_episode(demo_eval_run, mode,
+def test_gymnasiums_own_vector_envs_step_each_env_as_alone_and_autoreset_to_the_next_episode(tiny_run, mode,
                                                                                           vector_kwargs):
     cfg = {"width": 16, "height": 12, "observations": ["rgb"], "max_steps": 2, "privileged": ["pose"]}
-    alone = [NavEnv(demo_eval_run, cfg) for _ in range(2)]
+    alone = [NavEnv(tiny_run, cfg) for _ in range(2)]
     alone[0].reset(seed=0)  # renders here before the vector env starts its processes
     vec = gymnasium.make_vec("sagebench.env:sagebench/Nav-v0", num_envs=2, vectorization_mode=mode,
-                             vector_kwargs=vector_kwargs, run_dir=str(demo_eval_run), config=cfg)
+                             vector_kwargs=vector_kwargs, run_dir=str(tiny_run), config=cfg)
     obs, info = vec.reset(seed=7)  # env k gets seed 7 + k
     firsts = [env.reset(seed=7 + k) for k, env in enumerate(alone)]
     assert list(info["episode_id"]) == [i["episode_id"] for _, i in firsts]

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from test_fuzz_inputs import snapshot, tiny_run, tiny_scene  # noqa: F401 - fixtures
+from test_fuzz_inputs import snapshot
 
 SPLITS = "Input should be 'train', 'val_seen', 'val_unseen' or 'test'"
 TYPES = ("Input should be 'Add_Object', 'Scenario_Driven', 'Relative_Relationship', 'Attribute_Based', "
@@ -31,7 +31,7 @@ HEX16 = "String should match pattern '^[0-9a-f]{16}$'"
 
 
 @pytest.fixture(scope="module")
-def gvln(tiny_run) -> dict:  # noqa: F811 - the fixture imported above
+def gvln(tiny_run) -> dict:
     """The tiny run's episodes as the GVLN document export-sage writes. Read-only: deep-copy it."""
     from sagebench.episodes.shards import read_episodes
     from sagebench.gvln.episodes import gvln_document
@@ -154,14 +154,14 @@ def _refused_exactly(run_cli, args: list, where: Path, line: str) -> None:
     assert (snapshot(where), sorted(str(p.relative_to(where)) for p in where.rglob("*"))) == before
 
 
-def _run_copy(tiny_run: Path, tmp_path: Path) -> Path:  # noqa: F811
+def _run_copy(tiny_run: Path, tmp_path: Path) -> Path:
     run = tmp_path / "run"
     shutil.copytree(tiny_run, run, symlinks=True)
     return run
 
 
 @pytest.mark.parametrize("damage, expect", [c[1:] for c in SAGE_CASES], ids=[c[0] for c in SAGE_CASES])
-def test_damaged_gvln_files(damage, expect, gvln, tiny_run, run_cli, tmp_path):  # noqa: F811
+def test_damaged_gvln_files(damage, expect, gvln, tiny_run, run_cli, tmp_path):
     run = _run_copy(tiny_run, tmp_path)
     doc = copy.deepcopy(gvln)
     text = damage(doc)
@@ -170,7 +170,7 @@ def test_damaged_gvln_files(damage, expect, gvln, tiny_run, run_cli, tmp_path): 
     _refused_exactly(run_cli, ["import-sage-episodes", path, "--run", run], tmp_path, f"{path}: {expect}")
 
 
-def test_a_point_just_off_the_map_is_moved_onto_it_and_counted(gvln, tiny_run, run_cli, tmp_path):  # noqa: F811
+def test_a_point_just_off_the_map_is_moved_onto_it_and_counted(gvln, tiny_run, run_cli, tmp_path):
     """(3.0, 0.05) lies 0.175 m from the nearest navigable cell (the floor's edge less the agent's radius): the start
     moves to that cell's centre, the summary counts it, and every other value is the file's."""
     from sagebench.episodes.shards import read_episodes
@@ -223,7 +223,7 @@ def _limited() -> None:
 
 
 @pytest.mark.parametrize("case", list(INPUT_KINDS))
-def test_fifos_and_devices_are_refused_by_type_before_they_are_read(case, gvln, tiny_run, tmp_path):  # noqa: F811
+def test_fifos_and_devices_are_refused_by_type_before_they_are_read(case, gvln, tiny_run, tmp_path):
     """Real processes, with a deadline: on a FIFO the read would wait for a writer forever."""
     run = _run_copy(tiny_run, tmp_path)
     (tmp_path / "trajectories_tiny.json").write_text(json.dumps(gvln))
@@ -237,7 +237,7 @@ def test_fifos_and_devices_are_refused_by_type_before_they_are_read(case, gvln, 
     assert snapshot(run) == before
 
 
-def test_a_prediction_off_the_map_is_refused_without_a_numpy_warning(tiny_run, tmp_path):  # noqa: F811
+def test_a_prediction_off_the_map_is_refused_without_a_numpy_warning(tiny_run, tmp_path):
     """A real process (pytest would catch the warnings): one line on stderr and nothing else."""
     rows = [json.loads(line) for line in (tiny_run / "baselines" / "oracle.jsonl").read_text().splitlines()]
     for r in rows:

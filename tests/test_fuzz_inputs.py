@@ -77,9 +77,27 @@ def write_scene(d: Path, spec: dict[str, Any] | str = SPEC) -> Path:
 
 
 def snapshot(root: Path) -> dict[str, tuple[int, bytes]]:
-    """Every file under root -> (size, sha256): equal before and after means nothing was written or removed."""
-    return {str(p.relative_to(root)): (p.stat().st_size, hashlib.sha256(p.read_bytes()).digest())
+    """Every file under root -> (size, digest): equal before and after means nothing was written or removed."""
+    return {str(p.relative_to(root)): (p.stat().st_size, _digest(p))
             for p in sorted(root.rglob("*")) if p.is_file() and not p.is_symlink()}
+
+
+def _digest(path: Path) -> bytes:
+    """sha256 of the file's data and where each run of it lies: the holes of a sparse file (zeros, unless written
+    into, which makes them data) are not read, so the 2 GiB sparse mesh of test_fuzz_safety costs nothing."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        pos, end = 0, os.fstat(f.fileno()).st_size
+        while pos < end:
+            try:
+                start = os.lseek(f.fileno(), pos, os.SEEK_DATA)
+            except OSError:  # ENXIO: a hole up to the end
+                break
+            pos = os.lseek(f.fileno(), start, os.SEEK_HOLE)
+            h.update(b"%d-%d:" % (start, pos))
+            f.seek(start)
+            h.update(f.read(pos - start))
+    return h.digest()
 
 
 def assert_refused(run_cli, args: list, where: Path, expect: str) -> None:
@@ -255,11 +273,6 @@ def _as_text(spec: dict | str) -> str:
 
 SCENE_CASES = [(cid, _as_text(spec), f"scene.json: {field}: ") for cid, spec, field in leaf_cases()]
 SCENE_CASES += [(cid, _as_text(spec), expect) for cid, spec, expect in MEANING_CASES]
-
-
-@pytest.fixture(scope="module")
-def tiny_scene(tmp_path_factory) -> Path:
-    return write_scene(tmp_path_factory.mktemp("tiny") / "tiny")
 
 
 def test_the_tiny_scene_is_valid(tiny_scene, run_cli, tmp_path):
@@ -459,24 +472,6 @@ def test_a_trained_ply_link_leaving_the_scene_is_refused(tiny_scene, run_cli, tm
 
 
 # ---------------------------------------------------------------- a built run: outputs, predictions, run.toml
-
-
-@pytest.fixture(scope="module")
-def tiny_run(tiny_scene, tmp_path_factory) -> Path:
-    """The tiny scene built (few Gaussians), 8 trajectories, exported, and the oracle's predictions. Read-only."""
-    from sagebench.settings.baseline import BaselineConfig
-    from sagebench.settings.build_scene import BuildSceneConfig, SplatConfig
-    from sagebench.stages.rollout import run_baseline
-    from sagebench.stages.build_scene import build_scene
-    from sagebench.stages.export_usd import export_usd
-    from sagebench.stages.gen_trajectories import GenTrajectoriesConfig, gen_trajectories
-
-    run = tmp_path_factory.mktemp("tiny_run")
-    build_scene(tiny_scene, run, BuildSceneConfig(splats=SplatConfig(object_density=20.0, structure_density=5.0)))
-    gen_trajectories(run, GenTrajectoriesConfig(per_scene=4, seed=0, min_geodesic_m=1.0))
-    export_usd(run, cache_dir=tmp_path_factory.mktemp("tiny_coacd"))
-    run_baseline(run, run / "baselines" / "oracle.jsonl", BaselineConfig(agent_name="oracle"))
-    return run
 
 
 TS = "scenes/tiny"

@@ -8,13 +8,14 @@ counts the attacks of all three.
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
-from test_fuzz_inputs import snapshot, tiny_run, tiny_scene  # noqa: F401 - fixtures
+from test_fuzz_inputs import snapshot
 
 TOML = 'scenes = ["{scene}"]\nout = "{out}"\nseed = 0\n[gen_trajectories]\nper_scene = 2\nmin_geodesic_m = 1.0\n' \
        '[validate]\nframes_per_scene = 0\n[export_usd.colliders]\nmode = "fast"\n'
@@ -115,19 +116,13 @@ def test_a_failed_llm_run_leaves_no_stale_shards_listed(fake_llm, tiny_scene, ru
 # ---------------------------------------------------------------- validate and verify read what they check
 
 
-@pytest.fixture(scope="module")
-def made_run(tiny_scene, tmp_path_factory) -> Path:
-    """The tiny scene through `sagebench run` (a manifest, several shards). Read-only: copy it."""
-    from sagebench.cli import main
-
-    root = tmp_path_factory.mktemp("made")
-    config = root / "t.toml"
-    config.write_text(TOML.format(scene=tiny_scene, out=root / "out").replace("per_scene = 2", "per_scene = 8"))
-    with pytest.raises(SystemExit) as done:
-        main(["-q", "run", str(config)])
-    assert done.value.code in (0, None)
-    assert len(list((root / "out" / "episodes" / "tiny").glob("part-*.parquet"))) >= 2
-    return root / "out"
+def copy_made(made_run: Path, to: Path) -> Path:
+    """made_run copied as if this process had made it. It is built once per test run, by the first xdist worker to
+    ask, and its lock file holds that worker's pid, which a command that takes the lock (and then refuses) replaces
+    with its own: the copy holds ours, as when each worker made its own, so `refused` sees any other write."""
+    shutil.copytree(made_run, to)
+    (to / ".sagebench.lock").write_text(f"{os.getpid()}\n")
+    return to
 
 
 def _flip_geodesic(run: Path) -> None:
@@ -175,7 +170,7 @@ VALIDATE_CASES = {  # damage to a copy of a made run -> what validate's one line
 @pytest.mark.parametrize("case", list(VALIDATE_CASES))
 def test_validate_checks_the_content_it_reads(case, made_run, run_cli, tmp_path):
     run = tmp_path / "run"
-    shutil.copytree(made_run, run)
+    copy_made(made_run, run)
     damage, expect = VALIDATE_CASES[case]
     damage(run)
     refused(run_cli, ["validate", run, "--frames-per-scene", "0"], tmp_path, expect)
@@ -183,7 +178,7 @@ def test_validate_checks_the_content_it_reads(case, made_run, run_cli, tmp_path)
 
 def test_verify_checks_rows_and_the_usd_stage_beyond_the_hashes(made_run, run_cli, tmp_path):
     run = tmp_path / "run"
-    shutil.copytree(made_run, run)
+    copy_made(made_run, run)
     manifest = json.loads((run / "manifest.json").read_text())
     usda = run / "scenes" / "tiny" / "scene.usda"
     usda.write_text("#usda 1.0\n")

@@ -17,16 +17,16 @@ from benchmarks import gpu_check
 
 
 @pytest.fixture(scope="module")
-def small_run(demo_eval_run, tmp_path_factory) -> Path:
-    """The eval run with its first four episodes, as a .tgz like the one gpu_pack.sh makes."""
+def small_run(tiny_run, tmp_path_factory) -> Path:
+    """The tiny run with its first four episodes, as a .tgz like the one gpu_pack.sh makes."""
     import tarfile
 
     import pyarrow.parquet as pq
 
     run = tmp_path_factory.mktemp("gpu_run") / "run"
-    shutil.copytree(demo_eval_run / "scenes", run / "scenes")
-    part = sorted((demo_eval_run / "episodes").rglob("*.parquet"))[0]
-    dest = run / part.relative_to(demo_eval_run)
+    shutil.copytree(tiny_run / "scenes", run / "scenes")
+    part = sorted((tiny_run / "episodes").rglob("*.parquet"))[0]
+    dest = run / part.relative_to(tiny_run)
     dest.parent.mkdir(parents=True)
     pq.write_table(pq.read_table(part).slice(0, 4), dest)
     tgz = run.parent / "run.tgz"

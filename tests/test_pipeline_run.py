@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import copy
 import json
+import math
 import os
 import re
 import shutil
@@ -20,6 +22,7 @@ from sagebench.pipeline.manifest import hash_run
 from sagebench.scene.synth import write_synth_scene
 from sagebench.versions import output_versions
 from signals import as_from_a_terminal
+from test_fuzz_inputs import SPEC, write_scene
 from tests.test_collider_convex import u_prism
 
 CONFIG = """scenes = ["scenes/*"]
@@ -27,10 +30,13 @@ out = "{out}"
 seed = 0
 cache_dir = "cache-{out}"
 [gen_trajectories]
-per_scene = 20
+per_scene = 8
+min_geodesic_m = 1.0
 [validate]
 frames_per_scene = 1
 """
+A, B = SCENES = ("tiny_a", "tiny_b")
+_QUARTER_TURN = [math.cos(math.pi / 4), 0.0, 0.0, math.sin(math.pi / 4)]  # about Z
 
 
 def _add_planter(scene: Path, width: float) -> None:
@@ -44,12 +50,24 @@ def _add_planter(scene: Path, width: float) -> None:
     (scene / "scene.json").write_text(json.dumps(spec))
 
 
+def _walled_tiny_scene(scene: Path, scene_id: str) -> None:
+    """The tiny scene of test_fuzz_inputs.py (one 6 x 4 m room) with a wall on each of its four sides, so that
+    validate's spot-check frames look at something to align with."""
+    spec = copy.deepcopy(SPEC) | {"scene_id": scene_id}
+    side = {"rotation_wxyz": _QUARTER_TURN, "scale": [4.2 / 6, 1.0, 1.0]}  # the 6 m wall turned and cut to 4.2 m
+    for transform in ({"translation": [3.0, -0.05, 1.25]}, {"translation": [-0.05, 2.0, 1.25]} | side,
+                      {"translation": [6.05, 2.0, 1.25]} | side):
+        spec["objects"].append({"instance_id": len(spec["objects"]) + 1, "category": "wall", "kind": "wall",
+                                "mesh": "meshes/wall.obj", "transform": transform})
+    write_scene(scene, spec)
+
+
 @pytest.fixture(scope="module")
 def workspace(tmp_path_factory) -> Path:
-    """Two demo apartments, each with a planter of its own width (two concave pieces in the run)."""
+    """Two walled tiny rooms, each with a planter of its own width (two concave pieces in the run)."""
     root = tmp_path_factory.mktemp("runs")
-    for name, seed, width in (("a", 0, 0.6), ("b", 1, 0.7)):
-        write_synth_scene(root / "scenes" / name, seed=seed)
+    for (name, width), sid in zip((("a", 0.6), ("b", 0.7)), SCENES):
+        _walled_tiny_scene(root / "scenes" / name, sid)
         _add_planter(root / "scenes" / name, width)
     return root
 
@@ -77,14 +95,14 @@ def _manifest(run: Path) -> bytes:
 def test_manifest_lists_every_output(serial_run):
     manifest = json.loads(_manifest(serial_run))
     files = manifest["files"]
-    for sid in ("demo_apartment_0", "demo_apartment_1"):
+    for sid in SCENES:
         for rel in ("scenes/{}/topdown.npz", "scenes/{}/gaussians.ply", "scenes/{}/scene.usda",
                     "scenes/{}/scene.xml", "scenes/{}/geometry.usdc", "reports/{}/report.json"):
             assert rel.format(sid) in files
         assert any(f.startswith(f"episodes/{sid}/part-") and f.endswith("-00000.parquet") for f in files)
-    assert set(manifest["inputs"]) == {"demo_apartment_0", "demo_apartment_1"}
+    assert set(manifest["inputs"]) == set(SCENES)
     assert manifest["versions"] == output_versions() and manifest["versions"]["numpy"] == np.__version__
-    assert "workers" not in manifest["config"] and manifest["config"]["gen_trajectories"]["per_scene"] == 20
+    assert "workers" not in manifest["config"] and manifest["config"]["gen_trajectories"]["per_scene"] == 8
     assert not any(p.startswith(".") for p in files)
     assert manifest["failed"] == {}
 
@@ -127,7 +145,7 @@ def _pieces(seen) -> list:
 
 
 def test_serial_run_decomposes_each_piece_as_a_task(serial_run):
-    pieces = [o["concave_pieces"] for sid in ("demo_apartment_0", "demo_apartment_1") for o in json.loads(
+    pieces = [o["concave_pieces"] for sid in SCENES for o in json.loads(
         (serial_run / "scenes" / sid / "colliders" / "colliders.json").read_text())["objects"] if o["concave_pieces"]]
     assert len(pieces) == 2 and all(len(p) == 1 for p in pieces)  # one planter, one piece each
 
@@ -144,19 +162,43 @@ def test_pieces_are_spread_over_the_executor_with_the_same_outputs(workspace, se
     assert code == 0, out + err
     assert _manifest(workspace / name) == _manifest(serial_run)
     pieces = _pieces(dispatched)
-    assert sorted(t.scene_id for t, _ in pieces) == ["demo_apartment_0", "demo_apartment_1"]
+    assert sorted(t.scene_id for t, _ in pieces) == list(SCENES)
     assert len({t.key for t, _ in pieces}) == 2 and all(o.method and not o.error for _, o in pieces)
     assert all(int(o.worker.rsplit(":", 1)[1]) != os.getpid() for _, o in pieces)
     names = [n for n, *_ in dispatched]
     assert names.count("plan_export") == 2 and names.count("run_task") == 8
     at = {(n, arg.scene_id, getattr(arg, "stage", "")): i for i, (n, arg, *_) in enumerate(dispatched)}
-    for sid in ("demo_apartment_0", "demo_apartment_1"):  # the export finds its piece done
+    for sid in SCENES:  # the export finds its piece done
         assert at[("run_piece", sid, "")] < at[("run_task", sid, "export_usd")]
     assert re.search(r"collider pieces\s+ran\s+2\b", out), out
-    index = {p["cache_key"] for sid in ("demo_apartment_0", "demo_apartment_1") for o in json.loads(
+    index = {p["cache_key"] for sid in SCENES for o in json.loads(
         (workspace / name / "scenes" / sid / "colliders" / "colliders.json").read_text())["objects"]
              for p in o["concave_pieces"]}
     assert index == {t.key for t, _ in pieces}
+
+
+@pytest.mark.slow
+def test_two_demo_apartments_run_alike_serially_and_on_two_workers(tmp_path, run_cli):
+    """The tests above at full scale: two demo apartments (five rooms, doors, 20 trajectories each, a planter each)
+    run serially and on two local workers give the same manifest, byte for byte, listing every output."""
+    for name, seed, width in (("a", 0, 0.6), ("b", 1, 0.7)):
+        write_synth_scene(tmp_path / "scenes" / name, seed=seed)
+        _add_planter(tmp_path / "scenes" / name, width)
+    for name, args in (("serial", ()), ("pool", ("--executor", "local", "--workers", "2"))):
+        config = _config(tmp_path, name)
+        config.write_text(config.read_text().replace("per_scene = 8\nmin_geodesic_m = 1.0\n", "per_scene = 20\n"))
+        code, out, err = run_cli("-q", "run", config, *args)
+        assert code == 0, out + err
+        assert re.search(r"collider pieces\s+ran\s+2\b", out), out
+    manifest = json.loads(_manifest(tmp_path / "serial"))
+    assert _manifest(tmp_path / "pool") == _manifest(tmp_path / "serial")
+    sids = ("demo_apartment_0", "demo_apartment_1")
+    assert set(manifest["inputs"]) == set(sids) and manifest["failed"] == {}
+    assert manifest["config"]["gen_trajectories"]["per_scene"] == 20
+    for sid in sids:
+        for rel in ("scenes/{}/topdown.npz", "scenes/{}/gaussians.ply", "scenes/{}/scene.usda",
+                    "scenes/{}/scene.xml", "scenes/{}/geometry.usdc", "reports/{}/report.json"):
+            assert rel.format(sid) in manifest["files"]
 
 
 def test_quality_spreads_both_its_passes_over_the_executor(workspace, run_cli, dispatched):
@@ -178,7 +220,7 @@ def test_quality_spreads_both_its_passes_over_the_executor(workspace, run_cli, d
     run, cache = workspace / "quality", PartCache(workspace / "cache-quality")
     config = ExportConfig.model_validate({"colliders": {"mode": "quality"}})
     assert len(mode_passes(config.colliders)) == 2
-    for sid in ("demo_apartment_0", "demo_apartment_1"):
+    for sid in SCENES:
         jobs, band = scene_pieces(run, sid, config, cache)
         assert {piece_key(p, c, band) for p, c in jobs} <= {t.key for t, _ in pieces}  # nothing left to the export
 
@@ -242,9 +284,9 @@ def test_a_resumed_run_removes_only_its_own_leftovers(workspace, serial_run, run
     run = workspace / "leftovers"
     shutil.copytree(serial_run, run)
     config = _config(workspace, "leftovers")
-    kept = _plant_user_dotfiles(run, run / "scenes" / "demo_apartment_0", run / "episodes", workspace / "scenes" / "b")
-    ours = [run / "scenes" / "demo_apartment_0" / ".topdown.npz.sagebench-abcd1234.tmp",
-            run / "episodes" / ".demo_apartment_1.sagebench-abcd1234.old" / "part-00000.parquet",
+    kept = _plant_user_dotfiles(run, run / "scenes" / A, run / "episodes", workspace / "scenes" / "b")
+    ours = [run / "scenes" / A / ".topdown.npz.sagebench-abcd1234.tmp",
+            run / "episodes" / f".{B}.sagebench-abcd1234.old" / "part-00000.parquet",
             run / ".manifest.json.sagebench-0000aaaa.tmp"]
     for p in ours:
         p.parent.mkdir(parents=True, exist_ok=True)
@@ -301,13 +343,13 @@ def test_a_refused_run_leaves_the_live_runs_files_alone(workspace, run_cli):
     """The live run's half-written files (temporaries by name) are its own while it holds the lock: a second
     run that is refused must not clean them up, nor touch anything else."""
     run = workspace / "live"
-    (run / "scenes" / "demo_apartment_0").mkdir(parents=True)
+    (run / "scenes" / A).mkdir(parents=True)
     (run / "manifest.json").write_text("{}\n")  # a previous run's
-    (run / ".stamps" / "demo_apartment_0").mkdir(parents=True)
-    (run / ".stamps" / "demo_apartment_0" / "build_scene.json").write_text("{}\n")
-    live = [run / "scenes" / "demo_apartment_0" / ".topdown.npz.sagebench-abcd1234.tmp",
+    (run / ".stamps" / A).mkdir(parents=True)
+    (run / ".stamps" / A / "build_scene.json").write_text("{}\n")
+    live = [run / "scenes" / A / ".topdown.npz.sagebench-abcd1234.tmp",
             run / ".manifest.json.sagebench-0000aaaa.tmp",
-            run / ".stamps" / "demo_apartment_0" / ".build_scene.json.sagebench-0000bbbb.tmp"]
+            run / ".stamps" / A / ".build_scene.json.sagebench-0000bbbb.tmp"]
     for p in live:
         p.write_bytes(b"being written")
     assert all(is_temporary(p.name) for p in live)
@@ -383,7 +425,7 @@ def test_verify_names_a_flipped_byte(workspace, serial_run, run_cli):
     shutil.copytree(serial_run, run)
     code, out, _ = run_cli("verify", run)
     assert code == 0 and out.startswith("ok:")
-    shard = sorted((run / "episodes" / "demo_apartment_1").glob("part-*.parquet"))[0]
+    shard = sorted((run / "episodes" / B).glob("part-*.parquet"))[0]
     data = bytearray(shard.read_bytes())
     data[200] ^= 0x01
     shard.write_bytes(bytes(data))
@@ -399,7 +441,7 @@ def test_verify_regenerate_matches_and_names_other_library_versions(workspace, s
     shutil.copytree(serial_run, run)
     manifest = json.loads(_manifest(run))
     manifest["versions"]["numpy"] = "1.0.0"
-    shard = sorted((run / "episodes" / "demo_apartment_0").glob("part-*.parquet"))[0].relative_to(run).as_posix()
+    shard = sorted((run / "episodes" / A).glob("part-*.parquet"))[0].relative_to(run).as_posix()
     manifest["files"][shard] = "0" * 64
     (run / "manifest.json").write_text(json.dumps(manifest))
     code, out, err = run_cli("verify", run, "--regenerate", "--config", workspace / "serial.toml")
@@ -418,15 +460,15 @@ def test_a_broken_scene_fails_alone(workspace, run_cli):
     spec = json.loads((broken / "scene.json").read_text())
     spec["scene_id"] = "broken"
     (broken / "scene.json").write_text(json.dumps(spec))
-    mesh = broken / spec["objects"][20]["mesh"]
+    mesh = broken / spec["objects"][2]["mesh"]
     mesh.write_bytes(mesh.read_bytes()[:40])
     code, out, _ = run_cli("-q", "run", _config(root, "out"))
     assert code == 1
     assert "run " in out and "3 scenes" in out and "2 scenes complete" in out
-    assert f"FAILED broken at build_scene: {broken / 'scene.json'}: objects[20].mesh: cannot read mesh" in out
+    assert f"FAILED broken at build_scene: {broken / 'scene.json'}: objects[2].mesh: cannot read mesh" in out
     files = json.loads((root / "out" / "manifest.json").read_text())["files"]
-    assert "reports/demo_apartment_0/report.json" in files and not any("broken" in f for f in files)
-    failure = f"{broken / 'scene.json'}: objects[20].mesh: cannot read mesh"
+    assert f"reports/{A}/report.json" in files and not any("broken" in f for f in files)
+    failure = f"{broken / 'scene.json'}: objects[2].mesh: cannot read mesh"
     manifest = json.loads((root / "out" / "manifest.json").read_text())
     assert manifest["failed"]["broken"]["stage"] == "build_scene" and list(manifest["failed"]) == ["broken"]
     assert manifest["failed"]["broken"]["message"].startswith(failure)
@@ -439,9 +481,9 @@ def test_a_broken_scene_fails_alone(workspace, run_cli):
     code, out, _ = run_cli("-q", "run", config)
     assert code == 0, out
     manifest = json.loads((root / "out" / "manifest.json").read_text())
-    assert manifest["failed"] == {} and list(manifest["inputs"]) == ["demo_apartment_0"]
-    assert {f.split("/")[1] for f in manifest["files"]} == {"demo_apartment_0"}
-    assert (root / "out" / "episodes" / "demo_apartment_1").is_dir()  # still there: sagebench removes no outputs
+    assert manifest["failed"] == {} and list(manifest["inputs"]) == [A]
+    assert {f.split("/")[1] for f in manifest["files"]} == {A}
+    assert (root / "out" / "episodes" / B).is_dir()  # still there: sagebench removes no outputs
     code, out, _ = run_cli("verify", root / "out")
     assert code == 0 and out.startswith("ok:"), out
 

@@ -56,6 +56,16 @@ def test_make_test_runs_the_ci_profile_and_make_explore_a_fresh_seed():
     assert "make test" in (ROOT / ".ci" / "run").read_text()
 
 
+def test_ci_runs_every_test_make_test_all_but_the_slow_ones_and_make_test_slow_those():
+    makefile = (ROOT / "Makefile").read_text()
+    recipes = {name: re.search(rf"^{name}:.*\n((?:\t.*\n)+)", makefile, re.M).group(1)
+               for name in ("test", "test-slow")}
+    assert recipes["test"].endswith(' -m "not slow"\n') and recipes["test-slow"].endswith(" -m slow\n")
+    assert recipes["test"].replace(' -m "not slow"', "") == recipes["test-slow"].replace(" -m slow", "")
+    ci = (ROOT / ".ci" / "run").read_text().splitlines()
+    assert ci[-2:] == ["make test", "make test-slow"]
+
+
 def test_the_ci_profile_is_derandomized_and_explore_draws_ten_times_as_many():
     ci, explore = settings.get_profile("ci"), settings.get_profile("explore")
     assert ci.derandomize and ci.database is None and ci.print_blob and ci.max_examples == CI_EXAMPLES

@@ -16,8 +16,8 @@ import sys
 from pathlib import Path
 
 import pytest
-from test_fuzz_inputs import snapshot, tiny_run, tiny_scene  # noqa: F401 - fixtures
-from test_fuzz_safety import TOML, _toml, made_run, refused  # noqa: F401 - fixtures
+from test_fuzz_inputs import snapshot
+from test_fuzz_safety import TOML, _toml, copy_made, refused
 
 def _writers(scene: Path, out: Path, config: Path) -> dict[str, list]:
     """Every command that writes into a run directory, aimed at `out`."""
@@ -444,7 +444,7 @@ def test_a_file_output_never_lands_in_a_run_or_on_a_users_file(writer, where, ma
                                                                  tmp_path):
     """--out RUN/manifest.json, a shard, scene.xml or gaussians.ply was overwritten by all four (and verify then
     failed), and a user's file silently: each is one line now, before any work, with --force too in a run."""
-    run = shutil.copytree(made_run, tmp_path / "run")
+    run = copy_made(made_run, tmp_path / "run")
     make, says = FILE_OUTS[where]
     out = make(tmp_path)
     args = _file_writer(writer, run, out, made_predictions)
@@ -456,7 +456,7 @@ def test_a_file_output_never_lands_in_a_run_or_on_a_users_file(writer, where, ma
 def test_sidecars_are_claimed_and_sagebench_s_own_outputs_are_replaced(made_run, made_predictions, run_cli, tmp_path):
     """A rollout's record and contact sheet beside OUT are claimed with it; an output sagebench wrote there (its
     content says so) is replaced without --force, a user's file only with it, never the predictions scored."""
-    run = shutil.copytree(made_run, tmp_path / "run")
+    run = copy_made(made_run, tmp_path / "run")
     (tmp_path / "r_rollout.json").write_text("{}\n")
     refused(run_cli, ["baseline", "--agent", "straight", "--run", run, "--out", tmp_path / "r.jsonl"], tmp_path,
             "r_rollout.json: exists and sagebench did not write it")

@@ -20,7 +20,7 @@ from sagebench.run_layout import (
     CONTRACT, MANIFEST, OUTPUT_ROOTS, STAMPS, after, files, producer, run_scenes, stage_files,
 )
 
-SCENE = "demo_apartment_0"
+SCENE = "tiny"
 
 
 def _settings() -> dict[str, dict]:
@@ -36,12 +36,12 @@ def _settings() -> dict[str, dict]:
 
 
 @pytest.fixture(scope="module")
-def full_run(demo_scene_dir, tmp_path_factory) -> tuple[Path, Path]:
-    """Every stage of the demo apartment, run by the pipeline's run_task in order; (run dir, CoACD cache)."""
+def full_run(tiny_scene, tmp_path_factory) -> tuple[Path, Path]:
+    """Every stage of the tiny scene (test_fuzz_inputs.py) run by the pipeline's run_task in order; (run dir, cache)."""
     run, cache = tmp_path_factory.mktemp("full_run"), tmp_path_factory.mktemp("layout_cache")
     settings = _settings()
     for name in STAGES:
-        outcome = run_task(Task(name, SCENE, demo_scene_dir, run, settings[name], cache))
+        outcome = run_task(Task(name, SCENE, tiny_scene, run, settings[name], cache))
         assert outcome.status == "ran" and outcome.ok, outcome
     return run, cache
 
@@ -67,20 +67,20 @@ def test_stages_wait_for_the_stages_that_write_what_they_read():
 
 
 @pytest.mark.parametrize("stage", list(STAGES))
-def test_a_stage_needs_only_the_files_it_declares(stage, full_run, demo_scene_dir, tmp_path):
+def test_a_stage_needs_only_the_files_it_declares(stage, full_run, tiny_scene, tmp_path):
     run, cache = full_run
     alone = tmp_path / "run"
-    for p in stage_files(stage, "reads", run, SCENE, demo_scene_dir):
+    for p in stage_files(stage, "reads", run, SCENE, tiny_scene):
         if p.is_relative_to(run):
             (alone / p.relative_to(run)).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(p, alone / p.relative_to(run))
     before = {p for p in alone.rglob("*") if p.is_file()}
 
-    outcome = run_task(Task(stage, SCENE, demo_scene_dir, alone, _settings()[stage], cache))
+    outcome = run_task(Task(stage, SCENE, tiny_scene, alone, _settings()[stage], cache))
 
     assert outcome.status == "ran" and outcome.ok, outcome.message
     new = {p for p in alone.rglob("*") if p.is_file() and STAMPS not in p.relative_to(alone).parts} - before
-    declared = stage_files(stage, "writes", alone, SCENE, demo_scene_dir)
+    declared = stage_files(stage, "writes", alone, SCENE, tiny_scene)
     assert new <= set(declared) and declared  # nothing written beyond the contract
     assert _rel_hashes(declared, alone) == _rel_hashes(stage_files(stage, "writes", run, SCENE), run)
 
@@ -140,10 +140,10 @@ def test_commands_outside_the_pipeline_need_only_the_files_they_declare(command,
 
 
 @pytest.mark.parametrize("stage", list(STAGES))
-def test_changing_any_file_a_stage_reads_makes_it_rerun(stage, full_run, demo_scene_dir, tmp_path):
+def test_changing_any_file_a_stage_reads_makes_it_rerun(stage, full_run, tiny_scene, tmp_path):
     run, cache = full_run
     source = tmp_path / "source"
-    shutil.copytree(demo_scene_dir, source)
+    shutil.copytree(tiny_scene, source)
     task = Task(stage, SCENE, source, run, _settings()[stage], cache)
     stamp = json.loads(stamp_path(task).read_text())
     assert up_to_date(task, stage_key(task, STAGES[stage].inputs(task)))  # nothing changed: skipped

@@ -9,7 +9,6 @@ import shutil
 from pathlib import Path
 
 import pytest
-from test_fuzz_inputs import tiny_scene  # noqa: F401 - fixture
 from test_fuzz_safety import _flip_geodesic, refused
 
 SCENE_OPTIONS = ["--object-density", "20", "--structure-density", "5"]  # few Gaussians: cheap
@@ -32,7 +31,7 @@ def _cli(*args) -> None:
 
 
 @pytest.fixture(scope="module")
-def staged_run(tiny_scene, tmp_path_factory) -> Path:  # noqa: F811 - the fixture imported above
+def staged_run(tiny_scene, tmp_path_factory) -> Path:
     """The tiny scene through the four stage commands, one by one, with the settings of TOML. Read-only: copy it."""
     root = tmp_path_factory.mktemp("staged")
     run = root / "run"
@@ -113,7 +112,7 @@ def _stamps(run: Path) -> dict[str, dict]:
     return {stage: json.loads((run / ".stamps" / "tiny" / f"{stage}.json").read_text()) for stage in STAGES}
 
 
-def test_stage_commands_stamp_what_run_would_and_run_skips_them(staged_run, tiny_scene, run_cli, tmp_path):  # noqa: F811
+def test_stage_commands_stamp_what_run_would_and_run_skips_them(staged_run, tiny_scene, run_cli, tmp_path):
     made = tmp_path / "made"
     config = tmp_path / "made.toml"
     config.write_text(TOML.format(scene=tiny_scene, out=made, cache=tmp_path / "cache"))

@@ -360,8 +360,9 @@ def test_the_semantic_report_of_two_objects():
 
 
 @pytest.fixture(scope="module")
-def demo_built(demo_scene_dir, tmp_path_factory) -> Path:
-    return build_scene(demo_scene_dir, tmp_path_factory.mktemp("run")).out_dir
+def demo_built(demo_built_run) -> Path:
+    """conftest's build of the demo apartment at the default settings. Read-only."""
+    return demo_built_run / "scenes" / "demo_apartment_0"
 
 
 def test_outputs_follow_the_contract(demo_built):
