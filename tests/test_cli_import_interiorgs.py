@@ -91,6 +91,7 @@ def test_other_seeds_round_trip(seed, tmp_path):
     assert in_box_share(truth, folder, read_ply(tmp_path / "imported" / "gaussians.ply").instance_id, label_of) >= 0.95
 
 
+@pytest.mark.slow  # the whole pipeline on the InteriorGS demo: CI runs it; build-scene on the folder is in make test
 def test_a_run_config_takes_the_folder_and_validates_every_trajectory(interiorgs_demo, interiorgs_imported, run_cli,
                                                                       tmp_path):
     folder, _ = interiorgs_demo

@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from sagebench.pipeline.manifest import hash_run
 
 SCRIPT = """
@@ -23,6 +25,7 @@ gen_trajectories(out / "run", GenTrajectoriesConfig(per_scene=4, seed=0))
 """
 
 
+@pytest.mark.slow  # the demo apartment built twice in fresh interpreters: CI runs it (make test-slow)
 def test_outputs_are_the_same_whatever_the_hash_seed(tmp_path):
     procs = {}
     for seed in ("1", "2"):

@@ -18,6 +18,7 @@ def _run(env: dict[str, str], code: str, cwd: Path) -> str:
     return done.stdout + done.stderr
 
 
+@pytest.mark.slow  # a cold numba cache compiles every kernel (about 20 CPU-s), then a demo run: CI runs it
 def test_warmed_kernels_are_every_kernel_a_run_compiles(tmp_path):
     """With a cold numba cache, compile_kernels() writes every kernel the four stages then call: a run after it
     (its own process, as a worker is) compiles nothing and only loads from the cache."""
