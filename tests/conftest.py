@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+import click
 import pytest
+import typer.main
 from hypothesis import settings
 
 import profiles  # noqa: F401 - registers the hypothesis profiles
@@ -19,9 +22,20 @@ from sagebench.ui import SETTINGS
 settings.load_profile("ci")  # `--hypothesis-profile=explore` (make explore) replaces it
 
 
+_build_click_command = typer.main.get_command
+
+
+@functools.cache
+def _click_command(app: typer.Typer) -> click.Command:
+    """The click command typer builds from the app: typer builds it anew on every call of the app (50 ms, most of
+    a refused input's test), a real `sagebench` process once; in-process runs build it once per test process."""
+    return _build_click_command(app)
+
+
 @pytest.fixture
-def run_cli(capsys) -> Callable[..., tuple[int, str, str]]:
+def run_cli(capsys, monkeypatch) -> Callable[..., tuple[int, str, str]]:
     """Run `sagebench ARGS...` in-process; returns (exit code, stdout, stderr)."""
+    monkeypatch.setattr(typer.main, "get_command", _click_command)
 
     def run(*args: str) -> tuple[int, str, str]:
         with pytest.raises(SystemExit) as exc:
