@@ -1,5 +1,5 @@
-"""gen-trajectories' settings (defaults here, nowhere else): sampling, instructions, the chat model, splits and
-what is written; run.toml's [gen_trajectories] table."""
+"""gen-trajectories' settings (defaults here, nowhere else): sampling, instructions, the chat model, splits, the
+tasks and what is written; run.toml's [gen_trajectories] table."""
 
 from __future__ import annotations
 
@@ -7,9 +7,11 @@ import urllib.parse
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, SerializerFunctionWrapHandler, field_validator, model_serializer, model_validator
 
 from sagebench.settings.option import EXPAND, Option
+from sagebench.settings.rollout import names
+from sagebench.settings.shared import TASKS, Task
 
 PairKind = Literal["object-object", "object-room", "room-object", "room-room"]
 HIGH_LEVEL_TYPES = ("Add_Object", "Scenario_Driven", "Relative_Relationship", "Attribute_Based", "Area_Based")
@@ -54,12 +56,29 @@ class SplitConfig(BaseModel):
     val_seen: float = Field(default=0.1, ge=0, le=1,
                             description="Share of the seen scenes' trajectories for val_seen (the rest: train).")
     seed: int = Field(default=0, ge=0, description="Seed of the split hashes.")
+    trajectory_unseen: float = Field(default=0.0, ge=0, le=1, description=(
+        "Share of the seen scenes' trajectories held out for trajectory_unseen (SAGE-Bench's Trajectory-Unseen)."))
+    instruction_unseen: float = Field(default=0.0, ge=0, le=1, description=(
+        "Share of the train trajectories whose high-level instruction is held out for instruction_unseen "
+        "(SAGE-Bench's Instruction-Unseen; the trajectory's other rows stay in train)."))
 
     @model_validator(mode="after")
     def _fractions(self) -> SplitConfig:
         if self.val_unseen + self.test > 1:
             raise ValueError(f"val_unseen + test is {self.val_unseen + self.test:g} of the scenes (at most 1)")
+        if self.val_seen + self.trajectory_unseen > 1:
+            raise ValueError(f"val_seen + trajectory_unseen is {self.val_seen + self.trajectory_unseen:g} of the "
+                             "trajectories (at most 1)")
         return self
+
+    @model_serializer(mode="wrap")
+    def _as_before(self, handler: SerializerFunctionWrapHandler) -> dict:
+        """The held-out shares dump only when set, so a config without them keeps its stamps' keys."""
+        data = handler(self)
+        for name in ("trajectory_unseen", "instruction_unseen"):
+            if not data.get(name):
+                data.pop(name, None)
+        return data
 
 
 class LLMConfig(BaseModel):
@@ -111,6 +130,31 @@ class LLMConfig(BaseModel):
         return url
 
 
+def _comma_list(text: str) -> tuple[str, ...]:
+    """'chair, bed' -> ('chair', 'bed')."""
+    return tuple(p.strip() for p in text.split(",") if p.strip())
+
+
+class TaskConfig(BaseModel):
+    """The episodes of the tasks other than vln (episodes/task_rows.py): how many, their budgets and success radii."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    episodes: Annotated[int, Option("--task-episodes")] = Field(
+        default=20, ge=1, description="Episodes per scene of each task other than vln.")
+    nogoal_budget_s: Annotated[float, Option("--nogoal-budget")] = Field(
+        default=80.0, gt=0, description="Time budget of a nogoal episode, s (SAGE-Bench's 80 s).")
+    nogoal_budget_steps: int = Field(
+        default=160, ge=1, description="Step budget of a nogoal episode: 80 s of 0.5 s actions.")
+    objectnav_categories: Annotated[tuple[str, ...] | None, Option("--objectnav-categories", parse=_comma_list)] = Field(
+        default=None, description="ObjectNav goal categories, comma-separated (default: every category with an "
+                                  "instance the agent can stand by); one with no such instance in a scene is an error.")
+    objectnav_success_m: float = Field(
+        default=1.0, gt=0, description="ObjectNav success distance from any instance's footprint, m.")
+    pointnav_success_m: float = Field(default=0.2, gt=0, description="PointNav success distance, m (habitat's SUCCESS_DISTANCE).")
+    imagenav_success_m: float = Field(default=1.0, gt=0, description="ImageNav success distance, m.")
+
+
 class GenTrajectoriesConfig(SamplingConfig):
     """Settings of gen-trajectories: sampling plus what is written."""
 
@@ -131,6 +175,10 @@ class GenTrajectoriesConfig(SamplingConfig):
     llm: Annotated[LLMConfig, EXPAND] = Field(default=LLMConfig(), description="Chat model for --instructions llm.")
     preview_paths: int = Field(default=40, ge=0, description="Paths drawn in paths.png.")
     splits: SplitConfig = Field(default=SplitConfig(), description="Split fractions and seed (episodes/splits.py).")
+    tasks: Annotated[tuple[Task, ...], Option("--tasks", parse=names(TASKS, "--tasks"))] = Field(
+        default=("vln",), description="Tasks to write episodes for, comma-separated: vln, nogoal, objectnav, pointnav, "
+                                      "imagenav (docs/tasks.md).")
+    task: Annotated[TaskConfig, EXPAND] = Field(default=TaskConfig(), description="The other tasks' episodes.")
 
     @model_validator(mode="after")
     def _instruction_settings(self) -> GenTrajectoriesConfig:
@@ -140,4 +188,17 @@ class GenTrajectoriesConfig(SamplingConfig):
             raise ValueError("--instructions llm needs --llm-base-url and --llm-model")
         if self.instructions != "llm" and self.llm != LLMConfig():
             raise ValueError("--llm-* options (the llm table) are used only with --instructions llm")
+        if not self.tasks or len(set(self.tasks)) != len(self.tasks):
+            raise ValueError("--tasks needs at least one task, each named once")
+        if self.tasks == ("vln",) and self.task != TaskConfig():
+            raise ValueError("the task table's options are used only with --tasks other than vln")
         return self
+
+    @model_serializer(mode="wrap")
+    def _vln_as_before(self, handler: SerializerFunctionWrapHandler) -> dict:
+        """A vln-only config dumps as before tasks existed, so its stamps' keys and the manifest stay the same."""
+        data = handler(self)
+        if self.tasks == ("vln",):
+            data.pop("tasks", None)
+            data.pop("task", None)
+        return data
