@@ -49,6 +49,31 @@ class GoalField:
         return distances_on_foot([self] * len(xy), xy)
 
 
+@dataclass(frozen=True)
+class ViewpointField:
+    """Distances on foot (m) to the nearest of a set of goal cells (ObjectNav's viewpoints: every navigable cell
+    within the success radius of any instance of the category). A point's distance is its cell's (after snapping),
+    0 on a viewpoint, inf where it cannot reach one: success and the distance to the goal read the same numbers."""
+
+    cells: np.ndarray  # [H, W] bool, the viewpoints
+    cost: np.ndarray  # [H, W] m, cell centre -> the nearest viewpoint along the grid; inf where unreachable
+    navmap: "NavigableMap"
+
+    @property
+    def worst(self) -> float:
+        """The largest distance on foot from any connected navigable cell to its nearest viewpoint."""
+        finite = self.cost[np.isfinite(self.cost)]
+        return float(finite.max()) if finite.size else 0.0
+
+    def distance(self, xy: np.ndarray) -> np.ndarray:
+        """[N] distance on foot (m) from points [N, >=2] to the nearest viewpoint; inf where none is reachable."""
+        cells = self.navmap.snap(np.atleast_2d(np.asarray(xy, dtype=np.float64))[:, :2])
+        out = np.full(len(cells), np.inf)
+        ok = cells[:, 0] >= 0
+        out[ok] = self.cost[cells[ok, 0], cells[ok, 1]]
+        return out
+
+
 def distances_on_foot(fields: Sequence[GoalField], xy: np.ndarray) -> np.ndarray:
     """[N] distance on foot (m) from each point xy[k] [N, >=2] to the goal of fields[k] (goal fields of one map):
     the env's agents, each walking to its own goal, in one call. Each point's distance is what it alone gives."""
@@ -179,6 +204,19 @@ class NavigableMap:
                 cost = dijkstra(self._graph, directed=True, indices=r * w + c).reshape(h, w) * self.resolution
             self._fields[(r, c)] = cost
         return GoalField(goal_xy, self._fields[(r, c)], self)
+
+
+    def viewpoint_field(self, cells: np.ndarray) -> ViewpointField:
+        """The distances on foot to the nearest of the goal cells ([H, W] bool; only navigable ones count): one
+        Dijkstra from all of them at once. No goal cell: reachable from nowhere, every distance inf."""
+        goals = np.asarray(cells, dtype=bool) & self.navigable
+        sources = np.flatnonzero(goals.ravel())
+        if not len(sources):
+            return ViewpointField(goals, np.full(goals.shape, np.inf), self)
+        if self._graph is None:
+            self._graph = grid_graph(self.navigable).tocsr()
+        cost = dijkstra(self._graph, directed=True, indices=sources, min_only=True).reshape(goals.shape)
+        return ViewpointField(goals, cost * self.resolution, self)
 
 
 def distance_on_foot(navigable: np.ndarray, resolution: float, origin: tuple[float, float], goal_xy: np.ndarray,
