@@ -18,6 +18,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from sagebench.astar.dijkstra_reference import grid_graph
+from sagebench.metrics.coverage import main_region
 
 
 @dataclass(frozen=True)
@@ -119,8 +120,22 @@ class NavigableMap:
     def __post_init__(self) -> None:
         self.navigable = np.asarray(self.navigable).astype(bool)
         self._graph: csr_matrix | None = None
+        self._main: np.ndarray | None = None
         # nearest navigable cell of every cell and its distance (cells, centre to centre)
         self._gap, self._nearest = distance_transform_edt(~self.navigable, return_indices=True)
+
+    def graph(self) -> csr_matrix:
+        """The planner's graph of the map (8-connected, no corner cutting; edge weights in cells), built once."""
+        if self._graph is None:
+            self._graph = grid_graph(self.navigable).tocsr()
+        return self._graph
+
+    @property
+    def main_region(self) -> np.ndarray:
+        """[H, W] bool: the main region (build-scene's largest connected region), computed once."""
+        if self._main is None:
+            self._main = main_region(self.navigable)
+        return self._main
 
     @property
     def bounds(self) -> tuple[float, float, float, float]:
@@ -199,9 +214,7 @@ class NavigableMap:
             if r < 0:
                 cost = np.full((h, w), np.inf)
             else:
-                if self._graph is None:
-                    self._graph = grid_graph(self.navigable).tocsr()
-                cost = dijkstra(self._graph, directed=True, indices=r * w + c).reshape(h, w) * self.resolution
+                cost = dijkstra(self.graph(), directed=True, indices=r * w + c).reshape(h, w) * self.resolution
             self._fields[(r, c)] = cost
         return GoalField(goal_xy, self._fields[(r, c)], self)
 
@@ -213,9 +226,7 @@ class NavigableMap:
         sources = np.flatnonzero(goals.ravel())
         if not len(sources):
             return ViewpointField(goals, np.full(goals.shape, np.inf), self)
-        if self._graph is None:
-            self._graph = grid_graph(self.navigable).tocsr()
-        cost = dijkstra(self._graph, directed=True, indices=sources, min_only=True).reshape(goals.shape)
+        cost = dijkstra(self.graph(), directed=True, indices=sources, min_only=True).reshape(goals.shape)
         return ViewpointField(goals, cost * self.resolution, self)
 
 
