@@ -35,6 +35,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from sagebench.episodes.tasks import pointgoal_polar
 from sagebench.settings.rollout import PRIVILEGED, EnvConfig, check_profile
 from sagebench.vlnce.vocab import TOKENS_PER_INSTRUCTION
 
@@ -179,9 +180,7 @@ def gps_compass(pose: np.ndarray, start: np.ndarray, start_yaw: float) -> tuple[
 
 
 def pointgoal(pose: np.ndarray, goal: np.ndarray) -> np.ndarray:
-    """habitat's PointGoalWithGPSCompassSensor (POLAR, 2-D) for the agent at `pose` [>=2 .., yaw last]: [rho, phi]
-    float32, rho the floor-plane distance to the goal [>=2] (m), phi its bearing counter-clockwise from the agent's
-    heading (rad, in [-pi, pi])."""
-    d = np.asarray(goal[:2], dtype=np.float64) - np.asarray(pose[:2], dtype=np.float64)
-    bearing = math.remainder(math.atan2(d[1], d[0]) - float(pose[-1]), 2 * math.pi)
-    return np.array([math.hypot(d[0], d[1]), bearing], np.float32)
+    """habitat's PointGoalWithGPSCompassSensor for the agent at `pose` [>=2 .., yaw last]: [rho, phi] float32 of
+    the goal [>=2] from its current pose (episodes/tasks.py's pointgoal_polar)."""
+    return np.array(pointgoal_polar(float(pose[0]), float(pose[1]), float(pose[-1]), float(goal[0]), float(goal[1])),
+                    np.float32)
