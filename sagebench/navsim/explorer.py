@@ -2,9 +2,11 @@
 and its pose, as the oracle reads the reference path).
 
 It keeps the floor its body has swept (`metrics/coverage.py`, the agent's radius) and walks, by the planner's
-graph, to the nearest main-region cell not yet swept (at least a forward step away), turning towards the path's
-next cell and moving forward as the oracle does; it plans again when that cell is swept or a move was more than
-half blocked, and stops when nothing reachable is left or after the episode's step budget (budget_steps).
+graph, to the main-region cell not yet swept (at least a forward step away) that is cheapest to reach in actions:
+forward steps along the path plus the turns to face it, so it sweeps lanes straight ahead rather than zigzag to the
+nearest scrap. It turns towards the path's next cell and moves forward as the oracle does, plans again at the
+route's end or after a move more than half blocked, and stops when nothing reachable is left or after the
+episode's step budget (budget_steps).
 """
 
 from __future__ import annotations
@@ -33,7 +35,6 @@ class Explorer:
         self.budget = [e.budget_steps if e.budget_steps is not None else math.inf for e in episodes]
         self.taken = [0] * len(episodes)
         self.route: list[list[np.ndarray]] = [[] for _ in episodes]
-        self.target: list[tuple[int, int] | None] = [None] * len(episodes)
         self.last: list[np.ndarray | None] = [None] * len(episodes)
 
     def act(self, slots, observations, infos) -> list:
@@ -45,7 +46,7 @@ class Explorer:
                 out.append(Action.STOP)
                 continue
             stuck = info.get("collision_intensity", 0.0) > 0.5
-            if stuck or self.target[i] is None or self.swept[i][self.target[i]]:
+            if stuck:
                 self._plan(i, pose)
             while self.route[i] and np.hypot(*(self.route[i][0] - pose[:2])) <= self.actions.forward_step / 2:
                 self.route[i].pop(0)
@@ -67,7 +68,7 @@ class Explorer:
     def _plan(self, i: int, pose: np.ndarray) -> None:
         """Route to the nearest unswept main-region cell at least a forward step away (none: an empty route)."""
         m = self.navmaps[i]
-        self.route[i], self.target[i] = [], None
+        self.route[i] = []
         cell = m.snap(pose[None, :2])[0]
         if cell[0] < 0:
             return
@@ -77,7 +78,12 @@ class Explorer:
         left = m.main_region & ~self.swept[i] & np.isfinite(dist) & (dist >= self.actions.forward_step)
         if not left.any():
             return
-        goal = int(np.argmin(np.where(left, dist, np.inf)))
+        rows, cols = np.indices((h, w))
+        bearing = np.arctan2((rows + 0.5) * m.resolution + m.origin[1] - pose[1],
+                             (cols + 0.5) * m.resolution + m.origin[0] - pose[0]) - pose[3]
+        turns = np.abs(np.remainder(bearing + np.pi, 2 * np.pi) - np.pi) / math.radians(self.actions.turn_deg)
+        actions = dist / self.actions.forward_step + turns
+        goal = int(np.argmin(np.where(left, actions, np.inf)))
         chain = [goal]
         while pred[chain[-1]] >= 0:
             chain.append(int(pred[chain[-1]]))
@@ -85,4 +91,3 @@ class Explorer:
         centres = np.column_stack([cells % w + 0.5, cells // w + 0.5]) * m.resolution + np.asarray(m.origin)
         every = max(1, int(round(self.actions.forward_step / m.resolution)))
         self.route[i] = [*centres[every - 1::every], centres[-1]]
-        self.target[i] = (goal // w, goal % w)
