@@ -94,7 +94,7 @@ def score_episodes(episodes: Sequence[Episode], matched: Mapping[str, Prediction
     for e in episodes:
         p = matched.get(e.episode_id)
         if p is None:
-            scores.append(EpisodeScore(e, missing_metrics(e, maps[e.scene_id]), missing=True, icp_source="missing"))
+            scores.append(EpisodeScore(e, missing_task_metrics(e, maps[e.scene_id]), missing=True, icp_source="missing"))
             continue
         source = icp_source(p)
         c = derived[e.episode_id] if source == "derived" else np.asarray(p.collision_intensity, dtype=np.float64)
@@ -110,14 +110,18 @@ def icp_source(prediction: Prediction) -> str:
     return "measured" if prediction.intensity_source == "simulator" else "self-reported"
 
 
-def missing_metrics(episode: Episode, navmap: NavigableMap) -> Metrics:
+def missing_task_metrics(episode: Episode, navmap: NavigableMap) -> Metrics:
     """The worst value of every metric of the episode's task on its map (module docstring)."""
     if episode.task == "nogoal":
         return ExplorationMetrics(sr=0.0, coverage=0.0, collisions=0.0, icp=1.0, ps=0.0, path_length=0.0, time=0.0)
     if episode.task != "vln":
         return GoalMetrics(sr=0.0, osr=0.0, spl=0.0, ne=goal_field(navmap, episode).worst, csr=0.0, icp=1.0, ps=0.0,
                            path_length=0.0)
-    on_foot: GoalField = navmap.field(episode.goal)
+    return missing_metrics(navmap.field(episode.goal))
+
+
+def missing_metrics(on_foot: GoalField) -> EpisodeMetrics:
+    """The worst value of every VLN metric on the goal's map (module docstring)."""
     return EpisodeMetrics(ne=on_foot.worst, ne_straight=on_foot.worst_straight, sr=0.0, osr=0.0, spl=0.0, ndtw=0.0,
                           sdtw=0.0, csr=0.0, icp=1.0, ps=0.0, path_length=0.0)
 
