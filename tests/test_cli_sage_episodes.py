@@ -1,8 +1,6 @@
 """`sagebench export-sage` and `import-sage-episodes`: SAGE-3D's GVLN files both ways.
 
-SAGE-3D's reading is re-implemented here from the behaviour of its episodes_adapter.py (one episode per
-instruction, "<trajectory_id>-<k>", start = first point's position and rotation, goal = last point) and
-simple_env.set_start_pose (heading = 2 atan2(-qx, qw) - pi in its 3D frame), not copied and not imported.
+SAGE-3D's reading is re-implemented in tests/sage_benchmark.py.
 """
 
 from __future__ import annotations
@@ -18,37 +16,9 @@ import pytest
 from sagebench.episodes.shards import read_episodes
 from sagebench.gvln.episodes import item_names
 from sagebench.scene.loader import load_scene
+from tests.sage_benchmark import sage_adapter, sage_heading
 
 SCENE = "demo_apartment_0"
-
-
-def sage_adapter(path: Path) -> list[dict]:
-    """SAGE-3D's episodes as its benchmark builds them from a GVLN file."""
-    data = json.loads(path.read_text())
-    scene = data["scenes"][0]
-    episodes = []
-    for sample in scene.get("samples", []):
-        points = sample["points"]
-        instructions = sample.get("instructions", [""])
-        if not instructions:
-            parsed = [(0, "", "", "", "")]
-        elif isinstance(instructions[0], str):
-            parsed = [(i, t, "", "", "") for i, t in enumerate(instructions)]
-        else:
-            parsed = [(i, d.get("generated_instruction", ""), d.get("instruction_type", ""), d.get("start", ""),
-                       d.get("end", "")) for i, d in enumerate(instructions) if isinstance(d, dict)]
-        for k, text, kind, start, end in parsed:
-            episodes.append({"episode_id": f"{sample.get('trajectory_id', '0')}-{k}", "instruction": text,
-                             "instruction_type": kind, "start_item": start, "end_item": end,
-                             "start_position": points[0]["position"], "start_rotation": points[0]["rotation"],
-                             "goal": points[-1]["position"], "scene_name": scene.get("scene_name", "scene")})
-    return episodes
-
-
-def sage_heading(rotation: list[float]) -> float:
-    """The heading SAGE-3D's simulator starts an episode with, in its 3D frame."""
-    qx, _, _, qw = rotation
-    return math.remainder(2 * math.atan2(-qx, qw) - math.pi, 2 * math.pi)
 
 
 def _angle(a: float, b: float) -> float:
