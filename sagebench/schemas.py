@@ -1,5 +1,5 @@
 """JSON Schemas of every file format sagebench reads or writes, generated from the models, and the episode
-row's Arrow schema as an IPC file. Every JSON Schema declares its dialect ($schema, draft 2020-12) and an
+row's Arrow schemas as IPC files (a vln run's, and a run's with other tasks). Every JSON Schema declares its dialect ($schema, draft 2020-12) and an
 $id naming it."""
 
 from __future__ import annotations
@@ -53,6 +53,7 @@ SCHEMAS: dict[str, Callable[[], dict[str, Any]]] = {
 
 DIALECT = "https://json-schema.org/draft/2020-12/schema"
 EPISODE_ARROW = "episode.arrow"  # the episode row's Arrow schema (IPC), with each column's description
+EPISODE_TASKS_ARROW = "episode_tasks.arrow"  # the same once a task other than vln is written (episodes/tasks.py)
 
 
 def schema_id(name: str) -> str:
@@ -63,10 +64,12 @@ def schema_id(name: str) -> str:
 def render_schemas() -> dict[str, bytes]:
     """file name -> contents: canonical JSON text of each JSON Schema, the IPC bytes of the Arrow schema."""
     from sagebench.episodes.schema import episode_schema_ipc
+    from sagebench.episodes.tasks import TASK_SCHEMA
 
     out = {name: dumps_json({"$schema": DIALECT, "$id": schema_id(name), **make()}).encode()
            for name, make in sorted(SCHEMAS.items())}
     out[EPISODE_ARROW] = episode_schema_ipc()
+    out[EPISODE_TASKS_ARROW] = episode_schema_ipc(TASK_SCHEMA)
     return dict(sorted(out.items()))
 
 

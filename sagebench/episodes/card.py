@@ -16,6 +16,7 @@ import pyarrow.parquet as pq
 
 from sagebench.episodes.schema import field_descriptions
 from sagebench.episodes.shards import split_pattern
+from sagebench.episodes.tasks import REQUIRED, task_field_descriptions
 from sagebench.run_layout import EPISODES, PREVIEWS, REPORTS, SCENE_FILE, SCENES, SHARDS, VALIDATION
 from sagebench.settings.shared import SPLITS
 
@@ -42,7 +43,7 @@ def card_text(run_dir: Path, *, title: str = "sagebench run") -> str:
                         "tags": ["vision-language-navigation", "robotics"]}, indent=2)
     licence_lines = "\n".join(f"- `{sid}`: {licences.get(sid) or 'not given in its scene.json'}"
                                for sid in sorted(licences)) or "- (no scenes)"
-    columns = "\n".join(f"| `{name}` | {doc} |" for name, doc in field_descriptions().items())
+    columns = "\n".join(f"| `{name}` | {doc} |" for name, doc in field_descriptions().items()) + task_columns(run_dir)
     split_lines = "\n".join(f"- `{s}`: `{EPISODES}/*/{split_pattern(s)}`" for s in splits) or "- (none yet)"
     return f"""---
 {front}
@@ -98,6 +99,17 @@ Each scene's, from its `scene.json`:
 {licence_lines}
 - `manifest.json`: sha256 of every file, the versions and the configuration that made the run.
 """
+
+
+def task_columns(run_dir: Path) -> str:
+    """The task columns' rows of the columns table and the columns each task fills, when a shard has a `task`
+    column (a run with tasks other than vln); "" otherwise, so a vln run's card reads as before tasks existed."""
+    if not any("task" in pq.read_schema(f).names for f in sorted(run_dir.glob(f"{EPISODES}/*/{SHARDS}"))):
+        return ""
+    rows = "".join(f"\n| `{name}` | {doc} |" for name, doc in task_field_descriptions().items())
+    needs = "\n".join(f"- `{task}`: {', '.join(f'`{n}`' for n in names) or 'the shared columns only'}"
+                       for task, names in REQUIRED.items())
+    return f"{rows}\n\nWhat each task's rows fill besides the shared columns (docs/tasks.md):\n\n{needs}"
 
 
 def scene_licences(run_dir: Path) -> dict[str, str | None]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -10,6 +11,7 @@ import pyarrow as pa
 
 from sagebench.errors import DataError
 from sagebench.episodes.episode import NO_LEVEL, Episode
+from sagebench.episodes.tasks import row_task, task_field_descriptions
 from sagebench.run_layout import run_episodes_dir, run_scenes
 
 
@@ -51,9 +53,9 @@ def read_trajectories(episodes_dir: Path) -> list[Trajectory]:
     return out
 
 
-def load_episodes(run_dir: Path, scene_id: str | None = None) -> list[Episode]:
-    """Every episode row of the run (or of `scene_id`), in scene then file order (split "none" for shards written
-    before the split column)."""
+def load_episodes(run_dir: Path, scene_id: str | None = None, tasks: Collection[str] | None = None) -> list[Episode]:
+    """Every episode row of the run (or of `scene_id`; of `tasks` only when given), in scene then file order (split
+    "none" for shards written before the split column, task "vln" for shards without a task column)."""
     from sagebench.episodes.shards import read_episodes
 
     out = []
@@ -64,9 +66,11 @@ def load_episodes(run_dir: Path, scene_id: str | None = None) -> list[Episode]:
         except (OSError, pa.ArrowException) as err:
             raise DataError(f"cannot read episode shards: {err}", path=episodes_dir) from None
         columns = ["episode_id", "scene_id", "instruction_level", "instruction_type", "start_position", "start_yaw",
-                   "goal_position", "goal_radius", "geodesic_distance", "reference_path", "instruction_text"]
-        for row in table.select(columns + (["split"] if "split" in table.column_names else [])).to_pylist():
-            out.append(episode_from_row(row, episodes_dir))
+                   "goal_position", "goal_radius", "geodesic_distance", "reference_path", "instruction_text",
+                   *(c for c in ("split", *task_field_descriptions()) if c in table.column_names)]
+        for row in table.select(columns).to_pylist():
+            if tasks is None or row_task(row) in tasks:
+                out.append(episode_from_row(row, episodes_dir))
     return out
 
 
@@ -81,4 +85,15 @@ def episode_from_row(row: dict, where: Path) -> Episode:
         start=np.asarray(row["start_position"], dtype=np.float64), start_yaw=float(row["start_yaw"]),
         goal=np.asarray(row["goal_position"], dtype=np.float64), goal_radius=float(row["goal_radius"]),
         geodesic_distance=float(row["geodesic_distance"]), reference_path=path,
-        split=row.get("split") or NO_LEVEL, instruction=row.get("instruction_text") or "")
+        split=row.get("split") or NO_LEVEL, instruction=row.get("instruction_text") or "", **task_goal(row))
+
+
+def task_goal(row: dict) -> dict:
+    """The Episode fields of the row's task (none for a row of a shard without task columns)."""
+    viewpoints = row.get("goal_viewpoints")
+    polar = row.get("goal_polar")
+    return {"task": row_task(row), "budget_s": row.get("budget_s"), "budget_steps": row.get("budget_steps"),
+            "goal_category": row.get("goal_category"), "goal_instance_ids": tuple(row.get("goal_instance_ids") or ()),
+            "goal_viewpoints": None if viewpoints is None else np.asarray(viewpoints, dtype=np.float64).reshape(-1, 3),
+            "goal_polar": None if polar is None else (float(polar[0]), float(polar[1])),
+            "goal_yaw": row.get("goal_yaw"), "goal_image": row.get("goal_image")}

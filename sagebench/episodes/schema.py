@@ -42,9 +42,10 @@ EPISODE_SCHEMA = pa.schema([f.with_metadata({"description": doc}) for f, doc in 
                            metadata={"title": "sagebench episode row (Parquet, episodes/<scene_id>/part-<split>-NNNNN.parquet)"})
 
 
-def episode_schema_ipc() -> bytes:
-    """The schema as an Arrow IPC message (schemas/episode.arrow): `pyarrow.ipc.read_schema` reads it back."""
-    return EPISODE_SCHEMA.serialize().to_pybytes()
+def episode_schema_ipc(schema: pa.Schema = EPISODE_SCHEMA) -> bytes:
+    """The schema as an Arrow IPC message (schemas/episode.arrow; episode_tasks.arrow for a run with other tasks):
+    `pyarrow.ipc.read_schema` reads it back."""
+    return schema.serialize().to_pybytes()
 
 
 def field_descriptions() -> dict[str, str]:

@@ -17,6 +17,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from sagebench.episodes.schema import EPISODE_SCHEMA
+from sagebench.episodes.tasks import TASK_SCHEMA, check_task_table, task_field_descriptions
 from sagebench.errors import DataError
 from sagebench.fileio import write_bytes
 from sagebench.settings.shared import SPLITS
@@ -33,9 +34,10 @@ def split_pattern(split: str) -> str:
     return f"part-{split}-*.parquet"
 
 
-def rows_table(rows: Sequence[dict[str, Any]]) -> pa.Table:
-    """Rows (dicts keyed by column name) as a table with exactly EPISODE_SCHEMA."""
-    return pa.Table.from_pylist(list(rows), schema=EPISODE_SCHEMA)
+def rows_table(rows: Sequence[dict[str, Any]], schema: pa.Schema = EPISODE_SCHEMA) -> pa.Table:
+    """Rows (dicts keyed by column name) as a table with exactly `schema` (EPISODE_SCHEMA, or TASK_SCHEMA when a
+    task other than vln is written: episodes/tasks.py)."""
+    return pa.Table.from_pylist(list(rows), schema=schema)
 
 
 def table_bytes(table: pa.Table, row_group_rows: int | None = None) -> bytes:
@@ -60,9 +62,10 @@ def shard_tables(table: pa.Table, shard_bytes: int) -> list[bytes]:
     return [table_bytes(table.slice(lo, rows), group) for lo in range(0, table.num_rows, rows)]
 
 
-def write_shards(rows: Sequence[dict[str, Any]], out_dir: Path, shard_bytes: int) -> list[Path]:
-    """Write each split's rows (in order) into out_dir/part-<split>-00000.parquet, ... of about `shard_bytes`;
-    splits in sorted order. No rows: one empty part-empty-00000.parquet keeps the schema. A split that is not one
+def write_shards(rows: Sequence[dict[str, Any]], out_dir: Path, shard_bytes: int,
+                 schema: pa.Schema = EPISODE_SCHEMA) -> list[Path]:
+    """Write each split's rows (in order, as `schema`) into out_dir/part-<split>-00000.parquet, ... of about
+    `shard_bytes`; splits in sorted order. No rows: one empty part-empty-00000.parquet keeps the schema. A split that is not one
     of SPLITS is a DataError before anything is written."""
     splits = sorted({r["split"] for r in rows}) or ["empty"]
     bad = next((s for s in splits if s not in (*SPLITS, "empty")), None)
@@ -71,7 +74,7 @@ def write_shards(rows: Sequence[dict[str, Any]], out_dir: Path, shard_bytes: int
                         field="split")
     paths = []
     for split in splits:
-        table = rows_table([r for r in rows if r["split"] == split])
+        table = rows_table([r for r in rows if r["split"] == split], schema)
         for index, data in enumerate(shard_tables(table, shard_bytes)):
             path = out_dir / shard_name(split, index)
             write_bytes(path, data)
@@ -80,21 +83,30 @@ def write_shards(rows: Sequence[dict[str, Any]], out_dir: Path, shard_bytes: int
 
 
 def read_episodes(path: Path) -> pa.Table:
-    """All shards of one episodes/<scene_id>/ directory (or one shard file) as one table."""
+    """All shards of one episodes/<scene_id>/ directory (or one shard file) as one table: EPISODE_SCHEMA when no
+    shard has a `task` column, else TASK_SCHEMA (a shard without one holds vln rows: its task columns read null)."""
     files = sorted(path.glob("part-*.parquet")) if path.is_dir() else [path]
-    for f in files:
-        check_shard_schema(pq.read_schema(f), f)
-    return pa.concat_tables([pq.read_table(f, schema=EPISODE_SCHEMA) for f in files])
+    schemas = [pq.read_schema(f) for f in files]
+    for f, schema in zip(files, schemas, strict=True):
+        check_shard_schema(schema, f)
+    schema = TASK_SCHEMA if any("task" in s.names for s in schemas) else EPISODE_SCHEMA
+    tables = [pq.read_table(f, schema=schema) for f in files]
+    for f, table in zip(files, tables, strict=True):
+        check_task_table(table, f)
+    return pa.concat_tables(tables)
 
 
 OPTIONAL_COLUMNS = frozenset({"split"})  # shards written before the split column lack it
+TASK_COLUMNS = frozenset(task_field_descriptions())  # a vln-only shard has none of them
 
 
 def check_shard_schema(schema: pa.Schema, path: Path) -> None:
-    """Every column of EPISODE_SCHEMA (but the optional ones) with its type: a shard of another table is a DataError."""
-    for field in EPISODE_SCHEMA:
+    """Every column of EPISODE_SCHEMA (but the optional ones) with its type, and the task columns with theirs when
+    the shard has a `task` column: a shard of another table is a DataError."""
+    tasks = "task" in schema.names
+    for field in TASK_SCHEMA:
         if field.name not in schema.names:
-            if field.name in OPTIONAL_COLUMNS:
+            if field.name in OPTIONAL_COLUMNS or (field.name in TASK_COLUMNS and not tasks):
                 continue
             raise DataError(f"not an episode shard: column missing (has {', '.join(schema.names[:5])}"
                             f"{', ...' if len(schema.names) > 5 else ''})", path=path, field=field.name)

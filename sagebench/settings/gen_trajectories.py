@@ -1,5 +1,5 @@
-"""gen-trajectories' settings (defaults here, nowhere else): sampling, instructions, the chat model, splits and
-what is written; run.toml's [gen_trajectories] table."""
+"""gen-trajectories' settings (defaults here, nowhere else): sampling, instructions, the chat model, splits, the
+tasks and what is written; run.toml's [gen_trajectories] table."""
 
 from __future__ import annotations
 
@@ -7,9 +7,11 @@ import urllib.parse
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, SerializerFunctionWrapHandler, field_validator, model_serializer, model_validator
 
 from sagebench.settings.option import EXPAND, Option
+from sagebench.settings.rollout import names
+from sagebench.settings.shared import TASKS, Task
 
 PairKind = Literal["object-object", "object-room", "room-object", "room-room"]
 HIGH_LEVEL_TYPES = ("Add_Object", "Scenario_Driven", "Relative_Relationship", "Attribute_Based", "Area_Based")
@@ -111,6 +113,31 @@ class LLMConfig(BaseModel):
         return url
 
 
+def _comma_list(text: str) -> tuple[str, ...]:
+    """'chair, bed' -> ('chair', 'bed')."""
+    return tuple(p.strip() for p in text.split(",") if p.strip())
+
+
+class TaskConfig(BaseModel):
+    """The episodes of the tasks other than vln (episodes/task_rows.py): how many, their budgets and success radii."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    episodes: Annotated[int, Option("--task-episodes")] = Field(
+        default=20, ge=1, description="Episodes per scene of each task other than vln.")
+    nogoal_budget_s: Annotated[float, Option("--nogoal-budget")] = Field(
+        default=80.0, gt=0, description="Time budget of a nogoal episode, s (SAGE-Bench's 80 s).")
+    nogoal_budget_steps: int = Field(
+        default=160, ge=1, description="Step budget of a nogoal episode: 80 s of 0.5 s actions.")
+    objectnav_categories: Annotated[tuple[str, ...] | None, Option("--objectnav-categories", parse=_comma_list)] = Field(
+        default=None, description="ObjectNav goal categories, comma-separated (default: every category with an "
+                                  "instance the agent can stand by); one with no such instance in a scene is an error.")
+    objectnav_success_m: float = Field(
+        default=1.0, gt=0, description="ObjectNav success distance from any instance's footprint, m.")
+    pointnav_success_m: float = Field(default=0.2, gt=0, description="PointNav success distance, m (habitat's SUCCESS_DISTANCE).")
+    imagenav_success_m: float = Field(default=1.0, gt=0, description="ImageNav success distance, m.")
+
+
 class GenTrajectoriesConfig(SamplingConfig):
     """Settings of gen-trajectories: sampling plus what is written."""
 
@@ -131,6 +158,10 @@ class GenTrajectoriesConfig(SamplingConfig):
     llm: Annotated[LLMConfig, EXPAND] = Field(default=LLMConfig(), description="Chat model for --instructions llm.")
     preview_paths: int = Field(default=40, ge=0, description="Paths drawn in paths.png.")
     splits: SplitConfig = Field(default=SplitConfig(), description="Split fractions and seed (episodes/splits.py).")
+    tasks: Annotated[tuple[Task, ...], Option("--tasks", parse=names(TASKS, "--tasks"))] = Field(
+        default=("vln",), description="Tasks to write episodes for, comma-separated: vln, nogoal, objectnav, pointnav, "
+                                      "imagenav (docs/tasks.md).")
+    task: Annotated[TaskConfig, EXPAND] = Field(default=TaskConfig(), description="The other tasks' episodes.")
 
     @model_validator(mode="after")
     def _instruction_settings(self) -> GenTrajectoriesConfig:
@@ -140,4 +171,17 @@ class GenTrajectoriesConfig(SamplingConfig):
             raise ValueError("--instructions llm needs --llm-base-url and --llm-model")
         if self.instructions != "llm" and self.llm != LLMConfig():
             raise ValueError("--llm-* options (the llm table) are used only with --instructions llm")
+        if not self.tasks or len(set(self.tasks)) != len(self.tasks):
+            raise ValueError("--tasks needs at least one task, each named once")
+        if self.tasks == ("vln",) and self.task != TaskConfig():
+            raise ValueError("the task table's options are used only with --tasks other than vln")
         return self
+
+    @model_serializer(mode="wrap")
+    def _vln_as_before(self, handler: SerializerFunctionWrapHandler) -> dict:
+        """A vln-only config dumps as before tasks existed, so its stamps' keys and the manifest stay the same."""
+        data = handler(self)
+        if self.tasks == ("vln",):
+            data.pop("tasks", None)
+            data.pop("task", None)
+        return data

@@ -13,6 +13,10 @@ from sagebench.settings.option import Option
 
 SPLITS = ("train", "val_seen", "val_unseen", "test")
 Split = Literal["train", "val_seen", "val_unseen", "test"]
+# SAGE-Bench's task family (docs/tasks.md): instruction following, exploration without a goal, and the three goal
+# tasks of its evaluator; "vln" is every episode written before tasks existed
+TASKS = ("vln", "nogoal", "objectnav", "pointnav", "imagenav")
+Task = Literal["vln", "nogoal", "objectnav", "pointnav", "imagenav"]
 RendererChoice = Literal["auto", "cpu", "gsplat"]
 RENDERER = ("Renderer: cpu (the reference), gsplat (CUDA GPU, pip install 'sagebench[gpu]') or auto (gsplat when it "
             "can run here).")
