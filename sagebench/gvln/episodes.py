@@ -86,6 +86,8 @@ def gvln_document(scene_id: str, rows: Sequence[dict[str, Any]], spec: SceneSpec
         if tid not in samples:
             samples[tid] = _sample(row, names, spec.floor_height)
         if row["instruction_text"] is None:
+            if row_task(row) != VLN:  # a goal task's episode without an instruction: its id kept on the sample
+                samples[tid]["sagebench"]["episode_id"] = row["episode_id"]
             continue
         kind = row["instruction_type"]
         samples[tid]["instructions"].append({
@@ -116,6 +118,8 @@ def _sample(row: dict[str, Any], names: dict[int, str], floor: float) -> dict[st
               "sagebench": {k: row.get(k) for k in keep}}
     if row_task(row) != VLN:
         sample["sagebench"].update({k: row.get(k) for k in TASK_KEYS})
+        if row_task(row) == "nogoal":
+            sample["sagebench"]["goal_radius"] = None  # no goal: no radius
         sample.update(sage_task_fields(row, floor))
     return sample
 
@@ -202,6 +206,7 @@ class _SampleExtra(_Model):
     split: Split | None = None  # the --split type: part of the shards' file names
     seed: Annotated[int, Field(ge=0, le=2**63 - 1)] | None = None
     task: Task | None = None
+    episode_id: Hex16 | None = None  # of a task's episode without an instruction
     budget_s: Annotated[float, Field(gt=0, allow_inf_nan=False)] | None = None
     budget_steps: Annotated[int, Field(ge=1, le=2**31 - 1)] | None = None
     goal_category: Name | None = None
@@ -312,7 +317,7 @@ def rows_from_gvln(scene: GvlnScene, spec: SceneSpec, navmap: NavigableMap, *, g
         if task == VLN:
             _vln_rows(sample, base, out, ctx, where)
         else:
-            _task_rows(sample, base, out, ctx.path, where)
+            _task_rows(sample, base, out, extra.episode_id, ctx.path, where)
     return out
 
 
@@ -407,12 +412,13 @@ def _vln_rows(sample: _Sample, base: dict[str, Any], out: GvlnRows, ctx: _Contex
             out.skipped[ins.instruction_type or "(no type)"] += 1
 
 
-def _task_rows(sample: _Sample, base: dict[str, Any], out: GvlnRows, path: Path, where: str) -> None:
+def _task_rows(sample: _Sample, base: dict[str, Any], out: GvlnRows, eid: str | None, path: Path,
+               where: str) -> None:
     """One row per instruction of a sample of a task other than vln (one without an instruction when it has none:
     a no-goal one with SAGE-Bench's exploration instruction); an instruction's type is kept where sagebench knows it."""
     if not sample.instructions:
         text, source = (NOGOAL_INSTRUCTION, SAGE_SOURCE) if base["task"] == "nogoal" else (None, None)
-        out.rows.append({**base, "episode_id": episode_id(base["trajectory_id"], base["task"], "", 0),
+        out.rows.append({**base, "episode_id": eid or episode_id(base["trajectory_id"], base["task"], "", 0),
                          "instruction_level": None, "instruction_type": None, "instruction_text": text,
                          "instruction_source": source})
     counts: Counter[tuple[str, str]] = Counter()
