@@ -20,26 +20,31 @@ from pathlib import Path
 from typing import Any
 
 DEFAULT_SCENE_PATH_PREFIX = "data/scene_datasets/"
-# attrs class -> (fields that must be set, fields that may be left out), as habitat-lab declares them
+# attrs class -> (fields that must be set and not null, fields that may be left out, fields without a default that
+# may be null), as habitat-lab declares them
 EPISODE = ({"episode_id", "scene_id", "start_position", "start_rotation", "goals"},
-           {"scene_dataset_config", "additional_obj_config_paths", "info", "start_room", "shortest_paths"})
-OBJECT_EPISODE = (EPISODE[0], EPISODE[1] | {"object_category"})
-GOAL = ({"position"}, {"radius"})
+           {"scene_dataset_config", "additional_obj_config_paths", "info", "start_room", "shortest_paths"}, set())
+OBJECT_EPISODE = (EPISODE[0], EPISODE[1] | {"object_category"}, set())
+GOAL = ({"position"}, {"radius"}, set())
 OBJECT_GOAL = ({"position", "object_id"},
-               {"radius", "object_name", "object_name_id", "object_category", "room_id", "room_name", "view_points"})
-VIEW_LOCATION = ({"agent_state", "iou"}, set())  # positional fields without defaults: both required
-AGENT_STATE = ({"position"}, {"rotation"})
-PATH_POINT = ({"position", "rotation"}, {"action"})
+               {"radius", "object_name", "object_name_id", "object_category", "room_id", "room_name", "view_points"},
+               set())
+VIEW_LOCATION = (set(), set(), {"agent_state", "iou"})
+AGENT_STATE = (set(), {"rotation"}, {"position"})
+PATH_POINT = (set(), {"action"}, {"position", "rotation"})
 
 
-def build(kind: tuple[set[str], set[str]], name: str, fields: dict[str, Any]) -> dict[str, Any]:
-    """`fields` as habitat-lab's attrs class `name` takes them: a TypeError for a key it does not declare, a
-    ValueError for a required field missing or null."""
-    required, optional = kind
-    unknown = set(fields) - required - optional
+def build(kind: tuple[set[str], set[str], set[str]], name: str, fields: dict[str, Any]) -> dict[str, Any]:
+    """`fields` as habitat-lab's attrs class `name` takes them: a TypeError for a key it does not declare or a
+    field without a default left out, a ValueError for a not_none_validator field missing or null."""
+    not_null, optional, positional = kind
+    unknown = set(fields) - not_null - optional - positional
     if unknown:
         raise TypeError(f"{name}.__init__() got an unexpected keyword argument {sorted(unknown)[0]!r}")
-    for key in sorted(required):
+    missing = positional - set(fields)
+    if missing:
+        raise TypeError(f"{name}.__init__() missing a required argument: {sorted(missing)[0]!r}")
+    for key in sorted(not_null):
         if fields.get(key) is None:
             raise ValueError(f"{name}: argument {key!r} must be set")
     return dict(fields)

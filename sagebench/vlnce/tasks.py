@@ -79,15 +79,17 @@ def object_goals(row: Mapping[str, Any], centres: Mapping[int, Sequence[float]])
 def object_dataset(rows: Sequence[Mapping[str, Any]], centres: Mapping[str, Mapping[int, Sequence[float]]]
                    ) -> dict[str, Any]:
     """The ObjectNav-v1 dataset of objectnav rows (`centres`: scene id -> instance id -> world mesh centre); a
-    scene's category has the goals of its first row."""
+    scene's category has one set of goals: its rows' instances and viewpoints (each once)."""
     categories = sorted({r["goal_category"] for r in rows})
     ids = {c: i for i, c in enumerate(categories)}
-    goals: dict[str, list] = {}
-    episodes = []
+    merged: dict[str, dict] = {}
     for row in rows:
         key = goals_key(row["scene_id"], row["goal_category"])
-        goals.setdefault(key, object_goals(row, centres[row["scene_id"]]))
-        episodes.append({**_episode(row), "object_category": row["goal_category"], "goals": []})
+        first = merged.setdefault(key, {**row, "goal_instance_ids": [], "goal_viewpoints": []})
+        first["goal_instance_ids"] = sorted({*first["goal_instance_ids"], *row["goal_instance_ids"]})
+        first["goal_viewpoints"] = sorted({*map(tuple, first["goal_viewpoints"]), *map(tuple, row["goal_viewpoints"])})
+    goals = {key: object_goals(row, centres[row["scene_id"]]) for key, row in merged.items()}
+    episodes = [{**_episode(r), "object_category": r["goal_category"], "goals": []} for r in rows]
     return {"episodes": episodes, "category_to_task_category_id": ids,
             "category_to_scene_annotation_category_id": dict(ids), "goals_by_category": goals}
 
