@@ -85,6 +85,9 @@ def test_tasks_without_a_habitat_format_are_left_out_and_counted(task_run, run_c
     assert out.splitlines()[-1] == f"left out (no habitat-lab dataset format): nogoal {counts['nogoal']}, vln {counts['vln']}"
     assert sorted(p.name for p in (tmp_path / "h").iterdir() if p.name != ".sagebench.lock") == \
         ["habitat_export.json", "imagenav", "objectnav", "pointnav", "scenes"]
+    first = next((tmp_path / "h" / "pointnav").rglob("*.json.gz")).read_bytes()
+    assert run_cli("export-habitat", task_run, "--out", tmp_path / "h")[0] == 0  # again into its own output
+    assert next((tmp_path / "h" / "pointnav").rglob("*.json.gz")).read_bytes() == first
 
 
 def test_a_run_without_goal_task_episodes_gets_one_line_and_nothing_is_written(demo_eval_run, run_cli, tmp_path):
