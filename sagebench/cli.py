@@ -595,7 +595,7 @@ def evaluate_cmd(
     scene: Annotated[str | None, typer.Option("--scene", help="Score only this scene's episodes (default: every scene).")] = None,
     split: Annotated[str | None, typer.Option(
         "--split", autocompletion=splits,
-        help="Score only this split's episodes: train, val_seen, val_unseen or test (default: all).")] = None,
+        help="Score only this split's episodes: train, val_seen, val_unseen, test, trajectory_unseen or instruction_unseen (default: all).")] = None,
     visualize: Annotated[Path | None, typer.Option(
         "--visualize", help="Also draw one picture per scored episode into this folder: new, empty or an earlier "
                             "--visualize output, outside RUN.")] = None,

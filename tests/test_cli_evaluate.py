@@ -191,7 +191,7 @@ def test_splits_are_scored_apart_and_predictions_of_other_splits_are_left_out(de
     code, _, err = run_cli("evaluate", "--run", run, "--predictions", pred, "--split", "test")
     assert code == 2 and err.strip() == f"error: {run}: no episodes in split 'test'"
     code, _, err = run_cli("evaluate", "--run", run, "--predictions", pred, "--split", "dev")
-    assert code == 2 and "'dev' is not a split (one of train, val_seen, val_unseen, test)" in err
+    assert code == 2 and "'dev' is not a split (one of train, val_seen, val_unseen, test, trajectory_unseen, instruction_unseen)" in err
 
 
 def test_traces_that_scraped_walls_get_a_derived_icp_well_above_0(demo_eval_run, tmp_path, run_cli):

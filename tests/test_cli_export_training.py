@@ -153,7 +153,8 @@ def test_resumes_after_kill_9_to_the_same_bytes(exported, run, tmp_path):
 
 
 @pytest.mark.parametrize(("args", "message"), [
-    (["--split", "nope"], "error: --split: 'nope' is not one of train, val_seen, val_unseen, test"),
+    (["--split", "nope"], "error: --split: 'nope' is not one of train, val_seen, val_unseen, test, trajectory_unseen, "
+                           "instruction_unseen"),
     (["--split", "test"], "error: --split: no episodes of split 'test' in {run}"),
     (["--width", "4"], "error: --width: Input should be greater than or equal to 8"),
 ])

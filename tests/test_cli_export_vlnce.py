@@ -86,7 +86,7 @@ def test_same_run_gives_the_same_bytes(export, demo_eval_run, tmp_path, run_cli)
 
 
 @pytest.mark.parametrize(("split", "message"), [
-    ("nope", "error: --split: 'nope' is not a split (one of train, val_seen, val_unseen, test)\n"),
+    ("nope", "error: --split: 'nope' is not a split (one of train, val_seen, val_unseen, test, trajectory_unseen, instruction_unseen)\n"),
     ("train", "no episodes with an instruction in split 'train'\n"),
 ])
 def test_bad_split_exits_2_and_writes_nothing(demo_eval_run, tmp_path, run_cli, split, message):

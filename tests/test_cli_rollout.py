@@ -149,7 +149,7 @@ def test_split_and_episode_ids_pick_the_episodes_and_are_recorded(demo_eval_run,
 
 @pytest.mark.parametrize("args, message", [
     (("--episode-id", "nope"), "error: --episode-id: no episode 'nope' in this run"),
-    (("--split", "dev"), "error: --split: 'dev' is not a split (one of train, val_seen, val_unseen, test)"),
+    (("--split", "dev"), "error: --split: 'dev' is not a split (one of train, val_seen, val_unseen, test, trajectory_unseen, instruction_unseen)"),
     (("--resume",), "error: --resume: nothing to resume: no p_rollout.json beside "),
     (("--resume", "--profile", "vlnce"), "error: --profile: not with --resume: a resumed rollout keeps the settings"),
     (("--action-space", "continuous"), "error: --action-space: the built-in policy oracle acts in the discrete"),

@@ -111,7 +111,8 @@ def test_a_split_that_is_not_a_split_name_never_names_a_file(split, tmp_path):
     out.mkdir(parents=True)
     with pytest.raises(DataError) as err:
         write_shards([_row(0), _row(1, split=split)], out, shard_bytes=2**27)
-    assert str(err.value) == f"{out}: split: split {split!r} is not one of train, val_seen, val_unseen, test; " \
+    assert str(err.value) == f"{out}: split: split {split!r} is not one of train, val_seen, val_unseen, test, " \
+                             "trajectory_unseen, instruction_unseen; " \
                              "no shard was written"
     assert [p.relative_to(tmp_path).as_posix() for p in sorted(tmp_path.rglob("*"))] == [
         "run", "run/episodes", "run/episodes/s"]

@@ -26,7 +26,7 @@ import numpy as np
 from scipy import ndimage
 from shapely.geometry import MultiPolygon, Point, Polygon
 
-from sagebench.astar.grid_astar import Workspace, astar
+from sagebench.astar.grid_astar import GridPath, Workspace, astar
 from sagebench.astar.shortcut import polyline_length, shortcut_indices, waypoints
 from sagebench.settings.gen_trajectories import SamplingConfig
 
@@ -162,11 +162,10 @@ def _try_pair(nav, grid: GridMap, s: _Stand, g: _Stand, start: TargetSpec, goal:
     g_cell = g_cells[np.argmin(_sq_dist(g_cells, s_cell))]  # ... and the goal faces the start
     if np.sqrt(_sq_dist(g_cell[None], s_cell)[0]) * grid.resolution > config.max_geodesic_m:
         return None, "longer than max_geodesic_m"
-    path = astar(nav, (int(s_cell[0]), int(s_cell[1])), (int(g_cell[0]), int(g_cell[1])), grid.resolution, workspace)
-    if path is None:
+    found = cell_path(nav, grid, s_cell, g_cell, workspace)
+    if found is None:
         return None, "goal not reachable from start"
-    keep = shortcut_indices(nav, path.cells)
-    wps = waypoints(path.cells[keep], grid.resolution, grid.origin, grid.floor_z, grid.anchors)
+    path, wps = found
     length = polyline_length(wps)
     if length < config.min_geodesic_m:
         return None, "shorter than min_geodesic_m"
@@ -177,6 +176,17 @@ def _try_pair(nav, grid: GridMap, s: _Stand, g: _Stand, start: TargetSpec, goal:
         return None, "starts inside the goal room"
     return Trajectory(_trajectory_id(scene_id, start, goal, wps), start, goal, path.cells, wps, path.cost, length,
                       start_room, goal_room), ""
+
+
+def cell_path(nav: np.ndarray, grid: GridMap, a: np.ndarray, b: np.ndarray,
+              workspace: Workspace) -> tuple[GridPath, np.ndarray] | None:
+    """The A* grid path from cell `a` to cell `b` ((row, col)) and its shortcut waypoints [M, 4], or None when `b`
+    is unreachable: every episode's reference path, whatever its task, is made this way."""
+    path = astar(nav, (int(a[0]), int(a[1])), (int(b[0]), int(b[1])), grid.resolution, workspace)
+    if path is None:
+        return None
+    keep = shortcut_indices(nav, path.cells)
+    return path, waypoints(path.cells[keep], grid.resolution, grid.origin, grid.floor_z, grid.anchors)
 
 
 def room_at(xy: np.ndarray, rooms: dict[str, MultiPolygon]) -> str | None:

@@ -13,7 +13,7 @@ import numpy as np
 from sagebench import ui
 from sagebench.astar.sampling import Trajectory
 from sagebench.episodes.ids import episode_id
-from sagebench.episodes.splits import assign_splits
+from sagebench.episodes.splits import assign_splits, instruction_held_out
 from sagebench.instructions import instructions_for
 from sagebench.instructions.balance import TypeBalance
 from sagebench.instructions.base import SceneContext, TrajectoryText
@@ -68,6 +68,7 @@ def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str,
     else:
         instructed = [instruct(item) for item in items]
     split_of = assign_splits(scene_id, [t.trajectory_id for t in trajectories], config.splits)
+    held = instruction_held_out(split_of, config.splits)
     rows = []
     for traj, instructions in zip(trajectories, instructed, strict=True):
         wps = traj.waypoints
@@ -96,5 +97,7 @@ def episode_rows(scene_id: str, trajectories: list[Trajectory], names: dict[str,
             k = counts[(ins.level, ins.type)] = counts.get((ins.level, ins.type), -1) + 1
             rows.append({**base, "episode_id": episode_id(traj.trajectory_id, ins.level, ins.type, k),
                          "instruction_level": ins.level, "instruction_type": ins.type,
-                         "instruction_text": ins.text, "instruction_source": ins.source})
+                         "instruction_text": ins.text, "instruction_source": ins.source,
+                         **({"split": "instruction_unseen"} if traj.trajectory_id in held and ins.level == "high"
+                            else {})})
     return EpisodeRows(rows, balance)

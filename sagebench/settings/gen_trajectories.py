@@ -56,12 +56,29 @@ class SplitConfig(BaseModel):
     val_seen: float = Field(default=0.1, ge=0, le=1,
                             description="Share of the seen scenes' trajectories for val_seen (the rest: train).")
     seed: int = Field(default=0, ge=0, description="Seed of the split hashes.")
+    trajectory_unseen: float = Field(default=0.0, ge=0, le=1, description=(
+        "Share of the seen scenes' trajectories held out for trajectory_unseen (SAGE-Bench's Trajectory-Unseen)."))
+    instruction_unseen: float = Field(default=0.0, ge=0, le=1, description=(
+        "Share of the train trajectories whose high-level instruction is held out for instruction_unseen "
+        "(SAGE-Bench's Instruction-Unseen; the trajectory's other rows stay in train)."))
 
     @model_validator(mode="after")
     def _fractions(self) -> SplitConfig:
         if self.val_unseen + self.test > 1:
             raise ValueError(f"val_unseen + test is {self.val_unseen + self.test:g} of the scenes (at most 1)")
+        if self.val_seen + self.trajectory_unseen > 1:
+            raise ValueError(f"val_seen + trajectory_unseen is {self.val_seen + self.trajectory_unseen:g} of the "
+                             "trajectories (at most 1)")
         return self
+
+    @model_serializer(mode="wrap")
+    def _as_before(self, handler: SerializerFunctionWrapHandler) -> dict:
+        """The held-out shares dump only when set, so a config without them keeps its stamps' keys."""
+        data = handler(self)
+        for name in ("trajectory_unseen", "instruction_unseen"):
+            if not data.get(name):
+                data.pop(name, None)
+        return data
 
 
 class LLMConfig(BaseModel):

@@ -120,7 +120,7 @@ class RolloutConfig(BaseModel):
         default="oracle", description="A policy server's http(s):// URL, oracle, straight, random, or "
                                       "vlnce:MODULE:NAME (a VLN-CE agent class or object, run in-process).")
     split: Annotated[str | None, Option("--split", values=SPLITS)] = Field(
-        default=None, description="Only this split's episodes: train, val_seen, val_unseen or test.")
+        default=None, description="Only this split's episodes: train, val_seen, val_unseen, test, trajectory_unseen or instruction_unseen.")
     episode_ids: Annotated[tuple[str, ...], Option("--episode-id")] = Field(
         default=(), description="Only these episodes (repeat --episode-id for more).")
     episodes: Annotated[int | None, Option("--episodes")] = Field(

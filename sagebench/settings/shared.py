@@ -11,8 +11,10 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validat
 
 from sagebench.settings.option import Option
 
-SPLITS = ("train", "val_seen", "val_unseen", "test")
-Split = Literal["train", "val_seen", "val_unseen", "test"]
+SPLITS = ("train", "val_seen", "val_unseen", "test", "trajectory_unseen", "instruction_unseen")
+Split = Literal["train", "val_seen", "val_unseen", "test", "trajectory_unseen", "instruction_unseen"]
+# SAGE-Bench's test splits by the split that holds them here (episodes/splits.py)
+SAGE_SPLITS = {"Scene-Unseen": "test", "Trajectory-Unseen": "trajectory_unseen", "Instruction-Unseen": "instruction_unseen"}
 # SAGE-Bench's task family (docs/tasks.md): instruction following, exploration without a goal, and the three goal
 # tasks of its evaluator; "vln" is every episode written before tasks existed
 TASKS = ("vln", "nogoal", "objectnav", "pointnav", "imagenav")

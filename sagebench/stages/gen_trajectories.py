@@ -1,4 +1,5 @@
-"""`gen-trajectories`: A* episodes with low-level instructions, from build-scene's maps to Parquet shards.
+"""`gen-trajectories`: A* episodes with instructions (and the other tasks' episodes), from build-scene's maps to
+Parquet shards.
 
 Reads RUN/scenes/<scene_id>/{topdown.npz, semantic_map.json, scene.json}; writes
 RUN/episodes/<scene_id>/part-<split>-NNNNN.parquet and RUN/previews/<scene_id>/paths.png, replacing each
@@ -9,16 +10,19 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+from shapely.geometry import MultiPolygon, Polygon
 
 from sagebench import ui
 from sagebench.astar.sampling import GridMap, SamplingResult, sample_trajectories
 from sagebench.episodes.preview import render_paths
-from sagebench.episodes.rows import episode_rows
+from sagebench.episodes.rows import EpisodeRows, episode_rows
+from sagebench.episodes.task_rows import scene_map, task_rows
+from sagebench.episodes.tasks import TASK_SCHEMA, VLN, schema_for
 from sagebench.episodes.shards import write_shards
 from sagebench.episodes.targets import scene_context, scene_sight, scene_targets, unreachable_rooms
 from sagebench.errors import ConfigError, DataError, ServiceError
@@ -63,6 +67,7 @@ class SceneEpisodes:
     llm_summary: str | None = None  # what the chat model contributed, in llm mode
     unreachable_rooms: tuple[str, ...] = ()  # rooms whose objects (and themselves) were no start or goal
     high_level_summary: str | None = None  # the high-level types' counts against their quotas, and why any fell short
+    task_episodes: dict[str, int] = field(default_factory=dict)  # task -> its rows, for each task but vln
 
     def summary(self) -> str:
         line = (f"gen-trajectories {self.scene_id}: {self.trajectories} trajectories, {self.rows} episode rows "
@@ -72,6 +77,8 @@ class SceneEpisodes:
                      f"{', '.join(self.unreachable_rooms)} and the objects in them")
         if self.high_level_summary is not None:
             line += f"\n  high-level types: {self.high_level_summary}"
+        if self.task_episodes:
+            line += "\n  tasks: " + ", ".join(f"{task} {n} episode(s)" for task, n in self.task_episodes.items())
         return line if self.llm_summary is None else f"{line}\n  llm: {self.llm_summary}"
 
 
@@ -94,13 +101,44 @@ def gen_trajectories(run_dir: Path, config: GenTrajectoriesConfig, *, scene_id: 
 
 def generate_scene(scene_dir: Path, run_dir: Path, config: GenTrajectoriesConfig, *,
                    api_key: str | None = None) -> SceneEpisodes:
-    """One scene: read its maps, sample trajectories, write its shards into RUN/episodes/<id>/ and the paths
-    preview into RUN/previews/<id>/ (each replaced whole).
+    """One scene: read its maps, sample the episodes of every task asked for, write its shards into
+    RUN/episodes/<id>/ and the paths preview into RUN/previews/<id>/ (each replaced whole).
 
     In llm mode, a scene whose high-level rows come from the model less often than `llm.min_share`
     (or never) is a ServiceError and nothing is written.
     """
     spec, smap, grid, occupancy = read_scene_inputs(scene_dir)
+    vln = _vln_rows(scene_dir, spec, smap, grid, occupancy, config, api_key) if VLN in config.tasks else None
+    rooms = {r.id: MultiPolygon([Polygon(r.polygon)]) for r in spec.rooms}
+    tasks = task_rows(spec.scene_id, smap, scene_map(grid, rooms), config, scene_dir / SEMANTIC_MAP)
+    schema = schema_for(config.tasks)
+    rows = [({**r, "task": VLN} if schema is TASK_SCHEMA else r) for r in (vln.made.rows if vln else [])]
+    rows += [r for task in sorted(tasks) for r in tasks[task]]
+    paths = [t.waypoints for t in vln.result.trajectories] if vln else []
+    paths += [np.asarray(r["reference_path"]) for task in sorted(tasks) for r in tasks[task]]
+    png = render_paths(grid.navigable, occupancy, paths[:config.preview_paths], grid.resolution, grid.origin)
+    out_dir = run_episodes_dir(run_dir, spec.scene_id)
+    with staged_dir(out_dir) as tmp:
+        shards = write_shards(rows, tmp, round(config.shard_mb * 2**20), schema)
+    with staged_dir(run_previews_dir(run_dir, spec.scene_id)) as tmp:
+        write_bytes(tmp / PREVIEW, png)
+    return SceneEpisodes(spec.scene_id, out_dir, len(vln.result.trajectories) if vln else 0, len(rows),
+                         [out_dir / p.name for p in shards],
+                         None if vln is None or vln.instructor is None else vln.instructor.summary(),
+                         unreachable_rooms(smap), None if vln is None or vln.made.balance is None else
+                         vln.made.balance.summary(), {t: len(r) for t, r in sorted(tasks.items())})
+
+
+@dataclass(frozen=True)
+class _VlnRows:
+    made: EpisodeRows
+    result: SamplingResult
+    instructor: LLMInstructor | None
+
+
+def _vln_rows(scene_dir: Path, spec: SceneSpec, smap: SemanticMap, grid: GridMap, occupancy: np.ndarray,
+              config: GenTrajectoriesConfig, api_key: str | None) -> _VlnRows:
+    """The vln task: A* trajectories between named targets, instructed."""
     ctx = scene_context(spec, smap, config.high_level_mix)
     if config.instructions == "llm":
         ctx = replace(ctx, sight=scene_sight(smap, grid, occupancy))
@@ -116,16 +154,7 @@ def generate_scene(scene_dir: Path, run_dir: Path, config: GenTrajectoriesConfig
     made = episode_rows(spec.scene_id, result.trajectories, names, config, ctx, blocked)
     if instructor is not None:
         _check_share(instructor, config, spec.scene_id, scene_dir)
-    png = render_paths(grid.navigable, occupancy, [t.waypoints for t in result.trajectories[:config.preview_paths]],
-                       grid.resolution, grid.origin)
-    out_dir = run_episodes_dir(run_dir, spec.scene_id)
-    with staged_dir(out_dir) as tmp:
-        shards = write_shards(made.rows, tmp, round(config.shard_mb * 2**20))
-    with staged_dir(run_previews_dir(run_dir, spec.scene_id)) as tmp:
-        write_bytes(tmp / PREVIEW, png)
-    return SceneEpisodes(spec.scene_id, out_dir, len(result.trajectories), len(made.rows),
-                         [out_dir / p.name for p in shards], None if instructor is None else instructor.summary(),
-                         unreachable_rooms(smap), None if made.balance is None else made.balance.summary())
+    return _VlnRows(made, result, instructor)
 
 
 def read_scene_inputs(scene_dir: Path) -> tuple[SceneSpec, SemanticMap, GridMap, np.ndarray]:
