@@ -410,6 +410,32 @@ def export_vlnce_cmd(
             typer.echo(line)
 
 
+@app.command("export-habitat")
+def export_habitat_cmd(
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing, help="Run directory with episodes/<id>/ and scenes/<id>/.")],
+    out: Annotated[Path, typer.Option("--out", help="Directory for the datasets (habitat's data_path root).")],
+    split: Annotated[str | None, typer.Option("--split", autocompletion=splits,
+                                              help="Export only this split (default: every split).")] = None,
+) -> None:
+    """Export the ObjectNav, PointNav and ImageNav episodes as habitat-lab datasets of those tasks, Y up.
+
+    ObjectNav as ObjectNav-v1 (goals_by_category, the category maps), PointNav and ImageNav as PointNav-v1 (what
+    habitat-lab's ImageNav task reads). vln episodes go to export-vlnce; nogoal ones have no habitat format.
+
+    Reads RUN_DIR/episodes/<id>/part-*.parquet and RUN_DIR/scenes/<id>/scene.json + meshes/.
+
+    Writes OUT/<task>/<split>/<split>.json.gz per task and split, OUT/scenes/<id>/<id>.glb and
+    OUT/habitat_export.json (each task's habitat dataset type, data_path and scenes_dir; also printed). OUT
+    must be new, empty or an earlier export-habitat output, outside RUN_DIR.
+    """
+    from sagebench.run_folder import claim_export_dir
+    from sagebench.stages.export_habitat import MARKER, export_habitat
+
+    with claim_export_dir(out, run_dir, "export-habitat", MARKER):
+        for line in export_habitat(run_dir, out, split=split).lines():
+            typer.echo(line)
+
+
 @app.command("export-training", cls=settings_command("sagebench.settings.export_training:TrainingExportConfig"))
 def export_training_cmd(
     ctx: typer.Context,
@@ -450,8 +476,10 @@ def export_sage_cmd(
 
     Reads RUN_DIR/episodes/<id>/part-*.parquet and RUN_DIR/scenes/<id>/scene.json.
 
-    Writes OUT/<id>/trajectories_<id>.json per scene and OUT/sage_export.json (what was exported). OUT must
-    be new, empty or an earlier export-sage output, outside RUN_DIR.
+    Writes OUT/<id>/trajectories_<id>.json per scene (its vln episodes), OUT/<task-type>/<id>/trajectories_<id>.json
+    for each other task (nogoalnav, objectnav, pointnav, imgnav: the run_benchmark.py --task-type that reads
+    them) and OUT/sage_export.json (what was exported). OUT must be new, empty or an earlier export-sage
+    output, outside RUN_DIR.
     """
     from sagebench.run_folder import claim_export_dir
     from sagebench.stages.export_sage import MARKER, export_sage
@@ -474,11 +502,15 @@ def import_sage_episodes_cmd(
     """Turn SAGE-Bench's GVLN episodes for a scene into sagebench episodes, to roll out and evaluate them.
 
     Instruction types map to sagebench's (Attribute-based -> Attribute_Based, Area-based -> Area_Based, Default
-    -> Single_Goal); instructions of a type with no goal (Goal-less) are left out and counted.
+    -> Single_Goal); Goal-less instructions become nogoal episodes from their sample's start (80 s, SAGE's
+    budget), and a sample with SAGE-Bench's target_object, goal_position or target_image(_position) fields an
+    objectnav, pointnav or imagenav episode (docs/tasks.md); instructions of an unknown type are left out and
+    counted.
 
     Reads FILE and RUN/scenes/<id>/scene.json and topdown.npz. Values are checked as generated episodes are
-    (radii > 0, the scene's instances and rooms, unique ids, paths of 2 or more points on the navigable map,
-    non-empty instructions); a path point at most 0.5 m off the navigable map is moved onto it and counted.
+    (radii > 0, the scene's instances and rooms, unique ids, paths of 2 or more points on the navigable map
+    (a no-goal sample: its start), non-empty instructions); a path point at most 0.5 m off the navigable map
+    is moved onto it and counted.
 
     Writes RUN/episodes/<id>/part-<split>-NNNNN.parquet, replacing that scene's episodes, and the stamp
     RUN/.stamps/<id>/import_sage.json in place of gen-trajectories'. Refuses (exit 2) a scene.json that

@@ -53,6 +53,11 @@ EXAMPLES: dict[str, tuple[tuple[str, str], ...]] = {
         ("sagebench export-vlnce out/demo --out out/vlnce",
          "The demo's episodes as habitat R2R files: out/vlnce/<split>/<split>.json.gz, vocab.txt, scenes/."),
     ),
+    "export-habitat": (
+        ("sagebench export-habitat runs/tasks --out out/habitat",
+         "The run's objectnav, pointnav and imagenav episodes as habitat-lab datasets: out/habitat/<task>/<split>/"
+         "<split>.json.gz, scenes/."),
+    ),
     "export-training": (
         ("sagebench export-training out/demo --out out/train --split val_seen",
          "The val_seen episodes as WebDataset shards of (view, instruction, action) in out/train/."),

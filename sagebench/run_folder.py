@@ -59,8 +59,8 @@ def claim_run_dir(run_dir: Path, command: str, *, force: bool = False, config: P
 
 @contextlib.contextmanager
 def claim_export_dir(out: Path, run_dir: Path, command: str, marker: str) -> Iterator[Path]:
-    """OUT of a command that exports a run into a folder of its own (export-vlnce, export-training,
-    export-sage), claimed as `claim_run_dir` claims a run: created if needed, locked for the body, left as found
+    """OUT of a command that exports a run into a folder of its own (export-vlnce, export-habitat,
+    export-training, export-sage), claimed as `claim_run_dir` claims a run: created if needed, locked for the body, left as found
     if the body raises. A ConfigError (--out) when OUT is the run or lies inside it (what the run's lock and
     manifest do not cover must not be written there), lies in another sagebench run or export, or holds
     anything but an earlier output of `command` (`marker` in it)."""

@@ -105,6 +105,7 @@ CONTRACT: dict[str, StageFiles] = {
     "baseline": StageFiles(reads=(Place("episodes"), Place("scene", TOPDOWN), *REPLAY_MODEL)),  # rollout, no images
     "render": StageFiles(reads=(Place("scene", SCENE_FILE), Place("scene", GAUSSIANS))),
     "export_vlnce": StageFiles(reads=(Place("episodes"), *NORMALISED_SCENE)),  # writes its own directory
+    "export_habitat": StageFiles(reads=(Place("episodes"), *NORMALISED_SCENE)),  # writes its own directory
     "export_sage": StageFiles(reads=(Place("episodes"), Place("scene", SCENE_FILE))),  # writes its own directory
     "import_sage": StageFiles(reads=(Place("scene", SCENE_FILE), Place("scene", TOPDOWN)),  # and a GVLN file
                               writes=(Place("episodes"),)),

@@ -45,6 +45,7 @@ NOT_SETTINGS = {
     "export-usd": {"--scene", "--cache-dir", "--force"},
     "validate": {"--scene", "--force"},
     "export-vlnce": {"--out", "--split"},
+    "export-habitat": {"--out", "--split"},
     "export-training": {"--out"},
     "export-sage": {"--out", "--scene"},
     "import-sage-episodes": {"--run", "--scene", "--force"},

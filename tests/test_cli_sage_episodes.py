@@ -1,8 +1,6 @@
 """`sagebench export-sage` and `import-sage-episodes`: SAGE-3D's GVLN files both ways.
 
-SAGE-3D's reading is re-implemented here from the behaviour of its episodes_adapter.py (one episode per
-instruction, "<trajectory_id>-<k>", start = first point's position and rotation, goal = last point) and
-simple_env.set_start_pose (heading = 2 atan2(-qx, qw) - pi in its 3D frame), not copied and not imported.
+SAGE-3D's reading is re-implemented in tests/sage_benchmark.py.
 """
 
 from __future__ import annotations
@@ -18,37 +16,9 @@ import pytest
 from sagebench.episodes.shards import read_episodes
 from sagebench.gvln.episodes import item_names
 from sagebench.scene.loader import load_scene
+from tests.sage_benchmark import sage_adapter, sage_heading
 
 SCENE = "demo_apartment_0"
-
-
-def sage_adapter(path: Path) -> list[dict]:
-    """SAGE-3D's episodes as its benchmark builds them from a GVLN file."""
-    data = json.loads(path.read_text())
-    scene = data["scenes"][0]
-    episodes = []
-    for sample in scene.get("samples", []):
-        points = sample["points"]
-        instructions = sample.get("instructions", [""])
-        if not instructions:
-            parsed = [(0, "", "", "", "")]
-        elif isinstance(instructions[0], str):
-            parsed = [(i, t, "", "", "") for i, t in enumerate(instructions)]
-        else:
-            parsed = [(i, d.get("generated_instruction", ""), d.get("instruction_type", ""), d.get("start", ""),
-                       d.get("end", "")) for i, d in enumerate(instructions) if isinstance(d, dict)]
-        for k, text, kind, start, end in parsed:
-            episodes.append({"episode_id": f"{sample.get('trajectory_id', '0')}-{k}", "instruction": text,
-                             "instruction_type": kind, "start_item": start, "end_item": end,
-                             "start_position": points[0]["position"], "start_rotation": points[0]["rotation"],
-                             "goal": points[-1]["position"], "scene_name": scene.get("scene_name", "scene")})
-    return episodes
-
-
-def sage_heading(rotation: list[float]) -> float:
-    """The heading SAGE-3D's simulator starts an episode with, in its 3D frame."""
-    qx, _, _, qw = rotation
-    return math.remainder(2 * math.atan2(-qx, qw) - math.pi, 2 * math.pi)
 
 
 def _angle(a: float, b: float) -> float:
@@ -109,9 +79,9 @@ def test_import_of_the_export_reproduces_the_episodes(demo_eval_run, exported, r
                 assert a[col] == b[col], col
 
 
-def _plain_sage_file(path: Path, exported: Path) -> Path:
-    """The export as SAGE-3D itself writes it: no sagebench keys, its own trajectory ids and types, plus a
-    Default and a Goal-less instruction."""
+def _plain_sage_file(path: Path, exported: Path, extra_types: tuple[str, ...] = ("Default",)) -> Path:
+    """The export as SAGE-3D itself writes it: no sagebench keys, its own trajectory ids and types, plus an
+    instruction of each of `extra_types` ("Default": "Go there.", "Goal-less": "Look around.")."""
     doc = json.loads(exported.read_text())
     for i, sample in enumerate(doc["scenes"][0]["samples"]):
         sample.pop("sagebench")
@@ -119,8 +89,8 @@ def _plain_sage_file(path: Path, exported: Path) -> Path:
         for ins in sample["instructions"]:
             ins.pop("sagebench")
         first = sample["instructions"][0]
-        sample["instructions"] += [dict(first, instruction_type="Default", generated_instruction="Go there."),
-                                   dict(first, instruction_type="Goal-less", generated_instruction="Look around.")]
+        said = {"Default": "Go there.", "Goal-less": "Look around."}
+        sample["instructions"] += [dict(first, instruction_type=k, generated_instruction=said[k]) for k in extra_types]
     path.write_text(json.dumps(doc))
     return path
 
@@ -131,7 +101,6 @@ def test_sage_bench_s_own_episodes_run_in_the_closed_loop(demo_eval_run, exporte
     sage_file = _plain_sage_file(tmp_path / "trajectories_0001_0.json", exported)
     code, out, err = run_cli("import-sage-episodes", sage_file, "--run", run, "--scene", SCENE)
     assert code == 0, err
-    assert out.splitlines()[1] == "left out instructions of types with no goal to score: Goal-less 8"
     rows = read_episodes(run / "episodes" / SCENE).to_pylist()
     spec = load_scene(run / "scenes" / SCENE).spec
     names = {v: k for k, v in item_names(spec).items()}
@@ -155,7 +124,9 @@ def test_sage_bench_s_own_episodes_run_in_the_closed_loop(demo_eval_run, exporte
      "{f}: scenes[0].samples[0].points[0].rotation: rotation [0.0, 0.0, 0.3, 0.95] turns about z: a trajectory in "
      "SAGE-3D's 2D map frame, not yet moved into its 3D frame by trajectory_2d_to_3d.py"),
     (lambda d: d["scenes"][0]["samples"][1].__setitem__("points", []),
-     "{f}: scenes[0].samples[1].points: List should have at least 2 items after validation, not 0"),
+     "{f}: scenes[0].samples[1].points: List should have at least 1 item after validation, not 0"),
+    (lambda d: d["scenes"][0]["samples"][1].__setitem__("points", d["scenes"][0]["samples"][1]["points"][:1]),
+     "{f}: scenes[0].samples[1].points: 1 point: a vln sample is a path, its start and goal at least"),
     (lambda d: d.__setitem__("scenes", []), "{f}: scenes: List should have at least 1 item after validation, not 0"),
     (lambda d: d["scenes"][0].__setitem__("scene_name", "839920"),
      "{f}: scene_name: the file is for scene '839920', and {run}/scenes has no scene of that name; name the scene "

@@ -177,11 +177,12 @@ def test_an_out_that_is_a_file_is_one_line(make, expect, tiny_scene, run_cli, tm
 
 def _exporter(name: str, run: Path, out: Path) -> list:
     return {"export-vlnce": ["export-vlnce", run, "--out", out], "export-sage": ["export-sage", run, "--out", out],
+            "export-habitat": ["export-habitat", run, "--out", out],
             "export-training": ["export-training", run, "--out", out, "--renderer", "cpu", "--width", "16",
                                 "--height", "16"]}[name]
 
 
-EXPORTERS = ["export-vlnce", "export-training", "export-sage"]
+EXPORTERS = ["export-vlnce", "export-habitat", "export-training", "export-sage"]
 EXPORT_OUTS = {  # where OUT is (the run copied to tmp_path/run) -> what the one line says
     "the-run": (lambda tmp: tmp / "run", "lies inside the run"),
     "inside-the-run": (lambda tmp: tmp / "run" / "exports" / "x", "lies inside the run"),

@@ -35,12 +35,14 @@ from pydantic import (
 )
 
 from sagebench.episodes.ids import episode_id
+from sagebench.episodes.tasks import NOGOAL_INSTRUCTION, VLN, goal_image_recipe, pointgoal_polar, row_task
 from sagebench.errors import DataError, first_error
 from sagebench.gvln.frame import SAGE_Z, sage_rotation, to_sage_xy, wrap, yaw_from_sage_rotation
+from sagebench.gvln.tasks import GOAL_LESS, TASK_KEYS, sage_task_fields, sample_task
 from sagebench.input_files import read_json
 from sagebench.metrics.on_foot import NavigableMap
 from sagebench.scene.model import SceneSpec
-from sagebench.settings.shared import Split
+from sagebench.settings.shared import Split, Task
 
 ITEM_KINDS = ("object", "door", "window")
 # sagebench's instruction types -> SAGE-3D's spelling (prompt_traj_to_instruction.json); the rest are the same
@@ -84,10 +86,12 @@ def gvln_document(scene_id: str, rows: Sequence[dict[str, Any]], spec: SceneSpec
         if tid not in samples:
             samples[tid] = _sample(row, names, spec.floor_height)
         if row["instruction_text"] is None:
+            if row_task(row) != VLN:  # a goal task's episode without an instruction: its id kept on the sample
+                samples[tid]["sagebench"]["episode_id"] = row["episode_id"]
             continue
         kind = row["instruction_type"]
         samples[tid]["instructions"].append({
-            "instruction_type": TO_SAGE_TYPE.get(kind, kind) or "",
+            "instruction_type": GOAL_LESS if row_task(row) == "nogoal" else TO_SAGE_TYPE.get(kind, kind) or "",
             "start": names.get(row["start_instance_id"], row["start_room"] or ""),
             "end": names.get(row["goal_instance_id"], row["goal_room"] or ""),
             "generated_instruction": row["instruction_text"],
@@ -110,8 +114,14 @@ def _sample(row: dict[str, Any], names: dict[int, str], floor: float) -> dict[st
                        **POINT_CAMERA})
     keep = ("trajectory_id", "goal_radius", "start_instance_id", "goal_instance_id", "start_room",
             "goal_room", "split", "seed")
-    return {"trajectory_id": row["trajectory_id"], "instructions": [], "points": points,
-            "sagebench": {k: row.get(k) for k in keep}}
+    sample = {"trajectory_id": row["trajectory_id"], "instructions": [], "points": points,
+              "sagebench": {k: row.get(k) for k in keep}}
+    if row_task(row) != VLN:
+        sample["sagebench"].update({k: row.get(k) for k in TASK_KEYS})
+        if row_task(row) == "nogoal":
+            sample["sagebench"]["goal_radius"] = None  # no goal: no radius
+        sample.update(sage_task_fields(row, floor))
+    return sample
 
 
 # ---------------------------------------------------------------- reading
@@ -120,6 +130,7 @@ SNAP_M = 0.5  # a path point off the navigable map moves to the nearest navigabl
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 Hex16 = Annotated[str, Field(pattern=r"^[0-9a-f]{16}$")]  # a trajectory or episode id as sagebench makes them
 Name = Annotated[str, Field(min_length=1, max_length=256, pattern=r"^[^\x00-\x1f\x7f]+$")]
+Xyz = Annotated[list[Finite], Field(min_length=3, max_length=3)]
 InstanceId = Annotated[int, Field(ge=1, le=2**31 - 1)]  # the episode shard's int32
 LEVEL_OF_TYPE = {kind: level for level, kind in FROM_SAGE_TYPE.values()}  # sagebench's instruction types
 
@@ -194,13 +205,30 @@ class _SampleExtra(_Model):
     goal_room: Name | None = None
     split: Split | None = None  # the --split type: part of the shards' file names
     seed: Annotated[int, Field(ge=0, le=2**63 - 1)] | None = None
+    task: Task | None = None
+    episode_id: Hex16 | None = None  # of a task's episode without an instruction
+    budget_s: Annotated[float, Field(gt=0, allow_inf_nan=False)] | None = None
+    budget_steps: Annotated[int, Field(ge=1, le=2**31 - 1)] | None = None
+    goal_category: Name | None = None
+    goal_instance_ids: Annotated[list[InstanceId], Field(min_length=1)] | None = None
+    goal_viewpoints: Annotated[list[Xyz], Field(min_length=1)] | None = None
+    goal_polar: Annotated[list[Finite], Field(min_length=2, max_length=2)] | None = None
+    goal_yaw: Finite | None = None
+    goal_image: Name | None = None
 
 
 class _Sample(_Model):
     trajectory_id: str | int = "0"
     instructions: list[Annotated[_Instruction, BeforeValidator(_as_instruction)]] = Field(default_factory=list)
-    points: Annotated[list[_Point], Field(min_length=2, description="A path: its start and goal at least.")]
+    points: Annotated[list[_Point], Field(min_length=1, description="A path: its start, and its goal but for no-goal.")]
     sagebench: _SampleExtra | None = None
+    # the fields SAGE-Bench's task classes read (task_types.py), SAGE's 3D frame
+    task_type: str | None = None
+    target_object: Name | None = None
+    target_object_position: Xyz | None = None
+    goal_position: Xyz | None = None
+    target_image: Name | None = None
+    target_image_position: Xyz | None = None
 
 
 class _Scene(_Model):
@@ -241,74 +269,183 @@ def read_gvln(path: Path) -> GvlnScene:
 @dataclass
 class GvlnRows:
     rows: list[dict[str, Any]] = field(default_factory=list)
-    skipped: Counter[str] = field(default_factory=Counter)  # instructions left out, by type (no goal to score)
+    skipped: Counter[str] = field(default_factory=Counter)  # instructions left out, by type (no task to give them)
     snapped: int = 0  # path points moved onto the navigable map (within SNAP_M)
+    trajectories: dict[str, str] = field(default_factory=dict)  # id -> where it was given
+    episodes: dict[str, str] = field(default_factory=dict)
 
 
-def rows_from_gvln(scene: GvlnScene, spec: SceneSpec, navmap: NavigableMap, *, goal_radius: float,
-                   split: str) -> GvlnRows:
+@dataclass(frozen=True)
+class _Context:
+    """What every sample of a file is read against: the scene, its map, and what the file does not say."""
+
+    spec: SceneSpec
+    navmap: NavigableMap
+    path: Path
+    goal_radius: float
+    split: str
+    budget: tuple[float, int]  # a no-goal episode's time (s) and step budget
+
+    def rooms(self) -> list[tuple[str, shapely.Polygon]]:
+        return [(r.id, shapely.Polygon(r.polygon)) for r in self.spec.rooms]
+
+
+def rows_from_gvln(scene: GvlnScene, spec: SceneSpec, navmap: NavigableMap, *, goal_radius: float, split: str,
+                   budget: tuple[float, int]) -> GvlnRows:
     """sagebench episode rows of the scene `spec` for every sample and instruction of `scene`, checked as generated
     rows are: instances and rooms of the scene, path points on its navigable map `navmap` (or moved onto it from at
-    most SNAP_M away), trajectory and episode ids unique. Instructions of types with no goal sagebench can score
-    (e.g. SAGE-3D's "Goal-less") are left out and counted."""
-    by_name = {name: iid for iid, name in item_names(spec).items()}
-    rooms = [(r.id, shapely.Polygon(r.polygon)) for r in spec.rooms]
-    room_of_object = {o.instance_id: o.room_id for o in spec.objects}
-    out, trajectories, episodes = GvlnRows(), {}, {}
+    most SNAP_M away), trajectory and episode ids unique. Each sample's task is sagebench.gvln.tasks.sample_task's;
+    SAGE-3D's Goal-less instructions are no-goal episodes from their sample's start (`budget`: their time and step
+    budget where the file has none); instructions of a type sagebench does not know are left out and counted."""
+    ctx, out = _Context(spec, navmap, scene.path, goal_radius, split, budget), GvlnRows()
     for i, sample in enumerate(scene.samples):
         where = f"scenes[0].samples[{i}]"
         extra = sample.sagebench or _SampleExtra()
-        fields = extra.model_fields_set
         _check_names(extra, spec, scene.path, where)
+        task = sample_task(extra.task, sample.model_dump(include=set(SAGE_FIELDS)),
+                           [ins.instruction_type for ins in sample.instructions])
         path, moved = _reference_path(sample, spec, navmap, scene.path, where)
+        if task != "nogoal" and len(path) < 2:
+            raise DataError(f"1 point: a {task} sample is a path, its start and goal at least", path=scene.path,
+                            field=f"{where}.points")
         out.snapped += moved
-        tid = extra.trajectory_id or hashlib.sha256(
-            f"{spec.scene_id}|sage|{sample.trajectory_id}".encode()).hexdigest()[:16]
+        tid = extra.trajectory_id or _hashed(spec.scene_id, str(sample.trajectory_id))
         given = ("sagebench.trajectory_id", tid) if extra.trajectory_id else ("trajectory_id", sample.trajectory_id)
-        _unique("trajectory", tid, given[1], trajectories, scene.path, f"{where}.{given[0]}")
-        start, end = (sample.instructions[0].start, sample.instructions[0].end) if sample.instructions else ("", "")
-        start_id = extra.start_instance_id if "start_instance_id" in fields else by_name.get(start)
-        goal_id = extra.goal_instance_id if "goal_instance_id" in fields else by_name.get(end)
-        base = {
-            "trajectory_id": tid, "scene_id": spec.scene_id,
-            "start_instance_id": start_id, "goal_instance_id": goal_id,
-            "start_room": extra.start_room if "start_room" in fields else
-            (room_of_object.get(start_id) or _room_at(path[0], rooms)),
-            "goal_room": extra.goal_room if "goal_room" in fields else
-            (room_of_object.get(goal_id) or _room_at(path[-1], rooms)),
-            "start_position": path[0, :3].tolist(), "start_yaw": float(path[0, 3]),
-            "goal_position": path[-1, :3].tolist(), "goal_radius": extra.goal_radius or goal_radius,
-            "reference_path": path.tolist(),
-            "geodesic_distance": float(np.linalg.norm(np.diff(path[:, :2], axis=0), axis=1).sum()),
-            "seed": extra.seed or 0, "split": extra.split or split,
-        }
-        if not sample.instructions:
-            out.rows.append({**base, "episode_id": episode_id(tid, "none", "", 0), "instruction_level": None,
-                             "instruction_type": None, "instruction_text": None, "instruction_source": None})
-        _instruction_rows(sample, base, out, episodes, scene.path, where)
+        _unique("trajectory", tid, given[1], out.trajectories, scene.path, f"{where}.{given[0]}")
+        base = _base_row(sample, extra, path, tid, ctx)
+        base.update(_task_columns(task, sample, extra, base, ctx, where))
+        if task == VLN:
+            _vln_rows(sample, base, out, ctx, where)
+        else:
+            _task_rows(sample, base, out, extra.episode_id, ctx.path, where)
     return out
 
 
-def _instruction_rows(sample: _Sample, base: dict[str, Any], out: GvlnRows, episodes: dict[str, str], path: Path,
-                      where: str) -> None:
-    """One row per instruction of a type sagebench scores, appended to `out` (the others counted there)."""
+SAGE_FIELDS = ("task_type", "target_object", "target_object_position", "goal_position", "target_image",
+               "target_image_position")
+
+
+def _hashed(scene_id: str, sage_id: str, what: str = "") -> str:
+    """A trajectory id for a sample of SAGE-3D's trajectory `sage_id` (`what`: its no-goal episodes)."""
+    return hashlib.sha256(f"{scene_id}|sage|{sage_id}{what}".encode()).hexdigest()[:16]
+
+
+def _base_row(sample: _Sample, extra: _SampleExtra, path: np.ndarray, tid: str, ctx: _Context) -> dict[str, Any]:
+    """The shared columns of a sample's rows (its path's start and end, the instances and rooms there)."""
+    by_name = {name: iid for iid, name in item_names(ctx.spec).items()}
+    room_of_object = {o.instance_id: o.room_id for o in ctx.spec.objects}
+    fields = extra.model_fields_set
+    start, end = (sample.instructions[0].start, sample.instructions[0].end) if sample.instructions else ("", "")
+    start_id = extra.start_instance_id if "start_instance_id" in fields else by_name.get(start)
+    goal_id = extra.goal_instance_id if "goal_instance_id" in fields else by_name.get(end)
+    return {
+        "trajectory_id": tid, "scene_id": ctx.spec.scene_id,
+        "start_instance_id": start_id, "goal_instance_id": goal_id,
+        "start_room": extra.start_room if "start_room" in fields else
+        (room_of_object.get(start_id) or _room_at(path[0], ctx.rooms())),
+        "goal_room": extra.goal_room if "goal_room" in fields else
+        (room_of_object.get(goal_id) or _room_at(path[-1], ctx.rooms())),
+        "start_position": path[0, :3].tolist(), "start_yaw": float(path[0, 3]),
+        "goal_position": path[-1, :3].tolist(), "goal_radius": extra.goal_radius or ctx.goal_radius,
+        "reference_path": path.tolist(),
+        "geodesic_distance": float(np.linalg.norm(np.diff(path[:, :2], axis=0), axis=1).sum()),
+        "seed": extra.seed or 0, "split": extra.split or ctx.split,
+    }
+
+
+def _task_columns(task: str, sample: _Sample, extra: _SampleExtra, base: dict[str, Any], ctx: _Context,
+                  where: str) -> dict[str, Any]:
+    """The task's columns of a sample's rows: its "sagebench" entry's, else derived from SAGE's fields and path."""
+    if task == "nogoal":
+        return _nogoal_columns(base, (extra.budget_s or ctx.budget[0], extra.budget_steps or ctx.budget[1]))
+    (x, y, _), (gx, gy, _) = base["start_position"], base["goal_position"]
+    if task == "pointnav":
+        return {"task": task, "goal_polar": extra.goal_polar or list(pointgoal_polar(x, y, base["start_yaw"], gx, gy))}
+    if task == "imagenav":
+        yaw = extra.goal_yaw if extra.goal_yaw is not None else base["reference_path"][-1][3]
+        return {"task": task, "goal_yaw": yaw,
+                "goal_image": extra.goal_image or sample.target_image or goal_image_recipe(gx, gy, yaw)}
+    if task == "objectnav":
+        return _objectnav_columns(sample, extra, ctx, where)
+    return {"task": task}
+
+
+def _nogoal_columns(base: dict[str, Any], budget: tuple[float, int]) -> dict[str, Any]:
+    """A no-goal episode from the start of `base`: no goal (its start, radius 0), its budget."""
+    return {"task": "nogoal", "goal_position": base["start_position"], "goal_radius": 0.0, "geodesic_distance": 0.0,
+            "reference_path": base["reference_path"][:1], "goal_instance_id": None, "goal_room": base["start_room"],
+            "budget_s": float(budget[0]), "budget_steps": int(budget[1])}
+
+
+def _objectnav_columns(sample: _Sample, extra: _SampleExtra, ctx: _Context, where: str) -> dict[str, Any]:
+    """An ObjectNav sample's category (SAGE's target_object), every instance of it, and its goal viewpoints."""
+    category = extra.goal_category or sample.target_object
+    key = "sagebench.goal_category" if extra.goal_category else "target_object"
+    ids = extra.goal_instance_ids or [o.instance_id for o in ctx.spec.objects if o.category == category]
+    if not ids:
+        raise DataError(f"category {category!r} has no instance in scene {ctx.spec.scene_id!r}", path=ctx.path,
+                        field=f"{where}.{key}")
+    if not extra.goal_viewpoints:
+        raise DataError(f"no goal viewpoints: an objectnav sample needs them (the navigable points within its success "
+                        f"radius of any {category} instance)", path=ctx.path, field=f"{where}.sagebench.goal_viewpoints")
+    return {"task": "objectnav", "goal_category": category, "goal_instance_ids": list(ids),
+            "goal_viewpoints": extra.goal_viewpoints}
+
+
+def _vln_rows(sample: _Sample, base: dict[str, Any], out: GvlnRows, ctx: _Context, where: str) -> None:
+    """One row per instruction of a VLN sample (a bare row when it has none), its Goal-less ones no-goal rows of a
+    trajectory of their own (its start); instructions of an unknown type counted in `out`."""
+    if not sample.instructions:
+        out.rows.append({**base, "episode_id": episode_id(base["trajectory_id"], "none", "", 0),
+                         "instruction_level": None, "instruction_type": None, "instruction_text": None,
+                         "instruction_source": None})
+    nogoal = {**base, **_nogoal_columns(base, ctx.budget),
+              "trajectory_id": _hashed(base["scene_id"], base["trajectory_id"], "|nogoal")}
     counts: Counter[tuple[str, str]] = Counter()
     for k, ins in enumerate(sample.instructions):
         own = ins.sagebench or _InstructionExtra()
-        if own.instruction_type is not None:
-            level, kind = LEVEL_OF_TYPE[own.instruction_type], own.instruction_type
-        elif ins.instruction_type in FROM_SAGE_TYPE:
-            level, kind = FROM_SAGE_TYPE[ins.instruction_type]
+        if ins.instruction_type == GOAL_LESS and own.instruction_type is None:
+            _add_row(out, nogoal, ins, (None, None), "nogoal", counts, f"{where}.instructions[{k}]", ctx.path)
+        elif own.instruction_type is not None or ins.instruction_type in FROM_SAGE_TYPE:
+            _add_row(out, base, ins, _level_type(ins), "", counts, f"{where}.instructions[{k}]", ctx.path)
         else:
             out.skipped[ins.instruction_type or "(no type)"] += 1
-            continue
-        eid = own.episode_id or episode_id(base["trajectory_id"], level, kind, counts[(level, kind)])
-        counts[(level, kind)] += 1
-        _unique("episode", eid, eid, episodes, path,
-                f"{where}.instructions[{k}]" + (".sagebench.episode_id" if own.episode_id else ""))
-        out.rows.append({**base, "episode_id": eid, "instruction_level": level, "instruction_type": kind,
-                         "instruction_text": ins.generated_instruction,
-                         "instruction_source": own.instruction_source or SAGE_SOURCE})
+
+
+def _task_rows(sample: _Sample, base: dict[str, Any], out: GvlnRows, eid: str | None, path: Path,
+               where: str) -> None:
+    """One row per instruction of a sample of a task other than vln (one without an instruction when it has none:
+    a no-goal one with SAGE-Bench's exploration instruction); an instruction's type is kept where sagebench knows it."""
+    if not sample.instructions:
+        text, source = (NOGOAL_INSTRUCTION, SAGE_SOURCE) if base["task"] == "nogoal" else (None, None)
+        out.rows.append({**base, "episode_id": eid or episode_id(base["trajectory_id"], base["task"], "", 0),
+                         "instruction_level": None, "instruction_type": None, "instruction_text": text,
+                         "instruction_source": source})
+    counts: Counter[tuple[str, str]] = Counter()
+    for k, ins in enumerate(sample.instructions):
+        _add_row(out, base, ins, _level_type(ins), base["task"], counts, f"{where}.instructions[{k}]", path)
+
+
+def _level_type(ins: _Instruction) -> tuple[str | None, str | None]:
+    """sagebench's level and type of an instruction (its "sagebench" entry's, else from SAGE-3D's type)."""
+    own = ins.sagebench or _InstructionExtra()
+    if own.instruction_type is not None:
+        return LEVEL_OF_TYPE[own.instruction_type], own.instruction_type
+    return FROM_SAGE_TYPE.get(ins.instruction_type, (None, None))
+
+
+def _add_row(out: GvlnRows, base: dict[str, Any], ins: _Instruction, level_type: tuple[str | None, str | None],
+             task: str, counts: Counter[tuple[str, str]], where: str, path: Path) -> None:
+    """Append the row of instruction `ins` (at `where`) of a sample's rows `base`; its episode id unique."""
+    own = ins.sagebench or _InstructionExtra()
+    level, kind = level_type
+    key = (level or task, kind or "")
+    eid = own.episode_id or episode_id(base["trajectory_id"], *key, counts[key])
+    counts[key] += 1
+    _unique("episode", eid, eid, out.episodes, path, where + (".sagebench.episode_id" if own.episode_id else ""))
+    out.rows.append({**base, "episode_id": eid, "instruction_level": level, "instruction_type": kind,
+                     "instruction_text": ins.generated_instruction,
+                     "instruction_source": own.instruction_source or SAGE_SOURCE})
 
 
 def _check_names(extra: _SampleExtra, spec: SceneSpec, path: Path, where: str) -> None:
@@ -343,7 +480,8 @@ def _reference_path(sample: _Sample, spec: SceneSpec, navmap: NavigableMap, path
         raise DataError(f"({x:g}, {y:g}) is off the navigable map of scene {spec.scene_id!r}: no navigable cell "
                         f"within {SNAP_M:g} m", path=path, field=f"{where}.points[{off[0]}].position")
     yaws = [yaw_from_sage_rotation(p.rotation) for p in pts]
-    yaws[-1] = yaws[-2]  # SAGE-3D resets the last point's rotation
+    if len(yaws) > 1:
+        yaws[-1] = yaws[-2]  # SAGE-3D resets the last point's rotation
     return np.column_stack([xy, np.full(len(pts), spec.floor_height), [wrap(y) for y in yaws]]), int(moved.sum())
 
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from sagebench.episodes.shards import write_shards
+from sagebench.episodes.tasks import schema_for
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import staged_dir
 from sagebench.gvln.episodes import SNAP_M, read_gvln, rows_from_gvln
@@ -23,6 +24,7 @@ from sagebench.input_files import read_input
 from sagebench.metrics import NavigableMap
 from sagebench.run_layout import CONTRACT, SCENE_FILE, SCENES, TOPDOWN, require, run_episodes_dir, run_scene_dir
 from sagebench.scene.loader import parse_spec
+from sagebench.settings.gen_trajectories import TaskConfig
 from sagebench.settings.import_sage_episodes import SageImportConfig
 from sagebench.stamps import check_reads
 from sagebench.topdown.grid_file import read_topdown_grids
@@ -43,7 +45,7 @@ class SageImport:
         out = [f"import-sage-episodes {self.scene_id}: {self.trajectories} trajectories, {self.rows} episode rows, "
                f"{self.snapped} path points snapped onto the navigable map (within {SNAP_M:g} m) -> {self.out_dir}"]
         if self.skipped:
-            out.append("left out instructions of types with no goal to score: "
+            out.append("left out instructions of types sagebench does not know: "
                        + ", ".join(f"{k} {v}" for k, v in sorted(self.skipped.items())))
         return out
 
@@ -60,12 +62,14 @@ def import_sage_episodes(path: Path, run_dir: Path, config: SageImportConfig = S
     spec = parse_spec(read_input(scene_dir / SCENE_FILE), scene_dir / SCENE_FILE)
     grids = read_topdown_grids(scene_dir / TOPDOWN)
     navmap = NavigableMap(grids.navigable, grids.resolution, grids.origin, snap_radius=SNAP_M)
-    got = rows_from_gvln(scene, spec, navmap, goal_radius=config.goal_radius, split=config.split)
+    budget = TaskConfig().nogoal_budget_s, TaskConfig().nogoal_budget_steps
+    got = rows_from_gvln(scene, spec, navmap, goal_radius=config.goal_radius, split=config.split, budget=budget)
     if not got.rows:
-        raise DataError("no episode to import (no sample, or every instruction of a type with no goal)", path=path)
+        raise DataError("no episode to import (no sample, or every instruction of a type sagebench does not know)",
+                        path=path)
     out = run_episodes_dir(run_dir, sid)
     with staged_dir(out) as tmp:
-        write_shards(got.rows, tmp, SHARD_BYTES)
+        write_shards(got.rows, tmp, SHARD_BYTES, schema_for(r["task"] for r in got.rows))
     return SageImport(sid, out, len({r["trajectory_id"] for r in got.rows}), len(got.rows), got.skipped, got.snapped)
 
 

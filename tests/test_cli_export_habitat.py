@@ -1,0 +1,99 @@
+"""`sagebench export-habitat`: the goal tasks' episodes as habitat-lab datasets, read back as habitat-lab's own
+dataset classes would (tests/habitat_datasets.py re-implements them)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+
+import numpy as np
+import pytest
+
+from sagebench.episodes.shards import read_episodes
+from sagebench.episodes.tasks import row_task
+from sagebench.vlnce.frame import from_habitat, rotation_to_yaw
+from tests.habitat_datasets import objectnav_dataset, pointnav_episodes
+from tests.test_cli_sage_tasks import SCENE, task_run  # noqa: F401 (the run with rows of every task)
+
+
+@pytest.fixture(scope="module")
+def habitat_export(task_run, tmp_path_factory):  # noqa: F811
+    from sagebench.cli import main
+
+    out = tmp_path_factory.mktemp("habitat")
+    with pytest.raises(SystemExit) as exc:
+        main(["export-habitat", str(task_run), "--out", str(out)])
+    assert exc.value.code in (0, None)
+    return out
+
+
+def _rows(run, task):
+    return [r for r in read_episodes(run / "episodes" / SCENE).to_pylist() if row_task(r) == task]
+
+
+def _yaw_gap(a: float, b: float) -> float:
+    return abs(math.remainder(a - b, 2 * math.pi))
+
+
+@pytest.mark.parametrize("task", ["pointnav", "imagenav"])
+def test_pointnav_and_imagenav_load_as_habitat_s_pointnav_v1(task_run, habitat_export, task):  # noqa: F811
+    rows = {r["episode_id"]: r for r in _rows(task_run, task)}
+    marker = json.loads((habitat_export / "habitat_export.json").read_text())
+    assert marker["tasks"][task]["type"] == "PointNav-v1"
+    split = next(iter(marker["tasks"][task]["episodes"]))
+    path = habitat_export / marker["tasks"][task]["data_path"].format(split=split)
+    episodes = pointnav_episodes(path, scenes_dir=str(habitat_export / "scenes"))
+    assert sorted(e["episode_id"] for e in episodes) == sorted(rows)
+    for ep in episodes:
+        row = rows[ep["episode_id"]]
+        assert (habitat_export / "scenes" / ep["scene_id"]).is_file()
+        assert np.allclose(from_habitat(ep["start_position"]), row["start_position"])
+        assert _yaw_gap(rotation_to_yaw(ep["start_rotation"]), row["start_yaw"]) < 1e-9
+        assert np.allclose(from_habitat(ep["goals"][0]["position"]), row["goal_position"])
+        assert ep["goals"][0]["radius"] == row["goal_radius"]
+        if task == "imagenav":
+            assert _yaw_gap(rotation_to_yaw(ep["info"]["goal_rotation"]), row["goal_yaw"]) < 1e-9
+            assert ep["info"]["goal_image"] == row["goal_image"]
+
+
+def test_objectnav_loads_as_habitat_s_objectnav_v1_with_every_instance_a_goal(task_run, habitat_export):  # noqa: F811
+    rows = {r["episode_id"]: r for r in _rows(task_run, "objectnav")}
+    views_of = {}  # category -> every viewpoint of its episodes: habitat-lab keeps one goal set per category
+    for r in rows.values():
+        views_of.setdefault(r["goal_category"], set()).update(map(tuple, r["goal_viewpoints"]))
+    marker = json.loads((habitat_export / "habitat_export.json").read_text())
+    assert marker["tasks"]["objectnav"]["type"] == "ObjectNav-v1"
+    split = next(iter(marker["tasks"]["objectnav"]["episodes"]))
+    data = objectnav_dataset(habitat_export / marker["tasks"]["objectnav"]["data_path"].format(split=split),
+                             scenes_dir=str(habitat_export / "scenes"))
+    assert len(data["episodes"]) == len(rows)
+    for ep in data["episodes"]:
+        row = rows[ep["info"]["sagebench_episode_id"]]
+        assert ep["object_category"] == row["goal_category"] in data["category_to_task_category_id"]
+        assert sorted(g["object_id"] for g in ep["goals"]) == sorted(row["goal_instance_ids"])
+        assert {g["object_category"] for g in ep["goals"]} == {row["goal_category"]}
+        views = [from_habitat(v["agent_state"]["position"]) for g in ep["goals"] for v in g["view_points"]]
+        assert np.allclose(sorted(map(tuple, views)), sorted(views_of[row["goal_category"]]))
+        assert np.allclose(from_habitat(ep["start_position"]), row["start_position"])
+
+
+def test_tasks_without_a_habitat_format_are_left_out_and_counted(task_run, run_cli, tmp_path):  # noqa: F811
+    code, out, err = run_cli("export-habitat", task_run, "--out", tmp_path / "h")
+    assert code == 0, err
+    counts = {t: len(_rows(task_run, t)) for t in ("nogoal", "vln")}
+    assert out.splitlines()[-1] == f"left out (no habitat-lab dataset format): nogoal {counts['nogoal']}, vln {counts['vln']}"
+    assert sorted(p.name for p in (tmp_path / "h").iterdir() if p.name != ".sagebench.lock") == \
+        ["habitat_export.json", "imagenav", "objectnav", "pointnav", "scenes"]
+    first = next((tmp_path / "h" / "pointnav").rglob("*.json.gz")).read_bytes()
+    assert run_cli("export-habitat", task_run, "--out", tmp_path / "h")[0] == 0  # again into its own output
+    assert next((tmp_path / "h" / "pointnav").rglob("*.json.gz")).read_bytes() == first
+
+
+def test_a_run_without_goal_task_episodes_gets_one_line_and_nothing_is_written(demo_eval_run, run_cli, tmp_path):
+    before = {str(p): hashlib.sha256(p.read_bytes()).hexdigest() for p in demo_eval_run.rglob("*") if p.is_file()}
+    code, out, err = run_cli("export-habitat", demo_eval_run, "--out", tmp_path / "h")
+    assert (code, out) == (2, "")
+    assert err == f"error: {demo_eval_run}: no objectnav, pointnav or imagenav episodes in the run\n"
+    assert not (tmp_path / "h").exists()
+    assert {str(p): hashlib.sha256(p.read_bytes()).hexdigest() for p in demo_eval_run.rglob("*") if p.is_file()} == before
