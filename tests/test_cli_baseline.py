@@ -98,7 +98,7 @@ def test_max_actions_ends_episodes_unstopped(demo_eval_run, tmp_path, run_cli):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--agent", "walker"], "error: --agent: Input should be 'oracle', 'straight' or 'random'"),
+    (["--agent", "walker"], "error: --agent: Input should be 'oracle', 'straight', 'random', 'stationary' or 'explorer'"),
     (["--agent", "oracle", "--max-actions", "0"], "error: --max-actions: Input should be greater than or equal to 1"),
     (["--agent", "oracle", "--scene", "nope"], "no episodes/nope/part-*.parquet (scenes found: demo_apartment_0); "
                                                "run `sagebench gen-trajectories` on this run first"),

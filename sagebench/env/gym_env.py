@@ -55,6 +55,9 @@ def observation_space(config: EnvConfig, instructions: Sequence[str] = (), vocab
         "gps": lambda: spaces.Box(-np.inf, np.inf, (2,), np.float32),
         "compass": lambda: spaces.Box(-np.pi, np.pi, (1,), np.float32),
         "collided": lambda: spaces.Discrete(2),
+        "pointgoal": lambda: spaces.Box(np.array([0.0, -np.pi], np.float32), np.array([np.inf, np.pi], np.float32)),
+        "objectgoal": lambda: spaces.Text(max_length=MAX_INSTRUCTION, min_length=1, charset="".join(charset)),
+        "imagegoal": lambda: spaces.Box(0, 255, (*size.get("rgb", (0, 0)), 3), np.uint8),
     }
     return spaces.Dict({k: every[k]() for k in sensors.keys})
 

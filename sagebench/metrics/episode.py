@@ -59,6 +59,30 @@ def path_smoothness(yaw: np.ndarray) -> float:
     return float(1.0 - np.minimum(turn / math.pi, 1.0).mean())
 
 
+def intensities(collision_intensity: np.ndarray | None, n: int) -> np.ndarray:
+    """c(t) [n] clipped to [0, 1] (zeros when None); ValueError unless there is one value per pose."""
+    if collision_intensity is None:
+        return np.zeros(n)
+    c = np.asarray(collision_intensity, dtype=np.float64)
+    if c.shape != (n,):
+        raise ValueError(f"collision_intensity must have one value per pose ({n}), got {c.shape}")
+    return np.clip(c, 0.0, 1.0)
+
+
+def success_weighted(sr: float, geodesic: float, length: float) -> float:
+    """SPL of one episode: sr * g / max(g, L) (sr itself when both are 0)."""
+    g = float(geodesic)
+    return sr * g / max(g, length) if max(g, length) > 0 else sr
+
+
+def check_poses(poses: np.ndarray) -> np.ndarray:
+    """poses as a float [T, 4] array, T >= 1; ValueError otherwise."""
+    poses = np.asarray(poses, dtype=np.float64)
+    if poses.ndim != 2 or poses.shape[1] != 4 or len(poses) == 0:
+        raise ValueError(f"poses must be [T, 4] with T >= 1, got shape {poses.shape}")
+    return poses
+
+
 def score_episode(
     poses: np.ndarray,
     reference_path: np.ndarray,
@@ -77,9 +101,7 @@ def score_episode(
     collision_intensity: [T] in [0, 1] (zeros when None); on_foot: the goal's distances on foot, or None where
     there is no map (then every distance is the straight one: an open floor).
     """
-    poses = np.asarray(poses, dtype=np.float64)
-    if poses.ndim != 2 or poses.shape[1] != 4 or len(poses) == 0:
-        raise ValueError(f"poses must be [T, 4] with T >= 1, got shape {poses.shape}")
+    poses = check_poses(poses)
     goal_xy = np.asarray(goal, dtype=np.float64)[:2]
     straight = np.linalg.norm(poses[:, :2] - goal_xy, axis=1)
     dist_to_goal = straight if on_foot is None else on_foot.distance(poses[:, :2])
@@ -87,17 +109,10 @@ def score_episode(
     sr = float(stopped and ne <= goal_radius)
     osr = float((dist_to_goal <= goal_radius).any())
     length = path_length(poses)
-    g = float(geodesic_distance)
-    spl = sr * g / max(g, length) if max(g, length) > 0 else sr
+    spl = success_weighted(sr, geodesic_distance, length)
     ref = resample(np.asarray(reference_path, dtype=np.float64), config.resample_spacing)
     ndtw = math.exp(-dtw(poses, ref) / (len(ref) * config.ndtw_threshold))
     csr = float((distance_to_polyline(poses, ref) <= config.corridor_radius).mean())
-    if collision_intensity is None:
-        icp = 0.0
-    else:
-        c = np.asarray(collision_intensity, dtype=np.float64)
-        if c.shape != (len(poses),):
-            raise ValueError(f"collision_intensity must have one value per pose ({len(poses)}), got {c.shape}")
-        icp = float(np.clip(c, 0.0, 1.0).mean())
+    icp = float(intensities(collision_intensity, len(poses)).mean())
     return EpisodeMetrics(ne=ne, ne_straight=float(straight[-1]), sr=sr, osr=osr, spl=spl, ndtw=ndtw, sdtw=sr * ndtw, csr=csr, icp=icp,
                           ps=path_smoothness(poses[:, 3]), path_length=length)

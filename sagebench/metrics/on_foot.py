@@ -18,6 +18,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from sagebench.astar.dijkstra_reference import grid_graph
+from sagebench.metrics.coverage import main_region
 
 
 @dataclass(frozen=True)
@@ -47,6 +48,31 @@ class GoalField:
         """[N] distance on foot (m) from points [N, >=2] to the goal; inf where a point cannot reach it."""
         xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))
         return distances_on_foot([self] * len(xy), xy)
+
+
+@dataclass(frozen=True)
+class ViewpointField:
+    """Distances on foot (m) to the nearest of a set of goal cells (ObjectNav's viewpoints: every navigable cell
+    within the success radius of any instance of the category). A point's distance is its cell's (after snapping),
+    0 on a viewpoint, inf where it cannot reach one: success and the distance to the goal read the same numbers."""
+
+    cells: np.ndarray  # [H, W] bool, the viewpoints
+    cost: np.ndarray  # [H, W] m, cell centre -> the nearest viewpoint along the grid; inf where unreachable
+    navmap: "NavigableMap"
+
+    @property
+    def worst(self) -> float:
+        """The largest distance on foot from any connected navigable cell to its nearest viewpoint."""
+        finite = self.cost[np.isfinite(self.cost)]
+        return float(finite.max()) if finite.size else 0.0
+
+    def distance(self, xy: np.ndarray) -> np.ndarray:
+        """[N] distance on foot (m) from points [N, >=2] to the nearest viewpoint; inf where none is reachable."""
+        cells = self.navmap.snap(np.atleast_2d(np.asarray(xy, dtype=np.float64))[:, :2])
+        out = np.full(len(cells), np.inf)
+        ok = cells[:, 0] >= 0
+        out[ok] = self.cost[cells[ok, 0], cells[ok, 1]]
+        return out
 
 
 def distances_on_foot(fields: Sequence[GoalField], xy: np.ndarray) -> np.ndarray:
@@ -94,8 +120,22 @@ class NavigableMap:
     def __post_init__(self) -> None:
         self.navigable = np.asarray(self.navigable).astype(bool)
         self._graph: csr_matrix | None = None
+        self._main: np.ndarray | None = None
         # nearest navigable cell of every cell and its distance (cells, centre to centre)
         self._gap, self._nearest = distance_transform_edt(~self.navigable, return_indices=True)
+
+    def graph(self) -> csr_matrix:
+        """The planner's graph of the map (8-connected, no corner cutting; edge weights in cells), built once."""
+        if self._graph is None:
+            self._graph = grid_graph(self.navigable).tocsr()
+        return self._graph
+
+    @property
+    def main_region(self) -> np.ndarray:
+        """[H, W] bool: the main region (build-scene's largest connected region), computed once."""
+        if self._main is None:
+            self._main = main_region(self.navigable)
+        return self._main
 
     @property
     def bounds(self) -> tuple[float, float, float, float]:
@@ -174,11 +214,20 @@ class NavigableMap:
             if r < 0:
                 cost = np.full((h, w), np.inf)
             else:
-                if self._graph is None:
-                    self._graph = grid_graph(self.navigable).tocsr()
-                cost = dijkstra(self._graph, directed=True, indices=r * w + c).reshape(h, w) * self.resolution
+                cost = dijkstra(self.graph(), directed=True, indices=r * w + c).reshape(h, w) * self.resolution
             self._fields[(r, c)] = cost
         return GoalField(goal_xy, self._fields[(r, c)], self)
+
+
+    def viewpoint_field(self, cells: np.ndarray) -> ViewpointField:
+        """The distances on foot to the nearest of the goal cells ([H, W] bool; only navigable ones count): one
+        Dijkstra from all of them at once. No goal cell: reachable from nowhere, every distance inf."""
+        goals = np.asarray(cells, dtype=bool) & self.navigable
+        sources = np.flatnonzero(goals.ravel())
+        if not len(sources):
+            return ViewpointField(goals, np.full(goals.shape, np.inf), self)
+        cost = dijkstra(self.graph(), directed=True, indices=sources, min_only=True).reshape(goals.shape)
+        return ViewpointField(goals, cost * self.resolution, self)
 
 
 def distance_on_foot(navigable: np.ndarray, resolution: float, origin: tuple[float, float], goal_xy: np.ndarray,

@@ -11,13 +11,17 @@ the baselines are privileged, the oracle reads the reference path and `straight`
 - `random`: forward, or with random_turn_probability a turn of 15-90 degrees either way (as successive turn
   actions), 90-180 degrees after an action more than half blocked; stops after a number of actions drawn from
   [random_min_actions, random_max_actions]; each episode seeded by (seed, episode id).
+- `stationary` stops at once: it never moves (every task must score it SR 0 and coverage ~0).
+- `explorer` (navsim/explorer.py): the no-goal baseline, sweeping the navigable map's nearest unswept floor.
+On a goal task (objectnav, pointnav, imagenav) the oracle stops as soon as it stands within its task's success
+distance on foot (the simulator's distance_to_goal) and, past the reference path's end, walks on to the goal.
 """
 
 from __future__ import annotations
 
 import hashlib
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -25,10 +29,12 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from sagebench.episodes.episode import Episode
+from sagebench.metrics.on_foot import NavigableMap
 from sagebench.navsim.actions import Action
 from sagebench.settings.shared import ActionConfig
+from sagebench.tasks.goals import GOAL_TASKS, success_distance
 
-BUILT_IN = ("oracle", "straight", "random")
+BUILT_IN = ("oracle", "straight", "random", "stationary", "explorer")
 
 
 class PolicyConfig(BaseModel):
@@ -84,7 +90,7 @@ class Policy(Protocol):
         """One action (or PolicyFailure) per running slot."""
 
 
-def _heading_action(pose: np.ndarray, target: np.ndarray, turn: float) -> Action:
+def heading_action(pose: np.ndarray, target: np.ndarray, turn: float) -> Action:
     """Turn towards `target` [2] while the heading error exceeds half a turn, else move forward."""
     err = math.remainder(math.atan2(target[1] - pose[1], target[0] - pose[0]) - pose[3], 2 * math.pi)
     if abs(err) > turn / 2:
@@ -107,22 +113,37 @@ class Oracle:
 
     def begin(self, episodes: Sequence[Episode]) -> None:
         self.targets = [oracle_targets(e.reference_path, self.actions.forward_step)[1:] for e in episodes]
+        self.reach = [success_distance(e) if e.task in GOAL_TASKS else None for e in episodes]
+        self.goal = [np.asarray(e.goal[:2], dtype=np.float64) for e in episodes]
         self.next = [0] * len(episodes)
         self.last: list[np.ndarray | None] = [None] * len(episodes)
 
     def act(self, slots, observations, infos) -> list:
-        out, reach = [], self.actions.forward_step / 2
-        for i, obs in zip(slots, observations):
+        out, reach, turn = [], self.actions.forward_step / 2, math.radians(self.actions.turn_deg)
+        for i, obs, info in zip(slots, observations, infos):
             pose, t = obs["pose"], self.targets[i]
             moved_from = pose[:2] if self.last[i] is None else self.last[i]
             while self.next[i] < len(t) and _segment_distance(t[self.next[i]], moved_from, pose[:2]) <= reach:
-                if self.next[i] == len(t) - 1 and np.hypot(*(t[-1] - pose[:2])) > self.actions.forward_step:
+                if (self.reach[i] is None and self.next[i] == len(t) - 1
+                        and np.hypot(*(t[-1] - pose[:2])) > self.actions.forward_step):
                     break  # passing near the end is not enough: the oracle stops within a step of it
                 self.next[i] += 1
             self.last[i] = np.array(pose[:2], dtype=np.float64)
-            out.append(Action.STOP if self.next[i] >= len(t)
-                       else _heading_action(pose, t[self.next[i]], math.radians(self.actions.turn_deg)))
+            if self.reach[i] is not None and info["distance_to_goal"] <= self.reach[i]:
+                out.append(Action.STOP)  # a goal task: within its success distance on foot
+            elif self.next[i] < len(t):
+                out.append(heading_action(pose, t[self.next[i]], turn))
+            else:
+                out.append(Action.STOP if self.reach[i] is None else heading_action(pose, self.goal[i], turn))
         return out
+
+
+class Stationary:
+    def begin(self, episodes: Sequence[Episode]) -> None:
+        pass
+
+    def act(self, slots, observations, infos) -> list:
+        return [Action.STOP for _ in slots]
 
 
 class Straight:
@@ -143,7 +164,7 @@ class Straight:
             if dist <= self.radius[i] or self.idle[i] >= self.config.stall_patience:
                 out.append(Action.STOP)
                 continue
-            a = _heading_action(pose, self.goal[i], math.radians(self.actions.turn_deg))
+            a = heading_action(pose, self.goal[i], math.radians(self.actions.turn_deg))
             if a == Action.MOVE_FORWARD:
                 improved = dist < self.best[i] - self.config.min_progress
                 self.best[i] = dist if improved else self.best[i]
@@ -185,8 +206,16 @@ class RandomWalk:
 
 
 def built_in(name: str, *, seed: int = 0, config: PolicyConfig = PolicyConfig(),
-             actions: ActionConfig = ActionConfig()) -> Policy:
-    """The built-in policy called `name` (one of BUILT_IN)."""
+             actions: ActionConfig = ActionConfig(), maps: Callable[[str], NavigableMap] | None = None) -> Policy:
+    """The built-in policy called `name` (one of BUILT_IN); the explorer reads each scene's map from `maps`."""
+    if name == "stationary":
+        return Stationary()
+    if name == "explorer":
+        from sagebench.navsim.explorer import Explorer  # it steers as the oracle does (heading_action)
+
+        if maps is None:
+            raise ValueError("the explorer needs the scenes' navigable maps")
+        return Explorer(maps, actions)
     if name == "oracle":
         return Oracle(actions)
     if name == "straight":

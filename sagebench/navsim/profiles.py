@@ -20,15 +20,22 @@ Profiles (sizes are width x height):
   instruction text; no pose (its HTTP request sends current_yaw 0.0), no bump sensor;
 - `full`: everything, privileged included: rgb, depth (m), instance at width x height, the instruction text and
   tokens, pose, gps, compass and collided.
+
+The task (EnvConfig.task, docs/tasks.md) decides what the agent is told of its goal, in every profile: vln and
+nogoal the instruction text (nogoal's is SAGE-Bench's exploration instruction, no goal); pointnav `pointgoal`
+[rho, phi] float32 (habitat's PointGoalWithGPSCompassSensor: the goal from the agent's current pose, m and rad
+counter-clockwise from its heading); objectnav `objectgoal`, the category's name; imagenav `imagegoal`, the rgb view
+from the goal pose (when the profile renders rgb). The goal tasks get no instruction text or tokens.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from sagebench.episodes.tasks import pointgoal_polar
 from sagebench.settings.rollout import PRIVILEGED, EnvConfig, check_profile
 from sagebench.vlnce.vocab import TOKENS_PER_INSTRUCTION
 
@@ -75,12 +82,14 @@ class Sensors:
     tokens: bool  # instruction_tokens
     bump: bool  # collided
     privileged: tuple[str, ...]  # of PRIVILEGED, in that order
+    task: str = "vln"  # what the agent is told of its goal (module docstring)
 
     @property
     def keys(self) -> tuple[str, ...]:
         """Every key of the observation dict, in order."""
-        keys = [k for k in ("rgb", "depth", "instance") if k in self.images] + ["instruction"]
-        keys += ["instruction_tokens"] if self.tokens else []
+        keys = [k for k in ("rgb", "depth", "instance") if k in self.images]
+        keys += [k for k in TASK_KEYS[self.task] if k != "imagegoal" or "rgb" in self.images]
+        keys += ["instruction_tokens"] if self.tokens and self.task in ("vln", "nogoal") else []
         keys += ["pose"] if "pose" in self.privileged else []
         keys += ["gps", "compass"] if "gps_compass" in self.privileged else []
         return tuple(keys + (["collided"] if self.bump else []))
@@ -101,6 +110,9 @@ class Sensors:
                 what[key] = {"rgb": f"{h}x{w}x3 uint8", "instance": f"{h}x{w} int32 instance ids",
                              "depth": f"{h}x{w}{'x1' if self.depth.channel else ''} float32 "
                                       f"{self.depth.describe()}"}[key]
+            elif key == "imagegoal":
+                w, h = self.images["rgb"]
+                what[key] = f"{h}x{w}x3 uint8, the view from the goal pose"
             else:
                 what[key] = DESCRIPTIONS[key]
         return {"profile": self.profile, "keys": what, "privileged": list(self.privileged)}
@@ -109,7 +121,11 @@ class Sensors:
 DESCRIPTIONS = {"instruction": "text",
                 "instruction_tokens": f"{TOKENS_PER_INSTRUCTION} int64 word ids (the run's vocabulary)",
                 "pose": "[x, y, z, yaw] float64 world m, rad", "gps": "[forward, right] float32 m from the start",
-                "compass": "[heading] float32 rad from the start's", "collided": "bool, contact in the last action"}
+                "compass": "[heading] float32 rad from the start's", "collided": "bool, contact in the last action",
+                "pointgoal": "[rho, phi] float32 m, rad: the goal from the agent's pose",
+                "objectgoal": "text, the goal category"}
+TASK_KEYS = {"vln": ("instruction",), "nogoal": ("instruction",), "pointnav": ("pointgoal",),
+             "objectnav": ("objectgoal",), "imagenav": ("imagegoal",)}
 
 DEFAULT_SIZE = (224, 224)  # custom and full, width x height
 VLNCE_RGB, VLNCE_DEPTH = (224, 224), (256, 256)  # VLN-CE's vlnce_task.yaml
@@ -142,9 +158,10 @@ def resolve(profile: str, *, width: int | None = None, height: int | None = None
 
 
 def env_sensors(config: EnvConfig) -> Sensors:
-    """The observations an environment's settings give a policy."""
-    return resolve(config.profile, width=config.width, height=config.height, observations=config.observations,
-                   privileged=config.privileged)
+    """The observations an environment's settings give a policy: its profile's, told of the goal as its task is."""
+    sensors = resolve(config.profile, width=config.width, height=config.height, observations=config.observations,
+                      privileged=config.privileged)
+    return replace(sensors, task=config.task)
 
 
 def _with_instance(images: dict[str, tuple[int, int]], size: tuple[int, int], privileged: tuple[str, ...]
@@ -160,3 +177,10 @@ def gps_compass(pose: np.ndarray, start: np.ndarray, start_yaw: float) -> tuple[
     forward, left = c * d[0] + s * d[1], -s * d[0] + c * d[1]
     heading = math.remainder(float(pose[-1]) - start_yaw, 2 * math.pi)
     return np.array([forward, -left], np.float32), np.array([heading], np.float32)
+
+
+def pointgoal(pose: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    """habitat's PointGoalWithGPSCompassSensor for the agent at `pose` [>=2 .., yaw last]: [rho, phi] float32 of
+    the goal [>=2] from its current pose (episodes/tasks.py's pointgoal_polar)."""
+    return np.array(pointgoal_polar(float(pose[0]), float(pose[1]), float(pose[-1]), float(goal[0]), float(goal[1])),
+                    np.float32)

@@ -4,7 +4,8 @@ A step turns each running slot's action into a command (actions.py), moves the a
 MuJoCo call (motion.py), ends slots on STOP, on the step limit or on leaving the map, and renders every
 running slot's view in one renderer call per scene (observe.py). Slots never influence each other: stepping
 episodes together gives byte for byte what stepping them one at a time gives (tests/test_env.py).
-Running metrics per slot: the distance on foot to the goal, success (stopped within the goal radius on foot)
+Running metrics per slot: the distance on foot to the goal and success, both the task's (sagebench/tasks/goals.py;
+NaN and never for nogoal, whose success is its coverage, scored by evaluate)
 and c(t) of the last action: for an action that translates, the larger of the motion shortfall motion.py
 measures and the share of the step (from the pose before to the pose after, every 2 cm) within 0.01 m of a
 collider (sagebench.replay.contact, the same check evaluate derives c(t) with), so sliding along a wall at full
@@ -14,6 +15,7 @@ beside a wall is not a collision. The reward is the step's progress on foot towa
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -22,14 +24,15 @@ import numpy as np
 
 from sagebench.evaluation.predictions import Prediction
 from sagebench.episodes.episode import Episode
-from sagebench.metrics.on_foot import GoalField, distances_on_foot
+from sagebench.metrics.on_foot import GoalField, ViewpointField, distances_on_foot
 from sagebench.navsim.actions import continuous_commands, discrete_commands
 from sagebench.navsim.motion import Agents, wrap
 from sagebench.navsim.observe import observe
-from sagebench.navsim.profiles import Sensors, env_sensors, gps_compass
+from sagebench.navsim.profiles import Sensors, env_sensors, gps_compass, pointgoal
 from sagebench.navsim.world import World, open_world, run_episodes, run_vocabulary
 from sagebench.replay.contact import ContactProbe
 from sagebench.settings.rollout import EnvConfig
+from sagebench.tasks.goals import goal_field, success_distance
 
 POSE_DECIMALS = 6  # predictions are written to the micrometre / microradian
 
@@ -41,11 +44,11 @@ class Slot:
     episode: Episode
     instruction: str
     world: World
-    goal: GoalField  # distances on foot to the episode's goal
+    goal: GoalField | ViewpointField | None  # distances on foot to the episode's goal (None: nogoal, no goal)
     row: int  # the agent's row in its scene's Agents
     poses: list[tuple[float, float, float, float]]
     intensity: list[float]
-    distance: float  # on foot to the goal now, m
+    distance: float  # on foot to the goal now, m (NaN without a goal)
     steps: int = 0
     stopped: bool = False
     outcome: str = ""  # "" while running, else stop / step_limit / left_map / policy_failed
@@ -54,6 +57,7 @@ class Slot:
     # slots rendered together) while the slot runs, its own copies once it has ended (`detach`)
     last: dict[str, np.ndarray] = field(default_factory=dict)
     tokens: np.ndarray | None = None  # [TOKENS_PER_INSTRUCTION] int64 when the profile gives them
+    goal_image: np.ndarray | None = None  # imagenav: the view from the goal pose, when the profile renders rgb
 
     @property
     def done(self) -> bool:
@@ -61,7 +65,7 @@ class Slot:
 
     @property
     def success(self) -> float:
-        return float(self.stopped and self.distance <= self.episode.goal_radius)
+        return float(self.goal is not None and self.stopped and self.distance <= success_distance(self.episode))
 
     def detach(self) -> None:
         """Copy the last view out of its step's arrays: an ended slot keeps it, and would keep them all alive."""
@@ -90,6 +94,7 @@ class Simulator:
         self.run_dir, self.config, self.threads = Path(run_dir), config, threads
         self.sensors = env_sensors(config)
         episodes, self.instructions = run_episodes(self.run_dir, scene_id)
+        episodes = [e for e in episodes if e.task == config.task]  # each task runs alone, with its observations
         if config.success_distance is not None:
             episodes = [replace(e, goal_radius=config.success_distance) for e in episodes]
         self.vocabulary = run_vocabulary(self.run_dir) if self.sensors.tokens else None
@@ -122,10 +127,10 @@ class Simulator:
             pose = (float(e.start[0]), float(e.start[1]), w.model.floor_z, float(wrap(e.start_yaw)))
             text = self.instructions.get(eid, "")
             tokens = np.array(self.vocabulary.encode(text), np.int64) if self.vocabulary is not None else None
-            goal = w.navmap.field(e.goal)
+            goal = goal_field(w.navmap, e)
             self.slots.append(Slot(episode=e, instruction=text, world=w, goal=goal, row=len(rows),
-                                   poses=[_rounded(pose)], intensity=[0.0],
-                                   distance=float(goal.distance(e.start[None])[0]), tokens=tokens))
+                                   poses=[_rounded(pose)], intensity=[0.0], distance=_distance(goal, e.start),
+                                   tokens=tokens, goal_image=self._goal_image(w, e)))
             rows.append(i)
         for sid, rows in by_scene.items():
             starts = np.array([[self.slots[i].episode.start[0], self.slots[i].episode.start[1],
@@ -178,7 +183,7 @@ class Simulator:
         translating = np.asarray(v, dtype=np.float64) > 0  # a pure turn counts only its own blocking
         intensity = np.where(translating, np.maximum(motion.intensity, near), motion.intensity)
         xy = motion.pose[:, :2]
-        distance = distances_on_foot([s.goal for s in slots], xy).tolist()
+        distance = _distances([s.goal for s in slots], xy)
         inside = w.inside(xy).tolist()
         yaw = wrap(motion.pose[:, 2]).tolist()
         for k, s in enumerate(slots):
@@ -193,6 +198,16 @@ class Simulator:
             elif s.steps >= c.max_steps:
                 s.outcome = "step_limit"
         return rows
+
+    def _goal_image(self, w: World, e) -> np.ndarray | None:
+        """imagenav's goal: the rgb view from the goal pose at the profile's rgb size (None without rgb)."""
+        if e.task != "imagenav" or "rgb" not in self.sensors.images or w.renderer is None:
+            return None
+        width, height = self.sensors.images["rgb"]
+        pose = np.array([[e.goal[0], e.goal[1], w.model.floor_z, e.goal_yaw]], dtype=np.float64)
+        c = self.config
+        return observe(w.renderer, pose, ("rgb",), floor_z=w.model.floor_z, camera_height=c.camera.height,
+                       hfov_deg=c.camera.hfov_deg, width=width, height=height)["rgb"][0].copy()
 
     def fail(self, slot: int) -> None:
         """End a running slot because its policy could not answer (it takes no further step)."""
@@ -234,7 +249,29 @@ def observation(sensors: Sensors, s: Slot) -> dict:
         extra["pose"] = np.array(s.poses[-1], dtype=np.float64)
     if "gps_compass" in sensors.privileged:
         extra["gps"], extra["compass"] = gps_compass(np.array(s.poses[-1]), s.episode.start, s.episode.start_yaw)
+    e = s.episode
+    if e.task == "pointnav":
+        extra["pointgoal"] = pointgoal(np.array(s.poses[-1]), e.goal)
+    elif e.task == "objectnav":
+        extra["objectgoal"] = e.goal_category
+    elif e.task == "imagenav":
+        extra["imagegoal"] = s.goal_image
     return {k: s.last[k] if k in s.last else extra[k] for k in sensors.keys}
+
+
+def _distance(goal: GoalField | ViewpointField | None, xy: np.ndarray) -> float:
+    """Distance on foot from one point to the goal; NaN without a goal."""
+    return math.nan if goal is None else float(goal.distance(np.asarray(xy)[None, :2])[0])
+
+
+def _distances(goals: Sequence[GoalField | ViewpointField | None], xy: np.ndarray) -> list[float]:
+    """Each agent's distance on foot to its own goal: the point goals of a scene in one call."""
+    points = [k for k, g in enumerate(goals) if isinstance(g, GoalField)]
+    out = [_distance(g, xy[k]) if not isinstance(g, GoalField) else math.nan for k, g in enumerate(goals)]
+    if points:
+        for k, d in zip(points, distances_on_foot([goals[k] for k in points], xy[points]).tolist()):
+            out[k] = d
+    return out
 
 
 def _rounded(pose: tuple[float, float, float, float]) -> tuple[float, float, float, float]:

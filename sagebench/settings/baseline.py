@@ -9,6 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from sagebench.settings.option import Option
 from sagebench.settings.rollout import EnvConfig, RolloutConfig
+from sagebench.settings.shared import Task
 
 
 class BaselineConfig(BaseModel):
@@ -16,8 +17,12 @@ class BaselineConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    agent_name: Annotated[Literal["oracle", "straight", "random"], Option("--agent", required=True)] = Field(
-        default="oracle", description="Which baseline: oracle, straight or random.")
+    agent_name: Annotated[Literal["oracle", "straight", "random", "stationary", "explorer"],
+                          Option("--agent", required=True)] = Field(
+        default="oracle", description="Which baseline: oracle, straight, random, stationary (stops at once) or "
+                                      "explorer (no-goal: sweeps the nearest unswept floor of the map).")
+    task: Annotated[Task, Option("--task")] = Field(
+        default="vln", description="Which task's episodes to run: vln, nogoal, objectnav, pointnav or imagenav.")
     seed: Annotated[int, Option("--seed")] = Field(default=0, ge=0, description="Seed of the random agent's walks.")
     max_actions: Annotated[int, Option("--max-actions")] = Field(
         default=500, ge=1, description="Actions per episode before it ends unstopped.")
@@ -27,4 +32,5 @@ class BaselineConfig(BaseModel):
     def rollout(self) -> RolloutConfig:
         """The rollout these settings name."""
         return RolloutConfig(policy=self.agent_name, seed=self.seed, workers=self.workers, sheet_episodes=0,
-                             env=EnvConfig(observations=(), privileged=("pose",), max_steps=self.max_actions))
+                             env=EnvConfig(observations=(), privileged=("pose",), max_steps=self.max_actions,
+                                           task=self.task))

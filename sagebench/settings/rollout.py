@@ -11,7 +11,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from sagebench.errors import ConfigError
 from sagebench.settings.option import EXPAND, Option
 from sagebench.settings.shared import (
-    RENDERER, SPLITS, ActionConfig, CameraConfig, RendererChoice, ReplayConfig, beyond_limits,
+    RENDERER, SPLITS, ActionConfig, CameraConfig, RendererChoice, ReplayConfig, Task, beyond_limits,
 )
 
 ProfileName = Literal["custom", "vlnce", "sage", "full"]
@@ -90,6 +90,10 @@ class EnvConfig(BaseModel):
     privileged: Annotated[tuple[PrivilegedKey, ...], Option("--privileged", parse=names(PRIVILEGED, "--privileged"))
                           ] = Field(default=(), description="Privileged observations to add, comma-separated: pose, "
                                                             "gps_compass, instance (full has them all).")
+    task: Annotated[Task, Option("--task")] = Field(
+        default="vln", description="Which task's episodes to run, each agent told of its goal as that task says: vln "
+                                   "(the instruction), nogoal (the exploration instruction), pointnav (pointgoal), "
+                                   "objectnav (objectgoal) or imagenav (imagegoal); docs/tasks.md.")
     success_distance: float | None = Field(
         default=None, gt=0, description="Success radius instead of each episode's goal_radius, m.")
     max_steps: Annotated[int, Option("--max-steps")] = Field(
@@ -152,4 +156,7 @@ class RolloutConfig(BaseModel):
 
     def decisive(self) -> dict:
         """The settings that decide the predictions (the record keeps them for --resume)."""
-        return self.model_dump(mode="json", include={"policy", "seed", "preset", "env"})
+        out = self.model_dump(mode="json", include={"policy", "seed", "preset", "env"})
+        if out["env"]["task"] == "vln":  # a VLN rollout's record reads as it did before tasks existed
+            del out["env"]["task"]
+        return out

@@ -116,3 +116,12 @@ class MetricConfig:
     ndtw_threshold: float = 3.0  # d_th, m (habitat / VLN-CE)
     resample_spacing: float = 0.25  # reference resampling for nDTW and CSR, m
     corridor_radius: float = 1.0  # CSR r_tol, m (the paper gives none)
+
+
+@dataclass(frozen=True)
+class TaskMetricConfig:
+    """Constants of the other tasks' metrics (docs/tasks.md); apart from MetricConfig so that a VLN run's results
+    stay as they were."""
+
+    viewpoint_tolerance: float = 0.1  # ObjectNav: success within this of a goal viewpoint on foot, m (habitat's 0.1)
+    coverage_success: float = 0.5  # no-goal: success needs at least this coverage (and no collision)

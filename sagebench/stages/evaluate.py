@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +24,8 @@ from sagebench.evaluation.pictures import write_pictures
 from sagebench.evaluation.predictions import Prediction, check_on_map, match_episodes, read_predictions
 from sagebench.evaluation.record import RolloutRecord, read_record, record_path
 from sagebench.evaluation.scoring import (
-    DISTANCE_USED, ICP_SOURCES, METRIC_NAMES, EpisodeScore, Summary, score_episodes, summarise_scores,
+    DISTANCE_USED, ICP_SOURCES, METRIC_NAMES, TASK_METRICS, EpisodeScore, Summary, TaskScoring, score_episodes,
+    summarise_scores,
 )
 from sagebench.fileio import write_json
 from sagebench.input_files import read_regular
@@ -78,6 +79,7 @@ class Evaluation:
     split: str | None = None  # the split scored (evaluate --split), None for all
     record: RolloutRecord | None = None  # the rollout's record beside the predictions, when there is one
     asked_only: bool = False  # only the episodes the rollout was asked to run were scored
+    tasks: TaskScoring = TaskScoring()  # how the episodes of tasks other than VLN were scored
 
     def to_json(self) -> dict:
         def rounded(d: dict[str, float]) -> dict[str, float]:
@@ -99,28 +101,36 @@ class Evaluation:
                 "asked": len(self.record.episodes), "scored_asked_only": self.asked_only,
                 "complete": self.record.complete, "success_distance": self.record.success_distance,
                 "failed_by_policy": [f.episode_id for f in self.record.failed_by_policy]},
-            "per_episode": [{"episode_id": s.episode.episode_id, "scene_id": s.episode.scene_id,
-                             "instruction_level": s.episode.level, "instruction_type": s.episode.type,
-                             "split": s.episode.split,
-                             "missing": s.missing, "icp_source": s.icp_source,
-                             **{m: _r(getattr(s.metrics, m)) for m in METRIC_NAMES}}
-                            for s in self.scores],
+            "per_episode": [self._episode_json(s) for s in self.scores],
             "distance_used": DISTANCE_USED,
             "config": self.config.model_dump(mode="json"),
+            **({} if self.summary.tasks_only_vln else {
+                "by_task": {k: rounded(v) for k, v in self.summary.by_task.items()},
+                "task_metrics": asdict(self.tasks.config) | {"step_seconds": self.tasks.step_seconds}}),
         }
 
+    def _episode_json(self, s: EpisodeScore) -> dict:
+        task = {} if self.summary.tasks_only_vln else {"task": s.episode.task}
+        return {"episode_id": s.episode.episode_id, "scene_id": s.episode.scene_id, **task,
+                "instruction_level": s.episode.level, "instruction_type": s.episode.type, "split": s.episode.split,
+                "missing": s.missing, "icp_source": s.icp_source,
+                **{m: _r(getattr(s.metrics, m)) for m in TASK_METRICS[s.episode.task]}}
+
     def table(self) -> str:
-        """The means as a fixed-width text table: overall, then per level, then per type."""
+        """The means as a fixed-width text table: VLN's overall, then per level, type and split (left out when the
+        run scored no VLN episode), then one group per task when there are tasks other than VLN."""
         cols = ("episodes", *METRIC_NAMES)
         label = {"path_length": "LEN", "ne_straight": "NE_STR"}
         head = f"{'group':<32}" + "".join(f"{label.get(c, c.upper()):>9}" for c in cols)
-        lines = [head]
-        groups = [("overall", self.summary.overall)]
+        lines = [head] if self.summary.overall["episodes"] or self.summary.tasks_only_vln else []
+        groups = [("overall", self.summary.overall)] if lines else []
         groups += [(f"level {k}", v) for k, v in self.summary.by_level.items()]
         groups += [(f"type {k}", v) for k, v in self.summary.by_type.items()]
         groups += [(f"split {k}", v) for k, v in self.summary.by_split.items()]
         for name, d in groups:
             lines.append(f"{name:<32}" + f"{d['episodes']:>9d}" + "".join(f"{d[m]:>9.3f}" for m in METRIC_NAMES))
+        if not self.summary.tasks_only_vln:
+            lines += self._task_lines(label)
         used: dict[str, list[str]] = {}
         for m, how in DISTANCE_USED.items():
             used.setdefault(how.split()[0], []).append(label.get(m, m.upper()))
@@ -131,6 +141,19 @@ class Evaluation:
                      + f" ({ICP_NOTE})")
         lines.append(self.observed())
         return "\n".join(lines)
+
+    def _task_lines(self, label: dict[str, str]) -> list[str]:
+        """One group per task, each with its own metrics (the groups above are VLN's)."""
+        lines, label = [], label | {"collisions": "HITS", "time": "TIME_S"}
+        for task, d in self.summary.by_task.items():
+            names = TASK_METRICS[task]
+            lines.append(f"{'task ' + task:<32}{'episodes':>9}" + "".join(f"{label.get(m, m.upper()):>9}" for m in names))
+            lines.append(f"{'':<32}{d['episodes']:>9d}" + "".join(f"{d[m]:>9.3f}" for m in names))
+        c = self.tasks.config
+        lines.append(f"objectnav succeeds within {c.viewpoint_tolerance:g} m of a goal viewpoint on foot; nogoal when "
+                     f"coverage >= {c.coverage_success:g} with no collision (COVERAGE: the main region's navigable "
+                     f"floor within the agent's radius of its path)")
+        return lines
 
     def observed(self) -> str:
         """What the agent observed, from the rollout's record (one line, or more when it is incomplete)."""
@@ -229,10 +252,18 @@ def _scored(run_dir: Path, predictions: Path, config: EvaluateConfig, scene_id: 
     maps = {sid: read_navigable_map(run_dir, sid) for sid in sorted({e.scene_id for e in episodes})}
     check_on_map(rows, lambda eid: maps[by_id[eid].scene_id].bounds, predictions)
     models = {sid: open_replay_model(run_dir, sid, replay=config.replay) for sid in need_replay}
-    scores = score_episodes(episodes, matched, _derived(models, episodes, matched, config.workers), maps, config.metrics)
+    tasks = task_scoring(record)
+    scores = score_episodes(episodes, matched, _derived(models, episodes, matched, config.workers), maps, config.metrics,
+                            tasks)
     return Evaluation(scores=scores, summary=summarise_scores(scores), missing=missing, predictions=predictions,
                       predictions_sha256=hashlib.sha256(predictions.read_bytes()).hexdigest(), config=config,
-                      split=split, record=record, asked_only=asked_only)
+                      split=split, record=record, asked_only=asked_only, tasks=tasks)
+
+
+def task_scoring(record: RolloutRecord | None) -> TaskScoring:
+    """The other tasks' scoring: a step lasts the rollout's control interval (its record's), else the default's."""
+    interval = ((record.settings.get("env") or {}).get("actions") or {}).get("control_interval") if record else None
+    return TaskScoring() if interval is None else TaskScoring(step_seconds=float(interval))
 
 
 def draw_pictures(run_dir: Path, result: Evaluation, out_dir: Path) -> list[Path]:

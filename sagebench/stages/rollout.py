@@ -14,7 +14,7 @@ from __future__ import annotations
 import importlib
 import re
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,6 +27,7 @@ from sagebench.evaluation.record import (
     Observed, RolloutRecord, is_record, is_rollout_predictions, read_record, record_path,
 )
 from sagebench.fileio import write_bytes
+from sagebench.metrics.on_foot import NavigableMap
 from sagebench.navsim.http_policy import HttpPolicy
 from sagebench.navsim.policies import BUILT_IN, Policy, built_in
 from sagebench.navsim.profiles import Sensors
@@ -163,7 +164,7 @@ def _roll_out(run_dir: Path, out: Path, config: RolloutConfig, scene_id: str | N
     open_inputs(sim, asked, out)
     record = RolloutRecord(policy=config.policy, episodes=asked, observations=observed(sim.sensors, config.policy),
                            success_distance=config.env.success_distance, settings=config.decisive())
-    policy = make_policy(config)
+    policy = make_policy(config, maps=lambda sid: sim.world(sid).navmap)
     sheet = sheet_path(out)
     start = time.perf_counter()
     try:
@@ -207,10 +208,11 @@ def open_inputs(sim: Simulator, asked: list[str], out: Path) -> None:
         sim.world(sid)
 
 
-def make_policy(config: RolloutConfig) -> Policy:
-    """The built-in policy the config names, a VLN-CE agent in-process, or a client of its policy server."""
+def make_policy(config: RolloutConfig, maps: Callable[[str], NavigableMap] | None = None) -> Policy:
+    """The built-in policy the config names (the explorer reads the scenes' maps from `maps`), a VLN-CE agent
+    in-process, or a client of its policy server."""
     if config.policy in BUILT_IN:
-        return built_in(config.policy, seed=config.seed, actions=config.env.actions)
+        return built_in(config.policy, seed=config.seed, actions=config.env.actions, maps=maps)
     spec = AGENT_SPEC.fullmatch(config.policy)
     if spec:
         try:
