@@ -11,7 +11,7 @@ import pyarrow as pa
 
 from sagebench.errors import DataError
 from sagebench.episodes.episode import NO_LEVEL, Episode
-from sagebench.episodes.tasks import row_task, task_field_descriptions
+from sagebench.episodes.tasks import VLN, row_task, task_field_descriptions
 from sagebench.run_layout import run_episodes_dir, run_scenes
 
 
@@ -26,6 +26,7 @@ class Trajectory:
     goal_radius: float
     geodesic_distance: float
     base_action: tuple[str, ...] = ()  # the trajectory's Base_Action sentences
+    task: str = VLN  # nogoal's path is its start alone (docs/tasks.md)
 
 
 def read_trajectories(episodes_dir: Path) -> list[Trajectory]:
@@ -38,7 +39,8 @@ def read_trajectories(episodes_dir: Path) -> list[Trajectory]:
         raise DataError(f"cannot read episode shards: {err}", path=episodes_dir) from None
     rows: dict[str, list[dict]] = {}
     for row in table.select(["episode_id", "trajectory_id", "reference_path", "goal_position", "goal_radius",
-                             "geodesic_distance", "instruction_type", "instruction_text"]).to_pylist():
+                             "geodesic_distance", "instruction_type", "instruction_text",
+                             *(["task"] if "task" in table.column_names else [])]).to_pylist():
         rows.setdefault(row["trajectory_id"], []).append(row)
     out = []
     for tid in sorted(rows):
@@ -49,7 +51,8 @@ def read_trajectories(episodes_dir: Path) -> list[Trajectory]:
         out.append(Trajectory(tid, tuple(sorted(r["episode_id"] for r in rows[tid])), path,
                               np.asarray(first["goal_position"], dtype=np.float64), float(first["goal_radius"]),
                               float(first["geodesic_distance"]),
-                              tuple(r["instruction_text"] for r in rows[tid] if r["instruction_type"] == "Base_Action")))
+                              tuple(r["instruction_text"] for r in rows[tid] if r["instruction_type"] == "Base_Action"),
+                              row_task(first)))
     return out
 
 

@@ -24,6 +24,7 @@ from sagebench.settings.shared import TASKS
 
 _F64 = pa.float64()
 VLN = "vln"
+NOGOAL = "nogoal"
 # SAGE-Bench's no-goal instruction (task_types.py NoGoalNavTask), word for word
 NOGOAL_INSTRUCTION = ("Explore this environment as much as possible, but avoid colliding with objects, walls, etc., "
                       "and maintain safe navigation.")

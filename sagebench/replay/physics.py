@@ -339,6 +339,16 @@ def _max_steps(paths: Sequence[np.ndarray], config: ReplayConfig) -> np.ndarray:
     return np.array([int(math.ceil(time_limit(p, config) / config.timestep)) for p in paths])
 
 
+def start_penetration(rm: ReplayModel, pose: np.ndarray) -> float | None:
+    """Depth (m) of the deepest contact of the agent standing at `pose` (x, y, z, yaw), None when it touches
+    nothing: a path of one pose has no step to replay, and its start must still be clear."""
+    d = mujoco.MjData(rm.model)
+    d.qpos[list(rm.qpos)] = pose[0], pose[1], pose[3]
+    mujoco.mj_forward(rm.model, d)
+    found, dist = d.sensordata[rm.sensor: rm.sensor + 2]
+    return max(0.0, -float(dist)) if found > 0 else None
+
+
 def replay_one(rm: ReplayModel, path: np.ndarray) -> ReplayRecord:
     """Replay one commanded path [M, 4] (x, y, z, yaw; the agent starts at row 0) in a plain mj_step loop.
 

@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 from sagebench import ui
+from sagebench.episodes.tasks import VLN
 from sagebench.settings.export_training import TrainingExportConfig
 from sagebench.threads import share_cores
 from sagebench.training.export import TrainingExport, export_training
@@ -22,7 +23,7 @@ def run_export_training(run_dir: Path, out: Path, config: TrainingExportConfig) 
 
     share_cores()
 
-    total = len([e for e in run_episodes(run_dir)[0] if config.split is None or e.split == config.split])
+    total = len([e for e in run_episodes(run_dir)[0] if config.split in (None, e.split) and e.task == VLN])
     start = time.perf_counter()
     with ui.progress(total, "export-training") as update:
         return export_training(run_dir, out, config, on_progress=lambda episodes, frames: update(

@@ -5,7 +5,8 @@ Reads RUN/episodes/<id>/part-*.parquet and RUN/scenes/<id>/scene.json + meshes/.
 oracle's teacher path: NDTW's locations, the recollect trainer's actions), vocab.txt (one word a line),
 vlnce_opts.txt (the VLN-CE config options for this data, `KEY VALUE` a line) and scenes/<id>/<id>.glb (every
 visual mesh of the scene). Everything is computed before the first byte is written; rows without an
-instruction (gen-trajectories --instructions none) are left out.
+instruction (gen-trajectories --instructions none) and rows of the tasks other than vln (R2R's format holds
+instruction-following episodes only; docs/tasks.md) are left out, and counted.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import pyarrow as pa
 
 from sagebench.episodes.load import episode_from_row
 from sagebench.episodes.shards import read_episodes
+from sagebench.episodes.tasks import VLN, row_task
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import write_bytes, write_text
 from sagebench.run_layout import CONTRACT, require, run_episodes_dir, run_scene_dir, run_scenes
@@ -49,6 +51,7 @@ class VlnceExport:
     scenes: list[str]
     vocabulary: int  # words, special tokens included
     skipped: int = 0  # rows without an instruction
+    other_tasks: dict[str, int] = field(default_factory=dict)  # task -> its rows, left out (vln only is exported)
     files: list[Path] = field(default_factory=list)
     opts: list[tuple[str, str]] = field(default_factory=list)  # VLN-CE config options, as in OPTS_FILE
     radii: tuple[float, ...] = ()  # the episodes' goal radii, each once
@@ -59,6 +62,10 @@ class VlnceExport:
                f"{self.vocabulary} words -> {self.out_dir}"]
         if self.skipped:
             out.append(f"left out {self.skipped} rows without an instruction")
+        if self.other_tasks:
+            out.append(f"left out {sum(self.other_tasks.values())} episodes of tasks other than vln ("
+                       f"{', '.join(f'{t} {n}' for t, n in self.other_tasks.items())}): R2R's format holds VLN "
+                       "episodes only")
         if "val_unseen" not in self.episodes:
             out.append("no val_unseen split (its scenes are all seen ones): VLN-CE evaluates on "
                        f"{dict(self.opts)['EVAL.SPLIT']} instead")
@@ -74,24 +81,21 @@ def export_vlnce(run_dir: Path, out_dir: Path, *, split: str | None = None) -> V
     """Write the dataset of every split of the run (or of `split`) into `out_dir`."""
     if split is not None and split not in SPLITS:
         raise ConfigError(f"{split!r} is not a split (one of {', '.join(SPLITS)})", field="--split")
-    rows, skipped = [], 0
-    for sid in run_scenes(run_dir, having="episodes"):
-        require(CONTRACT["export_vlnce"].reads, run_dir, sid)
-        try:
-            table = read_episodes(run_episodes_dir(run_dir, sid))
-        except (OSError, pa.ArrowException) as err:
-            raise DataError(f"cannot read episode shards: {err}", path=run_episodes_dir(run_dir, sid)) from None
-        for row in table.to_pylist():
-            if row["instruction_text"] is None:
-                skipped += 1
-            else:
-                rows.append(row)
+    rows, skipped, other = [], 0, {}
+    for row in _run_rows(Path(run_dir)):
+        if row_task(row) != VLN:
+            other[row_task(row)] = other.get(row_task(row), 0) + 1
+        elif row["instruction_text"] is None:
+            skipped += 1
+        else:
+            rows.append(row)
     vocab = Vocabulary.from_texts(r["instruction_text"] for r in rows)  # every split's words: one vocabulary
     by_split = {s: [r for r in rows if r["split"] == s] for s in SPLITS if split in (None, s)}
     by_split = {s: v for s, v in by_split.items() if v}
     if not by_split:
         what = f"split {split!r}" if split is not None else "any split"
-        raise DataError(f"no episodes with an instruction in {what}", path=Path(run_dir))
+        besides = f" (only {sum(other.values())} episodes of tasks other than vln)" if other else ""
+        raise DataError(f"no episodes with an instruction in {what}{besides}", path=Path(run_dir))
     scenes = sorted({r["scene_id"] for v in by_split.values() for r in v})
     files = {split_file(s): dataset_bytes(v, vocab) for s, v in by_split.items()}
     files.update({gt_file(s): _gt(v, Path(run_dir)) for s, v in by_split.items()})
@@ -107,7 +111,19 @@ def export_vlnce(run_dir: Path, out_dir: Path, *, split: str | None = None) -> V
         written.append(Path(out_dir) / rel)
     write_text(Path(out_dir) / VOCAB_FILE, vocab.to_text())
     return VlnceExport(Path(out_dir), {s: len(v) for s, v in by_split.items()}, scenes, len(vocab.word_list),
-                       skipped, [*written, Path(out_dir) / VOCAB_FILE], opts, radii)
+                       skipped, dict(sorted(other.items())), [*written, Path(out_dir) / VOCAB_FILE], opts, radii)
+
+
+def _run_rows(run_dir: Path) -> list[dict]:
+    """Every episode row of the run, scene by scene."""
+    rows = []
+    for sid in run_scenes(run_dir, having="episodes"):
+        require(CONTRACT["export_vlnce"].reads, run_dir, sid)
+        try:
+            rows += read_episodes(run_episodes_dir(run_dir, sid)).to_pylist()
+        except (OSError, pa.ArrowException) as err:
+            raise DataError(f"cannot read episode shards: {err}", path=run_episodes_dir(run_dir, sid)) from None
+    return rows
 
 
 def _gt(rows: list[dict], run_dir: Path) -> bytes:

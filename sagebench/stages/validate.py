@@ -2,6 +2,7 @@
 
 Reads RUN/scenes/<id>/{scene.json, scene.xml, colliders/, gaussians.ply, topdown.npz} and
 RUN/episodes/<id>/part-*.parquet (Base_Action sentences are executed literally against topdown.npz's occupancy).
+A nogoal trajectory has no path to replay: its start pose is checked (validation/checks.py).
 Writes RUN/validation/<id>/part-00000.parquet (one row per trajectory) and RUN/reports/<id>/: report.json
 (counts, failures by reason, metric distributions, alignment per frame), frames/*.png and
 frames/contact_sheet.png; each directory whole.
@@ -17,11 +18,13 @@ import numpy as np
 
 from sagebench import ui
 from sagebench.fileio import dumps_json, staged_dir, write_bytes, write_text
-from sagebench.episodes.load import read_trajectories
+from sagebench.episodes.load import Trajectory, read_trajectories
+from sagebench.episodes.tasks import NOGOAL
 from sagebench.instructions.execution import BlockedMap
 from sagebench.settings.validate import ValidateConfig
-from sagebench.topdown.grid_file import read_topdown_grids
-from sagebench.replay.physics import replay_batch
+from sagebench.metrics.coverage import main_region
+from sagebench.topdown.grid_file import TopdownGrids, read_topdown_grids
+from sagebench.replay.physics import ReplayModel, ReplayRecord, replay_batch, start_penetration
 from sagebench.replay.scene_model import open_replay_model
 from sagebench.run_layout import (
     CONTRACT, EPISODES, FRAMES, GAUSSIANS, REPORT, SCENE_FILE, SCENES, TOPDOWN, VALIDATION_SHARD, require,
@@ -30,7 +33,7 @@ from sagebench.run_layout import (
 from sagebench.scene.loader import parse_spec
 from sagebench.splats.ply import read_ply
 from sagebench.stamps import check_stamped, stamped_places
-from sagebench.validation.checks import base_action_executable, judge
+from sagebench.validation.checks import Verdict, base_action_executable, judge, judge_start
 from sagebench.validation.frames import FrameCheck, pick_frames, spot_checks
 from sagebench.validation.ledger import check_listed
 from sagebench.validation.report import report, table_bytes
@@ -92,15 +95,10 @@ def validate_scene(run_dir: Path, scene_id: str, config: ValidateConfig) -> Scen
     rm = open_replay_model(run_dir, scene_id, replay=config.replay)  # the agent the scene's map was built for
     start = time.perf_counter()
     with ui.working(f"validate {scene_id}: replaying {len(trajectories)} trajectories"):
-        records = replay_batch(rm, [t.reference_path for t in trajectories], threads=config.workers)
-    grids = read_topdown_grids(scene_dir / TOPDOWN)
-    blocked = BlockedMap(grids.occupancy != 0, grids.resolution, grids.origin)
-    verdicts = [judge(rec, t.reference_path, t.goal, goal_radius=t.goal_radius,
-                      geodesic_distance=t.geodesic_distance, timestep=rm.timestep, config=config.checks,
-                      executable=base_action_executable(t, blocked))
-                for rec, t in zip(records, trajectories)]
+        verdicts, records = _verdicts(rm, trajectories, read_topdown_grids(scene_dir / TOPDOWN), config)
     seconds = time.perf_counter() - start
-    picks = [(trajectories[i], records[i]) for i in pick_frames(len(trajectories), config)]
+    replayed = sorted(records)
+    picks = [(trajectories[replayed[i]], records[replayed[i]]) for i in pick_frames(len(replayed), config)]
     frames, pngs = spot_checks(read_ply(scene_dir / GAUSSIANS), rm, picks, config) if picks else ([], {})
     alignment_ok = all(f.problem is None for f in frames)
     out_dir = run_validation_dir(run_dir, scene_id)
@@ -114,3 +112,30 @@ def validate_scene(run_dir: Path, scene_id: str, config: ValidateConfig) -> Scen
     return SceneValidation(scene_id=scene_id, out_dir=out_dir, trajectories=len(trajectories),
                            episodes=sum(len(t.episode_ids) for t in trajectories), failures=failures,
                            frames=frames, alignment_ok=alignment_ok, seconds=seconds)
+
+
+def _verdicts(rm: ReplayModel, trajectories: list[Trajectory], grids: TopdownGrids, config: ValidateConfig
+              ) -> tuple[list[Verdict], dict[int, ReplayRecord]]:
+    """Each trajectory's verdict, its reference path replayed (a nogoal one: its start pose checked, as it has no
+    path), and the replays by trajectory index."""
+    replayed = [i for i, t in enumerate(trajectories) if t.task != NOGOAL]
+    records = dict(zip(replayed, replay_batch(rm, [trajectories[i].reference_path for i in replayed],
+                                              threads=config.workers), strict=True))
+    blocked = BlockedMap(grids.occupancy != 0, grids.resolution, grids.origin)
+    main = main_region(grids.navigable)
+    verdicts = []
+    for i, t in enumerate(trajectories):
+        if i not in records:
+            verdicts.append(judge_start(on_map=_on(main, grids, t.reference_path[0]),
+                                        penetration=start_penetration(rm, t.reference_path[0]), config=config.checks))
+            continue
+        verdicts.append(judge(records[i], t.reference_path, t.goal, goal_radius=t.goal_radius,
+                              geodesic_distance=t.geodesic_distance, timestep=rm.timestep, config=config.checks,
+                              executable=base_action_executable(t, blocked)))
+    return verdicts, records
+
+
+def _on(cells: np.ndarray, grids: TopdownGrids, pose: np.ndarray) -> bool:
+    """Whether the point (x, y) of `pose` lies on a True cell of `cells` (a [H, W] map of `grids`' frame)."""
+    col, row = np.floor((np.asarray(pose[:2]) - np.asarray(grids.origin)) / grids.resolution).astype(int)
+    return bool(0 <= row < cells.shape[0] and 0 <= col < cells.shape[1] and cells[row, col])

@@ -4,7 +4,8 @@ WebDataset tar shards (shards.py).
 
 Sample k of an episode is the view the agent has before its k-th action and that action: view 0 is the start,
 view k (k > 0) what the simulator rendered after action k - 1, collisions included; the last sample's action is
-STOP. An episode the simulator ends early (it left the map) keeps the samples up to there.
+STOP. An episode the simulator ends early (it left the map) keeps the samples up to there. Only vln episodes are
+exported (an instruction to follow); the other tasks' episodes are left out and counted (docs/tasks.md).
 
 Layout of OUT: `export.json` (settings and a hash of the inputs, written first: a later export into OUT must match
 it), `shards/<split>-NNNNNN.tar` (EPISODES_PER_SHARD episodes each, in run order), then `index.json` (shards,
@@ -18,13 +19,16 @@ import hashlib
 import json
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from collections import Counter
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from sagebench import __version__
-from sagebench.errors import ConfigError
+from sagebench.episodes.load import load_episodes
+from sagebench.episodes.tasks import VLN
+from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import dumps_json, remove_temporaries, write_text
 from sagebench.navsim.actions import Action
 from sagebench.navsim.simulator import Simulator
@@ -55,11 +59,14 @@ class TrainingExport:
     new_samples: int  # samples in the shards written by this call
     seconds: float
     renderer: str
+    other_tasks: dict[str, int] = field(default_factory=dict)  # task -> its episodes left out (of the split asked)
 
     def summary(self) -> str:
         rate = self.new_samples / self.seconds if self.written and self.seconds > 0 else float("nan")
-        return (f"export-training: {self.episodes} episodes, {self.samples} frames in {self.shards} shards "
+        line = (f"export-training: {self.episodes} episodes, {self.samples} frames in {self.shards} shards "
                 f"({self.written} written now, {rate:.1f} frames/s, renderer {self.renderer}) -> {self.out}")
+        return line + (f"\nleft out {_count(self.other_tasks)}: export-training writes VLN episodes only"
+                       if self.other_tasks else "")
 
 
 def export_training(run_dir: Path, out: Path, config: TrainingExportConfig = TrainingExportConfig(), *,
@@ -70,15 +77,27 @@ def export_training(run_dir: Path, out: Path, config: TrainingExportConfig = Tra
     start = time.perf_counter()
     sim = Simulator(run_dir, config.env(), threads=config.workers)
     ids = [e for e in sim.order if config.split is None or sim.episodes[e].split == config.split]
+    others = dict(sorted(Counter(e.task for e in load_episodes(run_dir) if e.task != VLN
+                                 and config.split in (None, e.split)).items()))
+    besides = f" (only {_count(others)})" if others else ""
+    if not ids and config.split is None:
+        raise DataError(f"no vln episodes to export{besides}", path=run_dir)
     if not ids:
-        raise ConfigError(f"no episodes of split {config.split!r} in {run_dir}", field="--split")
+        raise ConfigError(f"no episodes of split {config.split!r} in {run_dir}{besides}", field="--split")
     backend = choose_backend(config.renderer, config.env().observations)
     settings = {"format": FORMAT, "sagebench": __version__, "renderer": backend,
                 "config": config.model_dump(mode="json", exclude=NOT_IN_SHARDS),
                 "inputs": _input_hashes(run_dir, sorted({sim.episodes[e].scene_id for e in ids}))}
     # one export per OUT (a second would remove the first's shard in progress), never inside the run
     with claim_export_dir(out, run_dir, "export-training", SETTINGS_FILE):
-        return _export_locked(sim, ids, out, settings, config, on_progress, start, backend)
+        done = _export_locked(sim, ids, out, settings, config, on_progress, start, backend)
+    return replace(done, other_tasks=others)
+
+
+def _count(by_task: dict[str, int]) -> str:
+    """'12 episodes of tasks other than vln (nogoal 3, ...)'."""
+    return (f"{sum(by_task.values())} episodes of tasks other than vln "
+            f"({', '.join(f'{t} {n}' for t, n in by_task.items())})")
 
 
 def _export_locked(sim: Simulator, ids: list[str], out: Path, settings: dict, config: TrainingExportConfig,

@@ -12,6 +12,12 @@ Reasons (a trajectory passes when it has none):
 - `instruction_not_executable`: a Base_Action sentence of the trajectory, executed literally from the start pose
   (turn by each stated angle, walk each stated distance), ends farther than goal_radius from the goal or crosses
   a blocked cell of the occupancy map (instructions/execution.py).
+
+A nogoal trajectory (docs/tasks.md) has no goal and its reference path is its start alone: nothing to replay, so
+`judge_start` checks the start pose instead, with two reasons:
+- `start_off_map`: the start does not stand on a navigable cell of the map's main region (where coverage is
+  measured and the agent's centre may stand);
+- `collision`: the agent standing at the start touches a collider deeper than penetration_tolerance.
 """
 
 from __future__ import annotations
@@ -32,6 +38,8 @@ if TYPE_CHECKING:
     from sagebench.episodes.load import Trajectory
 
 REASONS = ("collision", "goal_not_reached", "left_corridor", "incomplete", "instruction_not_executable")
+START_REASONS = ("start_off_map",)  # a nogoal trajectory's, besides collision
+START_ONLY = "start_only"  # the outcome of a trajectory whose start alone was checked
 
 
 @dataclass(frozen=True)
@@ -39,7 +47,7 @@ class Verdict:
     """Metrics and failure reasons of one replayed trajectory (metres, seconds)."""
 
     reasons: tuple[str, ...]
-    reached_goal: bool
+    reached_goal: bool | None  # None: no goal (nogoal)
     collision_free: bool
     final_distance: float  # NE
     csr: float
@@ -93,6 +101,19 @@ def judge(
                    path_length=scores.path_length, reference_length=path_length(ref), max_penetration=penetration,
                    max_deviation=deviation, contact_steps=int(record.contact.sum()), steps=record.steps,
                    duration=record.steps * timestep, outcome=record.outcome)
+
+
+def judge_start(*, on_map: bool, penetration: float | None, config: CheckConfig = CheckConfig()) -> Verdict:
+    """The verdict on a nogoal trajectory's start pose (module docstring): `on_map`, whether it stands on the main
+    region; `penetration`, the agent's deepest contact there (None: it touches nothing). Its path metrics are NaN:
+    there is no path and no goal to measure them on."""
+    collision = penetration is not None and penetration > config.penetration_tolerance
+    nan = float("nan")
+    return Verdict(reasons=tuple(name for name, bad in (("collision", collision), ("start_off_map", not on_map))
+                                 if bad), reached_goal=None, collision_free=not collision, final_distance=nan,
+                   csr=nan, icp=nan, ps=nan, ndtw=nan, path_length=0.0, reference_length=0.0,
+                   max_penetration=penetration or 0.0, max_deviation=0.0, contact_steps=int(penetration is not None),
+                   steps=0, duration=0.0, outcome=START_ONLY)
 
 
 def base_action_executable(traj: Trajectory, blocked: BlockedMap) -> bool:

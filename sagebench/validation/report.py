@@ -4,28 +4,32 @@
 from __future__ import annotations
 
 import io
+from collections import Counter
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
 from sagebench.episodes.load import Trajectory
+from sagebench.episodes.tasks import VLN
 from sagebench.settings.validate import ValidateConfig
-from sagebench.validation.checks import REASONS, Verdict
+from sagebench.validation.checks import REASONS, START_ONLY, START_REASONS, Verdict
 from sagebench.validation.frames import FrameCheck
 
 METRICS = ("csr", "icp", "ps", "ndtw", "final_distance", "path_length", "max_penetration", "max_deviation", "steps")
 
 
 def table_bytes(scene_id: str, trajectories: list[Trajectory], verdicts: list[Verdict]) -> bytes:
-    rows = [{"scene_id": scene_id, "trajectory_id": t.trajectory_id, "episode_ids": list(t.episode_ids),
+    """The per-trajectory table; a run with tasks other than vln adds each trajectory's `task` column."""
+    tasks = _has_tasks(trajectories)
+    rows = [{"scene_id": scene_id, **({"task": t.task} if tasks else {}), "trajectory_id": t.trajectory_id, "episode_ids": list(t.episode_ids),
              "passed": v.passed, "reasons": list(v.reasons), "reached_goal": v.reached_goal,
              "collision_free": v.collision_free, "final_distance": v.final_distance, "csr": v.csr, "icp": v.icp,
              "ps": v.ps, "ndtw": v.ndtw, "path_length": v.path_length, "reference_length": v.reference_length,
              "max_penetration": v.max_penetration, "max_deviation": v.max_deviation,
              "contact_steps": v.contact_steps, "steps": v.steps, "duration_s": v.duration, "outcome": v.outcome}
             for t, v in zip(trajectories, verdicts)]
-    table = pa.Table.from_pylist(rows, schema=VALIDATION_SCHEMA)
+    table = pa.Table.from_pylist(rows, schema=VALIDATION_TASK_SCHEMA if tasks else VALIDATION_SCHEMA)
     sink = io.BytesIO()
     pq.write_table(table, sink, compression="zstd", store_schema=True)
     return sink.getvalue()
@@ -39,6 +43,11 @@ VALIDATION_SCHEMA = pa.schema([
     ("max_penetration", pa.float64()), ("max_deviation", pa.float64()), ("contact_steps", pa.int64()),
     ("steps", pa.int64()), ("duration_s", pa.float64()), ("outcome", pa.string()),
 ])
+VALIDATION_TASK_SCHEMA = VALIDATION_SCHEMA.insert(1, pa.field("task", pa.string()))
+
+
+def _has_tasks(trajectories: list[Trajectory]) -> bool:
+    return any(t.task != VLN for t in trajectories)
 
 
 def _distribution(values: np.ndarray) -> dict[str, float]:
@@ -55,17 +64,22 @@ def _r(x: float) -> float | None:
 
 def report(scene_id: str, trajectories: list[Trajectory], verdicts: list[Verdict], frames: list[FrameCheck],
             alignment_ok: bool, config: ValidateConfig) -> dict:
+    """report.json's content; a run with tasks other than vln adds the trajectories per task, and its metric
+    distributions are those of the replayed trajectories (a nogoal one's start alone is checked)."""
     failed = [(t, v) for t, v in zip(trajectories, verdicts) if v.reasons]
+    reasons = REASONS + (START_REASONS if _has_tasks(trajectories) else ())
+    replayed = [v for v in verdicts if v.outcome != START_ONLY]
     return {
         "scene_id": scene_id,
+        **({"tasks": dict(sorted(Counter(t.task for t in trajectories).items()))} if _has_tasks(trajectories) else {}),
         "trajectories": len(trajectories),
         "episodes": sum(len(t.episode_ids) for t in trajectories),
         "passed": len(trajectories) - len(failed),
         "failed": len(failed),
-        "failures_by_reason": {r: sum(r in v.reasons for _, v in failed) for r in REASONS},
+        "failures_by_reason": {r: sum(r in v.reasons for _, v in failed) for r in reasons},
         "failures": [{"trajectory_id": t.trajectory_id, "episode_ids": list(t.episode_ids), "reasons": list(v.reasons)}
                      for t, v in failed],
-        "metrics": {m: _distribution(np.array([getattr(v, m) for v in verdicts], dtype=np.float64)) for m in METRICS},
+        "metrics": {m: _distribution(np.array([getattr(v, m) for v in replayed], dtype=np.float64)) for m in METRICS},
         "alignment": {"ok": alignment_ok, "depth_tolerance": config.depth_tolerance,
                       "min_compared_fraction": config.min_compared_fraction,
                       "frames": [{"file": f.file, "trajectory_id": f.trajectory_id, "point": f.point,
