@@ -63,4 +63,5 @@ def test_the_score_table_has_a_row_block_per_task_with_real_agents():
     assert wanted | {("nogoal", "explorer"), ("nogoal", "random")} <= set(rows)
     threshold = f"{TaskMetricConfig().coverage_success:g}"
     assert f"coverage >= {threshold} with no collision" in section
-    assert f"COVERAGE ≥ {threshold} (`TaskMetricConfig.coverage_success`)" in (ROOT / "docs" / "metrics.md").read_text()
+    metrics_page = (ROOT / "docs" / "metrics.md").read_text()
+    assert f"COVERAGE ≥ {threshold} (`TaskMetricConfig.coverage_success`)" in metrics_page
