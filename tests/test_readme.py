@@ -41,3 +41,27 @@ def test_the_readme_is_short_and_its_links_resolve():
         for target in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", page.read_text()):
             if not target.startswith(("http://", "https://")):
                 assert (page.parent / target).exists(), f"{page.relative_to(ROOT)}: broken link {target}"
+
+
+def test_the_score_table_has_a_row_block_per_task_with_real_agents():
+    """Each task's baselines are in the README (the oracle on each goal task, the explorer and random walk on
+    nogoal, the stationary agent on every task), by agents `sagebench baseline` has, and the no-goal threshold the
+    README and docs/metrics.md state is the one evaluate applies."""
+    import typing
+
+    from sagebench.settings.baseline import BaselineConfig
+    from sagebench.settings.shared import TASKS, TaskMetricConfig
+
+    agents = set(typing.get_args(BaselineConfig.model_fields["agent_name"].annotation))
+    section = README.split("## Scores on the demo")[1].split("\n## ")[0]
+    rows = re.findall(r"^\| (\w+) \| (\w+) \| [0-9.]+ \|", section, flags=re.M)  # goal tasks: | task | agent |
+    rows += [("nogoal", a) for a in re.findall(r"^\| (\w+) \| [0-9.]+ \| [0-9.]+ \| [0-9.]+ \| [0-9.]+ \| [0-9.]+ \| "
+                                               r"[0-9.]+ \| [0-9.]+ \|$", section, flags=re.M)]
+    rows += [("vln", a) for a in re.findall(r"^\| (\w+) \|(?: [0-9.]+ \|){10}$", section, flags=re.M)]
+    assert {a for _, a in rows} <= agents
+    wanted = {(t, "stationary") for t in TASKS} | {(t, "oracle") for t in TASKS if t != "nogoal"}
+    assert wanted | {("nogoal", "explorer"), ("nogoal", "random")} <= set(rows)
+    threshold = f"{TaskMetricConfig().coverage_success:g}"
+    assert f"coverage >= {threshold} with no collision" in section
+    metrics_page = (ROOT / "docs" / "metrics.md").read_text()
+    assert f"COVERAGE ≥ {threshold} (`TaskMetricConfig.coverage_success`)" in metrics_page

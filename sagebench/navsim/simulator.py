@@ -32,6 +32,7 @@ from sagebench.navsim.profiles import Sensors, env_sensors, gps_compass, pointgo
 from sagebench.navsim.world import World, open_world, run_episodes, run_vocabulary
 from sagebench.replay.contact import ContactProbe
 from sagebench.settings.rollout import EnvConfig
+from sagebench.tasks.goal_image import goal_image_file, read_goal_image
 from sagebench.tasks.goals import goal_field, success_distance
 
 POSE_DECIMALS = 6  # predictions are written to the micrometre / microradian
@@ -199,11 +200,24 @@ class Simulator:
                 s.outcome = "step_limit"
         return rows
 
+    def check_goal_images(self, episode_ids: Sequence[str]) -> None:
+        """Read every goal image file these episodes name (when the agent sees rgb): a DataError for one that is
+        missing, not a PNG or not the rgb observation's size (sagebench.tasks.goal_image)."""
+        if "rgb" in self.sensors.images:
+            for eid in episode_ids:
+                path = goal_image_file(self.run_dir, self.episodes[eid])
+                if path is not None:
+                    read_goal_image(path, self.sensors.images["rgb"], eid)
+
     def _goal_image(self, w: World, e) -> np.ndarray | None:
-        """imagenav's goal: the rgb view from the goal pose at the profile's rgb size (None without rgb)."""
+        """imagenav's goal at the profile's rgb size (None without rgb): the file the episode names, else the rgb
+        view rendered from the goal pose."""
         if e.task != "imagenav" or "rgb" not in self.sensors.images or w.renderer is None:
             return None
         width, height = self.sensors.images["rgb"]
+        path = goal_image_file(self.run_dir, e)
+        if path is not None:
+            return read_goal_image(path, (width, height), e.episode_id)
         pose = np.array([[e.goal[0], e.goal[1], w.model.floor_z, e.goal_yaw]], dtype=np.float64)
         c = self.config
         return observe(w.renderer, pose, ("rgb",), floor_z=w.model.floor_z, camera_height=c.camera.height,

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from sagebench.evaluation.scoring import METRIC_NAMES
+from sagebench.evaluation.scoring import TASK_METRICS, EpisodeScore
 from sagebench.report.agents import Agent
 from sagebench.report.html import (
     AGENT_COLOURS, CONTACT, GOAL, REFERENCE, START, esc, facts, legend, num, page, slug, table,
@@ -21,8 +21,10 @@ from sagebench.report.run_facts import RunFacts, SceneFacts
 from sagebench.report.svg import MapFrame, marker, svg_map
 
 LABELS = {"sr": "SR", "osr": "OSR", "spl": "SPL", "ne": "NE", "ne_straight": "NE straight", "ndtw": "nDTW",
-          "sdtw": "SDTW", "csr": "CSR", "icp": "ICP", "ps": "PS", "path_length": "length"}
-COMPARED = ("sr", "spl", "ne", "ndtw", "icp")  # each agent's columns in the side-by-side table
+          "sdtw": "SDTW", "csr": "CSR", "icp": "ICP", "ps": "PS", "path_length": "length", "coverage": "coverage",
+          "collisions": "collisions", "time": "time (s)"}
+COMPARED = ("sr", "spl", "ne", "ndtw", "coverage", "icp")  # each agent's columns in the side-by-side table
+SCENE_COLUMNS = ("sr", "ne", "coverage")  # each agent's columns in a scene's table of episodes
 VALIDATION_FIGURES = {"csr": "CSR", "icp": "ICP", "ps": "PS", "ndtw": "nDTW", "final_distance": "NE",
                       "path_length": "length", "max_penetration": "deepest contact", "max_deviation": "pushed off",
                       "contact_steps": "steps with contact", "steps": "steps"}
@@ -46,6 +48,23 @@ def view_href(root: str, scene_id: str, trajectory_id: str, which: str) -> str:
 
 def colour(i: int) -> str:
     return AGENT_COLOURS[i % len(AGENT_COLOURS)]
+
+
+def tasks_scored(agents: Sequence[Agent]) -> list[str]:
+    """The tasks of the episodes the agents were scored on, in TASK_METRICS' order."""
+    present = {s.episode.task for a in agents for s in a.evaluation.scores}
+    return [t for t in TASK_METRICS if t in present]
+
+
+def columns(candidates: Sequence[str], agents: Sequence[Agent]) -> list[str]:
+    """The metrics among `candidates` that some scored episode's task has (a VLN-only report: VLN's)."""
+    names = {m for t in tasks_scored(agents) or ["vln"] for m in TASK_METRICS[t]}
+    return [m for m in candidates if m in names]
+
+
+def metric(sc: EpisodeScore | None, name: str) -> str:
+    """An episode's metric as a cell: '-' without a score, for a missing prediction or where its task has none."""
+    return num(None if sc is None or sc.missing else getattr(sc.metrics, name, None))
 
 
 # ---------------------------------------------------------------- overview
@@ -113,30 +132,42 @@ def _validation_overview(run: RunFacts) -> str:
 
 
 def _agents_summary(agents: Sequence[Agent]) -> str:
-    rows = []
+    """Each agent's means: one table, or one per task (by that task's metrics) when tasks other than VLN were
+    scored."""
+    tasks = tasks_scored(agents)
+    if set(tasks) <= {"vln"}:
+        return _agents_means(agents, "vln", "agents")
+    return "\n".join(f"<h3>task {esc(t)}</h3>\n" + _agents_means(agents, t, f"agents-{t}") for t in tasks)
+
+
+def _agents_means(agents: Sequence[Agent], task: str, ident: str) -> str:
+    rows, names = [], TASK_METRICS[task]
     for i, a in enumerate(agents):
         ev = a.evaluation
+        means = ev.summary.by_task.get(task)
+        if means is None:
+            continue
+        missing = sum(s.missing for s in ev.scores if s.episode.task == task)
         rows.append(f'<td><span class="swatch" style="background:{colour(i)}"></span>{esc(a.name)}</td>'
-                    f"<td>{esc(ev.predictions.name)}</td><td class=\"n\">{len(ev.scores)}</td>"
-                    f'<td class="n">{len(ev.missing)}</td>'
-                    + "".join(num(ev.summary.overall[m]) for m in METRIC_NAMES))
-    return table(("agent", "predictions", "episodes", "without prediction", *(LABELS[m] for m in METRIC_NAMES)),
-                 rows, sortable=True, ident="agents")
+                    f"<td>{esc(ev.predictions.name)}</td><td class=\"n\">{int(means['episodes'])}</td>"
+                    f'<td class="n">{missing}</td>' + "".join(num(means[m]) for m in names))
+    return table(("agent", "predictions", "episodes", "without prediction", *(LABELS[m] for m in names)),
+                 rows, sortable=True, ident=ident)
 
 
 # ---------------------------------------------------------------- agents side by side
 
 
 def agents_page(run: RunFacts, agents: Sequence[Agent]) -> str:
-    head = ["episode", "scene", "split", "type"] + [f"{a.name} {LABELS[m]}" for a in agents for m in COMPARED]
+    compared = columns(COMPARED, agents)
+    head = ["episode", "scene", "split", "type"] + [f"{a.name} {LABELS[m]}" for a in agents for m in compared]
     rows = []
     for s in run.scenes:
         for r in s.rows:
             scores = [a.score(r["episode_id"]) for a in agents]
             if all(sc is None for sc in scores):
                 continue
-            cells = "".join(num(None) if sc is None or sc.missing else num(getattr(sc.metrics, m))
-                            for sc in scores for m in COMPARED)
+            cells = "".join(metric(sc, m) for sc in scores for m in compared)
             rows.append(f'<td><a href="{episode_href("", r["episode_id"])}">{esc(r["episode_id"])}</a></td>'
                         f"<td>{esc(s.scene_id)}</td><td>{esc(r['split'])}</td><td>{esc(r['instruction_type'])}</td>"
                         + cells)
@@ -162,7 +193,7 @@ def scene_page(scene: SceneFacts, frame: MapFrame, agents: Sequence[Agent]) -> s
     types = sorted({r["instruction_type"] for r in scene.rows})
     filters = (f"<p>Show split {_select('split', splits)} and instruction type {_select('type', types)}</p>")
     head = ["episode", "trajectory", "split", "level", "type", "instruction", "validation",
-            *(f"{a.name} {LABELS[m]}" for a in agents for m in ("sr", "ne"))]
+            *(f"{a.name} {LABELS[m]}" for a in agents for m in columns(SCENE_COLUMNS, agents))]
     rows = [f"<tr {_filter_attrs([r])}>" + _episode_cells(scene, r, agents) + "</tr>" for r in scene.rows]
     body = [f"<h1>Scene {esc(scene.scene_id)}</h1>",
             f"<p>{len(scene.trajectories())} trajectories, {len(scene.rows)} episodes.</p>", filters,
@@ -193,9 +224,8 @@ def _episode_cells(scene: SceneFacts, r: dict, agents: Sequence[Agent]) -> str:
              f"<td>{esc(r['trajectory_id'])}</td><td>{esc(r['split'])}</td><td>{esc(r['instruction_level'])}</td>",
              f"<td>{esc(r['instruction_type'])}</td><td>{esc(text[:120] + ('...' if len(text) > 120 else ''))}</td>",
              f"<td>{checked}</td>"]
-    for a in agents:
-        sc = a.score(r["episode_id"])
-        cells += [num(None if sc is None or sc.missing else getattr(sc.metrics, m)) for m in ("sr", "ne")]
+    shown = columns(SCENE_COLUMNS, agents)
+    cells += [metric(a.score(r["episode_id"]), m) for a in agents for m in shown]
     return "".join(cells)
 
 
@@ -275,18 +305,19 @@ def _validation_result(v: dict | None) -> str:
 
 
 def _metrics_table(row: dict, agents: Sequence[Agent]) -> str:
-    rows = []
+    """Each agent's scores of the episode, by its task's metrics."""
+    rows, names = [], TASK_METRICS[row.get("task") or "vln"]
     for i, a in enumerate(agents):
         name = f'<td><span class="swatch" style="background:{colour(i)}"></span>{esc(a.name)}</td>'
         sc = a.score(row["episode_id"])
         if sc is None or sc.prediction is None:
             why = "not run (the rollout was not asked to)" if sc is None else "no prediction: every metric at its worst"
-            rows.append(name + f'<td colspan="{len(METRIC_NAMES) + 3}">{esc(why)}</td>')
+            rows.append(name + f'<td colspan="{len(names) + 3}">{esc(why)}</td>')
             continue
-        rows.append(name + "".join(num(getattr(sc.metrics, m)) for m in METRIC_NAMES)
+        rows.append(name + "".join(num(getattr(sc.metrics, m)) for m in names)
                     + f'<td class="n">{len(sc.prediction.poses)}</td><td>{"yes" if sc.prediction.stopped else "no"}</td>'
                     f"<td>{esc(sc.icp_source)}</td>")
-    head = ("agent", *(LABELS[m] for m in METRIC_NAMES), "poses", "stopped", "c(t)")
+    head = ("agent", *(LABELS[m] for m in names), "poses", "stopped", "c(t)")
     return table(head, rows, ident="metrics")
 
 

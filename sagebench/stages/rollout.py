@@ -200,12 +200,14 @@ def preset_lines(config: RolloutConfig, sim: Simulator, asked: list[str]) -> lis
 
 
 def open_inputs(sim: Simulator, asked: list[str], out: Path) -> None:
-    """Every input the rollout reads, read before a byte is written: the asked episodes and their scenes."""
+    """Every input the rollout reads, read before a byte is written: the asked episodes, their scenes and the goal
+    image files they name."""
     gone = [i for i in asked if i not in sim.episodes]
     if gone:
         raise DataError(f"episode {gone[0]!r} of the rollout is not in this run", path=record_path(out))
     for sid in dict.fromkeys(sim.episodes[i].scene_id for i in asked):
         sim.world(sid)
+    sim.check_goal_images(asked)
 
 
 def make_policy(config: RolloutConfig, maps: Callable[[str], NavigableMap] | None = None) -> Policy:
