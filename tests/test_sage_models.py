@@ -350,3 +350,60 @@ def commands(actions: list[tuple[bool, list]], interval: float = 0.5) -> list[tu
         out[-1][1] += omega * interval
         out[-1][2] = out[-1][2] or stop >= 0.5
     return [tuple(c) for c in out]
+
+
+def test_http_servers_get_sages_vln_step_and_nogoal_step_requests_and_moves_follow_the_answers(
+        servers, seen, run_cli, tiny_run, tmp_path):
+    """A NaVid-format /vln_step server answering free MLLM prose, then a NoMaD-style /nogoal_step server answering
+    trajectories: each request is SAGE's for the current frame (and depth), each motion SAGE's parser's."""
+    prose = PROSE[:2] + PROSE[4:6] + ["The task is done."]
+    text = servers(HttpServer, lambda n, path, request: {"result": prose[(n - 1) % len(prose)]})
+    code, stdout, err, rows = rollout(run_cli, tiny_run, tmp_path, f"sage+http://{text.origin}")
+    assert code == 0 and len(rows) == 2 and all(r["stopped"] for r in rows), stdout + err
+    assert [(p, t) for p, t, _ in text.requests] == [("/vln_step", "application/json")] * len(seen["asked"])
+    assert [b for _, _, b in text.requests] == [sage_vln_step_request(rgb, i) for _, rgb, _, i in seen["asked"]]
+    want = [sage_text_motion({"text": prose[n % len(prose)]}) for n in range(len(seen["asked"]))]
+    assert commands(seen["actions"]) == [pytest.approx((max(w["vx"], 0), w["yaw_rate"], w["stop"])) for w in want]
+
+    paths = trajectories(12, seed=3)
+    seen["asked"].clear()
+    seen["actions"].clear()
+    nomad = servers(HttpServer, lambda n, path, request: {"trajectory": paths[(n - 1) % len(paths)].tolist()})
+    code, stdout, err, rows = rollout(run_cli, tiny_run, tmp_path / "b", f"sage+http://{nomad.origin}/nogoal_step",
+                                      "--max-steps", "12")
+    assert code == 0 and len(rows) == 2 and not any(r["stopped"] for r in rows), stdout + err
+    for (path, content_type, body), (_, rgb, depth, _) in zip(nomad.requests, seen["asked"], strict=True):
+        assert path == "/nogoal_step" and multipart(content_type, body) == sage_nogoal_parts(rgb, depth)
+    assert any(d.max() > 0 for _, _, d, _ in seen["asked"])
+    got = commands(seen["actions"])
+    for n, (distance, turn, stop) in enumerate(got[:-1] if len(got) > 1 else got):
+        points = paths[n % len(paths)]
+        vx, _, yaw_rate = sage_trajectory_motion(points[0] if points.ndim == 3 else points, 0.0)
+        assert (distance, turn, stop) == pytest.approx((max(vx, 0.0), yaw_rate, False))
+
+
+@pytest.mark.parametrize("transport, reply, message", [
+    ("http", {"action": "MOVE_FORWARD"}, '/vln_step answered no {"result": text} (SAGE\'s client would move forward)'),
+    ("nogoal", {"trajectory": [[0.1, 0.2]]}, "/nogoal_step's reply: its trajectory has shape [1, 2], not [N, 3] "
+                                             "waypoints (x, y, z)"),
+    ("nogoal", {"path": []}, '/nogoal_step answered no {"trajectory": [[x, y, z], ...]}'),
+    ("socket", {"status": "error", "message": "VLN query failed: CUDA out of memory", "result": "MOVE_FORWARD"},
+     "the server reports an error: VLN query failed: CUDA out of memory"),
+    ("socket", {"status": "reset_complete"}, 'its reply is neither text nor an object with "result" or '
+                                             '"text_response"'),
+    ("socket", b"\x00\x00\x00\x00\x00\x00\x01\x00{", "the server closed the connection after 1 of the 256 bytes of "
+                                                     "its reply"),
+])
+def test_a_bad_reply_fails_its_episode_with_one_line_naming_the_server(servers, run_cli, tiny_run, tmp_path,
+                                                                       transport, reply, message):
+    """SAGE's client would stop or move on silently; here the episode fails by the policy, visibly."""
+    if transport == "socket":
+        server = servers(SocketServer, lambda n, request: reply)
+        url = server.url
+    else:
+        server = servers(HttpServer, lambda n, path, request: reply)
+        url = f"sage+http://{server.origin}" + ("/nogoal_step" if transport == "nogoal" else "")
+    code, stdout, err, rows = rollout(run_cli, tiny_run, tmp_path, url, "--max-policy-failures", "5")
+    assert code == 1 and rows == []
+    failed = [line for line in stdout.splitlines() if "FAILED by the policy" in line]
+    assert len(failed) == 2 and all(line.endswith(f"SAGE model server {url} (step 0): {message}") for line in failed)
