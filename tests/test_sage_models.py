@@ -407,3 +407,20 @@ def test_a_bad_reply_fails_its_episode_with_one_line_naming_the_server(servers, 
     assert code == 1 and rows == []
     failed = [line for line in stdout.splitlines() if "FAILED by the policy" in line]
     assert len(failed) == 2 and all(line.endswith(f"SAGE model server {url} (step 0): {message}") for line in failed)
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--policy", "sage+http://127.0.0.1:9/act"), "error: --policy: SAGE's HTTP endpoints are /vln_step and "
+                                                  "/nogoal_step, not '/act'"),
+    (("--policy", "sage+socket://127.0.0.1"), "error: --policy: 'sage+socket://127.0.0.1' must be "
+                                              "sage+socket://HOST:PORT"),
+    (("--policy", "sage+socket://127.0.0.1:9", "--action-space", "discrete"),
+     "error: --action-space: a SAGE model server's answers are velocities: --action-space continuous"),
+    (("--policy", "sage+socket://127.0.0.1:9", "--preset", "vlnce"),
+     "error: --profile: a SAGE model server gets SAGE's observations: --profile sage"),
+])
+def test_a_sage_policy_that_cannot_run_is_one_line_exit_2_and_writes_nothing(run_cli, tiny_run, tmp_path, args,
+                                                                             message):
+    code, stdout, err = run_cli("rollout", "--run", tiny_run, "--out", tmp_path / "p.jsonl", *args)
+    assert code == 2 and err.strip() == message, err
+    assert list(tmp_path.iterdir()) == []

@@ -59,7 +59,8 @@ def make_config(given: Mapping[str, object], *, resume: bool = False) -> Rollout
     if resume:
         _refuse_on_resume(given, given.get("--policy"))
     given = parsed(RolloutConfig, given)
-    if str(given.get("--policy") or "").startswith(SAGE_SCHEMES):  # SAGE's models see SAGE's images, move freely
+    if str(given.get("--policy") or "").startswith(SAGE_SCHEMES) and given.get("--preset") is None:
+        # SAGE's models see SAGE's images and move freely, unless told otherwise (then refused below)
         given = {**given, "--profile": given.get("--profile") or "sage",
                  "--action-space": given.get("--action-space") or "continuous"}
     preset = given.get("--preset")
