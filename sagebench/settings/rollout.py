@@ -121,8 +121,10 @@ class RolloutConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     policy: Annotated[str, Option("--policy")] = Field(
-        default="oracle", description="A policy server's http(s):// URL, oracle, straight, random, or "
-                                      "vlnce:MODULE:NAME (a VLN-CE agent class or object, run in-process).")
+        default="oracle", description="A policy server's http(s):// URL, oracle, straight, random, "
+                                      "vlnce:MODULE:NAME (a VLN-CE agent class or object, run in-process), or a "
+                                      "SAGE-Bench model server: sage+http://HOST:PORT[/nogoal_step] or "
+                                      "sage+socket://HOST:PORT (docs/sage_models.md).")
     split: Annotated[str | None, Option("--split", values=SPLITS)] = Field(
         default=None, description="Only this split's episodes: train, val_seen, val_unseen, test, trajectory_unseen or instruction_unseen.")
     episode_ids: Annotated[tuple[str, ...], Option("--episode-id")] = Field(

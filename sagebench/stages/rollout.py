@@ -33,6 +33,8 @@ from sagebench.navsim.policies import BUILT_IN, Policy, built_in
 from sagebench.navsim.profiles import Sensors
 from sagebench.navsim.resumable import run_into
 from sagebench.navsim.rollout import contact_sheet, select_episodes
+from sagebench.navsim.sage_policy import SCHEMES as SAGE_SCHEMES
+from sagebench.navsim.sage_policy import SagePolicy, sage_server
 from sagebench.navsim.simulator import Simulator
 from sagebench.png_mark import is_marked, marked
 from sagebench.run_folder import Output, claim_output_file
@@ -57,6 +59,10 @@ def make_config(given: Mapping[str, object], *, resume: bool = False) -> Rollout
     if resume:
         _refuse_on_resume(given, given.get("--policy"))
     given = parsed(RolloutConfig, given)
+    if str(given.get("--policy") or "").startswith(SAGE_SCHEMES) and given.get("--preset") is None:
+        # SAGE's models see SAGE's images and move freely, unless told otherwise (then refused below)
+        given = {**given, "--profile": given.get("--profile") or "sage",
+                 "--action-space": given.get("--action-space") or "continuous"}
     preset = given.get("--preset")
     if preset is not None and preset not in PRESETS:
         raise ConfigError(f"{preset!r} is not a preset (one of {', '.join(PRESETS)})", field="--preset")
@@ -70,9 +76,11 @@ def make_config(given: Mapping[str, object], *, resume: bool = False) -> Rollout
         raise ConfigError(str(err), field=PROFILE_FIELDS[err.field]) from None
     config = from_options(RolloutConfig, given, {"env": base})
     p = config.policy
-    if p not in BUILT_IN and not p.startswith(("http://", "https://")) and not AGENT_SPEC.fullmatch(p):
-        raise ConfigError(f"{p!r} is neither an http(s):// URL, vlnce:MODULE:NAME nor one of {', '.join(BUILT_IN)}",
-                          field="--policy")
+    if p.startswith(SAGE_SCHEMES):
+        _check_sage(config)
+    elif p not in BUILT_IN and not p.startswith(("http://", "https://")) and not AGENT_SPEC.fullmatch(p):
+        raise ConfigError(f"{p!r} is neither an http(s):// URL, sage+http:// or sage+socket:// URL, "
+                          f"vlnce:MODULE:NAME nor one of {', '.join(BUILT_IN)}", field="--policy")
     if p in BUILT_IN and config.env.action_space != "discrete":
         raise ConfigError(f"the built-in policy {p} acts in the discrete action space", field="--action-space")
     if AGENT_SPEC.fullmatch(p) and (config.env.profile, config.env.action_space) != ("vlnce", "discrete"):
@@ -81,6 +89,22 @@ def make_config(given: Mapping[str, object], *, resume: bool = False) -> Rollout
     if p in BUILT_IN and "pose" not in config.env.privileged:  # the baselines steer by the pose: say so
         config = from_options(RolloutConfig, {**given, "--privileged": (*config.env.privileged, "pose")}, {"env": base})
     return config
+
+
+def _check_sage(config: RolloutConfig) -> None:
+    """A ConfigError when a SAGE model server (navsim/sage_policy.py) cannot run as configured."""
+    try:
+        sage_server(config.policy)
+    except ValueError as err:
+        raise ConfigError(str(err), field="--policy") from None
+    env = config.env
+    if env.profile != "sage":
+        raise ConfigError("a SAGE model server gets SAGE's observations: --profile sage", field="--profile")
+    if env.action_space != "continuous":
+        raise ConfigError("a SAGE model server's answers are velocities: --action-space continuous",
+                          field="--action-space")
+    if env.task not in ("vln", "nogoal"):
+        raise ConfigError("SAGE's model protocol carries an instruction: --task vln or nogoal", field="--task")
 
 
 def _refuse_on_resume(given: Mapping[str, object], policy: object) -> None:
@@ -172,7 +196,8 @@ def _roll_out(run_dir: Path, out: Path, config: RolloutConfig, scene_id: str | N
             def on_step(done: int, steps: int) -> None:
                 update(done, f"{steps / max(time.perf_counter() - start, 1e-9):.1f} steps/s")
 
-            batch = 1 if isinstance(policy, VlnceAgents) and not policy.fresh else config.batch
+            one_at_a_time = isinstance(policy, SagePolicy) or (isinstance(policy, VlnceAgents) and not policy.fresh)
+            batch = 1 if one_at_a_time else config.batch
             written = run_into(out, sim, policy, record, resume=resume, batch=batch, on_step=on_step,
                                sheet=[] if resume and sheet.exists() else asked[: config.sheet_episodes],
                                max_failures=config.max_policy_failures)
@@ -212,9 +237,12 @@ def open_inputs(sim: Simulator, asked: list[str], out: Path) -> None:
 
 def make_policy(config: RolloutConfig, maps: Callable[[str], NavigableMap] | None = None) -> Policy:
     """The built-in policy the config names (the explorer reads the scenes' maps from `maps`), a VLN-CE agent
-    in-process, or a client of its policy server."""
+    in-process, a SAGE model server's client, or a client of its policy server."""
     if config.policy in BUILT_IN:
         return built_in(config.policy, seed=config.seed, actions=config.env.actions, maps=maps)
+    if config.policy.startswith(SAGE_SCHEMES):
+        return SagePolicy(config.policy, actions=config.env.actions, replay=config.env.replay,
+                          timeout=config.policy_timeout, retries=config.policy_retries)
     spec = AGENT_SPEC.fullmatch(config.policy)
     if spec:
         try:
