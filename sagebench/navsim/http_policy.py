@@ -5,7 +5,8 @@ reply must all end within `timeout` seconds of the request's start, or the reque
 one byte a second or never is cut at the deadline, whatever each socket read does). A connection error (refused,
 reset, closed before a reply) is retried with exponential backoff from `backoff` seconds while the deadline allows,
 at most `retries` times; a retried request carries the same episode_id and step, so a server keeping state can
-answer a repeat from its cache. Anything else (a timeout, an HTTP error status or a redirect, a reply over
+answer a repeat from its cache. Anything else (a timeout, an HTTP error status, whose JSON {"error": why} the
+message quotes, or a redirect, a reply over
 http_client's size or nesting bounds or that is not an action) fails the request at once. A failed request fails
 its episode only: `act` returns a PolicyFailure in that slot and the rollout records the episode as failed by the
 policy.
@@ -31,6 +32,9 @@ from sagebench.navsim.protocol import encode_request, parse_action, request_fiel
 from sagebench.settings.rollout import Encoding
 
 
+MAX_SAID = 300  # characters of a server's error message shown
+
+
 class RequestFailed(Exception):
     """A request that failed (module docstring); the message says why."""
 
@@ -43,7 +47,7 @@ def post(url: str, body: bytes, content_type: str, *, timeout: float, retries: i
     def attempt(seconds_left: float | None) -> bytes:
         reply = client.send("POST", body=body, headers={"Content-Type": content_type}, timeout=seconds_left)
         if reply.status != 200:
-            raise HTTPFailure(f"HTTP {reply.status} {reply.reason}", kind="status")
+            raise HTTPFailure(client.clean(f"HTTP {reply.status} {reply.reason}{said(reply.body)}"), kind="status")
         return reply.body
 
     try:
@@ -52,6 +56,15 @@ def post(url: str, body: bytes, content_type: str, *, timeout: float, retries: i
         if err.kind == "timeout":
             raise RequestFailed(f"no reply within {timeout:g} s") from None
         raise RequestFailed(f"connection error: {err}" if err.kind == "transport" else str(err)) from None
+
+
+def said(body: bytes) -> str:
+    """What an error reply says, as ': why' (a JSON {"error": why}, its first MAX_SAID characters), or ''."""
+    try:
+        why = parse_json(body).get("error")
+    except (ValueError, AttributeError):
+        return ""
+    return f": {why[:MAX_SAID]}" if isinstance(why, str) else ""
 
 
 class HttpPolicy:
