@@ -24,10 +24,7 @@ benchmark for VLN-CE's body is built for it (`build-scene --agent-radius 0.1 --b
 
 from __future__ import annotations
 
-import hashlib
-import hmac
 import json
-import os
 import reprlib
 import threading
 import traceback
@@ -40,6 +37,7 @@ import numpy as np
 
 from sagebench.episodes.episode import Episode
 from sagebench.navsim.actions import Action
+from sagebench.navsim.opaque import OpaqueIds
 from sagebench.navsim.policies import PolicyFailure
 from sagebench.navsim.protocol import decode_request
 from sagebench.settings.rollout import EnvConfig
@@ -159,7 +157,7 @@ class VlnceAgents:
 
     def __init__(self, agent: Any):
         self.make, self.fresh = agent_maker(agent)
-        self._key = os.urandom(16)
+        self.opaque_id = OpaqueIds()
 
     def begin(self, episodes: Sequence[Episode]) -> None:
         if not self.fresh and len(episodes) > 1:
@@ -167,8 +165,7 @@ class VlnceAgents:
                              "several together")
         self.agents = [self.make() for _ in episodes]
         self.started = [False] * len(episodes)
-        self.trajectories = [trajectory_number(hmac.new(self._key, e.episode_id.encode(), hashlib.sha256).hexdigest())
-                             for e in episodes]
+        self.trajectories = [trajectory_number(self.opaque_id(e.episode_id)) for e in episodes]
 
     def act(self, slots, observations, infos) -> list:
         return [self._answer(i, o) for i, o in zip(slots, observations)]

@@ -19,14 +19,12 @@ results do not depend on the thread count.
 
 from __future__ import annotations
 
-import hashlib
-import hmac
-import os
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 from sagebench.episodes.episode import Episode
 from sagebench.http_client import Client, HTTPFailure, parse_json, public_url, retried
+from sagebench.navsim.opaque import OpaqueIds
 from sagebench.navsim.policies import PolicyFailure
 from sagebench.navsim.protocol import encode_request, parse_action, request_fields
 from sagebench.settings.rollout import Encoding
@@ -74,12 +72,8 @@ class HttpPolicy:
                  workers: int = 1, encoding: Encoding = "raw", retries: int = 3):
         self.url, self.action_space, self.profile, self.timeout = url, action_space, profile, timeout
         self.encoding, self.retries, self.workers = encoding, retries, max(1, workers)
-        self._key = os.urandom(16)
+        self.opaque_id = OpaqueIds()  # the id sent for an episode in this rollout
         self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="policy") if self.workers > 1 else None
-
-    def opaque_id(self, episode_id: str) -> str:
-        """The id sent for `episode_id` in this rollout."""
-        return hmac.new(self._key, episode_id.encode("utf-8"), hashlib.sha256).hexdigest()[:16]
 
     def begin(self, episodes: Sequence[Episode]) -> None:
         self.ids = [self.opaque_id(e.episode_id) for e in episodes]
