@@ -49,9 +49,10 @@ def test_an_agent_runs_unchanged_in_process_and_over_http_with_identical_results
                                 "vlnce:vlnce_agents:DepthAgent", *VLNCE_RUN)
     assert code == 0, err
     assert stdout.startswith("preset: success distance 3 m (default: each episode's goal_radius); camera height 1.25 m "
-                             "(default 1.2); observations: the vlnce profile (default custom); agent body: the run's "
-                             "maps', radius 0.2 m, height 1.2 m, not VLN-CE's radius 0.1 m, height 1.5 m (build-scene "
-                             "--agent-radius 0.1 --band-max 1.5 builds a run for it)\n")
+                             "(default 1.2); observations: the vlnce profile (default custom); instruction tokens: the "
+                             "habitat tokenizer (default sagebench); agent body: the run's maps', radius 0.2 m, height "
+                             "1.2 m, not VLN-CE's radius 0.1 m, height 1.5 m (build-scene --agent-radius 0.1 "
+                             "--band-max 1.5 builds a run for it)\n")
     code, _, err = run_cli("rollout", "--run", tiny_run, "--out", http, "--policy",
                            agent_server(vlnce_agents.DepthAgent), *VLNCE_RUN)
     assert code == 0, err

@@ -4,7 +4,7 @@ camera) and an adapter that runs an object with habitat's `Agent` interface (`re
 the policy protocol (`serve`), with the same observations either way.
 
 The agent sees VLN-CE's observation dict: `rgb` [224, 224, 3] uint8, `depth` [256, 256, 1] float32 in [0, 1], and
-`instruction` {"text", "tokens" (200 word ids, the run's vocabulary), "trajectory_id"} (the vlnce profile; its
+`instruction` {"text", "tokens" (200 word ids, the run's vocabulary or --vocab's), "trajectory_id"} (the vlnce profile; its
 trajectory_id is opaque, like the episode ids a policy server gets), plus `gps` and `compass` when the rollout
 gives them. Its action is VLN-CE's: 0 STOP, 1 MOVE_FORWARD, 2 TURN_LEFT, 3 TURN_RIGHT (sagebench's own ids), as an
 int, a name, or {"action": ...} around either, as habitat's Env.step takes it. One agent per running episode:
@@ -14,7 +14,8 @@ episode at a time.
 VLN-CE's R2R task (jacobkrantz/VLN-CE habitat_extensions/config/vlnce_task.yaml over habitat-lab 0.1.7's
 defaults): success within 3.0 m of the goal, an agent of radius 0.1 m and height 1.5 m whose RGB and depth
 sensors sit 1.25 m up with a 90-degree field of view, RGB 224x224, depth 256x256 normalised over 0-10 m,
-MOVE_FORWARD 0.25 m, TURN_LEFT / TURN_RIGHT 15 degrees, 500 steps. The preset sets those that sagebench's
+MOVE_FORWARD 0.25 m, TURN_LEFT / TURN_RIGHT 15 degrees, 500 steps, instructions tokenized by habitat's tokenize
+(sagebench.vlnce.vocab; a pretrained model's own vocabulary: --vocab). The preset sets those that sagebench's
 defaults do not already share (sagebench: each episode's goal_radius, 1 m by default; camera 1.2 m; the custom
 profile); `preset_differences` lists them for the user. The body is not the env's to set: the closed loop
 replays the body the run's maps were built for (AgentConfig, 0.2 m radius, 1.2 m tall by default), so a
@@ -54,7 +55,7 @@ def preset_env(name: str) -> dict:
     if name != "vlnce":
         raise ValueError(f"{name!r} is not a preset (one of {', '.join(PRESETS)})")
     return {"profile": "vlnce", "camera": VLNCE_CAMERA.model_dump(), "success_distance": VLNCE_SUCCESS_DISTANCE,
-            "max_steps": 500, "actions": {"forward_step": 0.25, "turn_deg": 15.0}}
+            "max_steps": 500, "actions": {"forward_step": 0.25, "turn_deg": 15.0}, "tokenizer": "habitat"}
 
 
 def preset_differences(env: EnvConfig, default: EnvConfig) -> list[str]:
@@ -70,6 +71,8 @@ def preset_differences(env: EnvConfig, default: EnvConfig) -> list[str]:
         out.append(f"observations: the {env.profile} profile (default {default.profile})")
     if env.max_steps != default.max_steps:
         out.append(f"max steps {env.max_steps} (default {default.max_steps})")
+    if env.tokenizer != default.tokenizer:
+        out.append(f"instruction tokens: the {env.tokenizer} tokenizer (default {default.tokenizer})")
     return out
 
 

@@ -30,6 +30,7 @@ from sagebench.navsim.profiles import Sensors, env_sensors, gps_compass
 from sagebench.navsim.world import World, open_world, run_episodes, run_vocabulary
 from sagebench.replay.contact import ContactProbe
 from sagebench.settings.rollout import EnvConfig
+from sagebench.vlnce.vocab import Vocabulary, read_vocabulary
 
 POSE_DECIMALS = 6  # predictions are written to the micrometre / microradian
 
@@ -92,7 +93,7 @@ class Simulator:
         episodes, self.instructions = run_episodes(self.run_dir, scene_id)
         if config.success_distance is not None:
             episodes = [replace(e, goal_radius=config.success_distance) for e in episodes]
-        self.vocabulary = run_vocabulary(self.run_dir) if self.sensors.tokens else None
+        self.vocabulary = vocabulary(self.run_dir, config) if self.sensors.tokens else None
         self.episodes = {e.episode_id: e for e in episodes}
         self.order = [e.episode_id for e in episodes]
         self._worlds: dict[str, World] = {}
@@ -224,6 +225,13 @@ class Simulator:
         info = {"episode_id": s.episode.episode_id, "distance_to_goal": s.distance, "success": s.success,
                 "collision_intensity": float(c_t), "steps": s.steps, "outcome": s.outcome or "running"}
         return StepResult(obs, float(reward), s.outcome in ("stop", "left_map"), s.outcome == "step_limit", info)
+
+
+def vocabulary(run_dir: Path, config: EnvConfig) -> Vocabulary:
+    """The vocabulary instruction_tokens index: the one given (--vocab), else the run's."""
+    if config.vocab is not None:
+        return read_vocabulary(config.vocab, config.tokenizer)
+    return run_vocabulary(run_dir, config.tokenizer)
 
 
 def observation(sensors: Sensors, s: Slot) -> dict:
