@@ -296,8 +296,8 @@ def test_an_answer_nested_200k_deep_fails_its_episode_not_the_rollout(tiny_run, 
                               "vlnce:vlnce_agents:Nested", "--preset", "vlnce", "--episodes", "1")
     assert code == 1
     [line] = _failed_lines(stdout)
-    assert line.endswith(": the agent's action {'action': {'action': {'action': {...}}}} is not one of VLN-CE's 0 STOP, "
-                         "1 MOVE_FORWARD, 2 TURN_LEFT, 3 TURN_RIGHT")
+    assert line.endswith(": the agent's action {'action': {'action': {'action': {...}}}} is not one of VLN-CE's "
+                         "0 STOP, 1 MOVE_FORWARD, 2 TURN_LEFT, 3 TURN_RIGHT")
 
 
 def test_a_request_past_the_servers_bounds_is_refused_with_why(agent_server):

@@ -220,7 +220,8 @@ def test_a_second_export_into_a_locked_out_dir_is_refused(exported, run, tmp_pat
 # NaVILA's evaluator (evaluation/vlnce_baselines/navila_trainer.py), its parsing written here: the action by the first
 # of these patterns found, then the amount
 NAVILA_ACTIONS = {"STOP": re.compile(r"\bstop\b", re.I), "MOVE_FORWARD": re.compile(r"\bis move forward\b", re.I),
-                  "TURN_LEFT": re.compile(r"\bis turn left\b", re.I), "TURN_RIGHT": re.compile(r"\bis turn right\b", re.I)}
+                  "TURN_LEFT": re.compile(r"\bis turn left\b", re.I),
+                  "TURN_RIGHT": re.compile(r"\bis turn right\b", re.I)}
 NAVILA_AMOUNTS = {"MOVE_FORWARD": r"move forward (\d+) cm", "TURN_LEFT": r"turn left (\d+) degree",
                   "TURN_RIGHT": r"turn right (\d+) degree"}
 

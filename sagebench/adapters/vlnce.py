@@ -4,9 +4,9 @@ camera) and an adapter that runs an object with habitat's `Agent` interface (`re
 the policy protocol (`serve`), with the same observations either way.
 
 The agent sees VLN-CE's observation dict: `rgb` [224, 224, 3] uint8, `depth` [256, 256, 1] float32 in [0, 1], and
-`instruction` {"text", "tokens" (200 word ids, the run's vocabulary or --vocab's), "trajectory_id"} (the vlnce profile; its
-trajectory_id is opaque, like the episode ids a policy server gets), plus `gps` and `compass` when the rollout
-gives them. Its action is VLN-CE's: 0 STOP, 1 MOVE_FORWARD, 2 TURN_LEFT, 3 TURN_RIGHT (sagebench's own ids), as an
+`instruction` {"text", "tokens" (200 word ids, the run's vocabulary or --vocab's), "trajectory_id"} (the vlnce
+profile; its trajectory_id is opaque, like the episode ids a policy server gets), plus `gps` and `compass` when the
+rollout gives them. Its action is VLN-CE's: 0 STOP, 1 MOVE_FORWARD, 2 TURN_LEFT, 3 TURN_RIGHT (sagebench's own ids), as an
 int, a name, or {"action": ...} around either, as habitat's Env.step takes it. One agent per running episode:
 `make_agent` (a class or a callable) makes it and `reset()` starts its episode; a single agent object runs one
 episode at a time.
@@ -88,7 +88,7 @@ def body_note(bodies: Sequence[AgentConfig]) -> str:
 
 
 NEEDED = ("rgb", "depth", "instruction", "instruction_tokens")  # the vlnce profile's keys
-LIVE_EPISODES = 1024  # episodes a server keeps, the most recently asked (an episode cut by the step limit never says STOP)
+LIVE_EPISODES = 1024  # episodes a server keeps, those asked last (one cut by the step limit never says STOP)
 MAX_REQUEST_BYTES = 1 << 28  # a request's body: a frame of 4096 x 4096 RGB, depth and instance images fits
 MAX_SAID = 300  # characters of an agent's exception message passed on
 _SHOWN = reprlib.Repr()  # an agent's reply in a message: a bounded repr that never recurses past maxlevel
