@@ -453,7 +453,8 @@ def export_training_cmd(
 
     Writes OUT/export.json (settings, input hashes), OUT/shards/<split>-NNNNNN.tar (WebDataset: per step
     <key>.rgb.png, <key>.json and with --depth <key>.depth.png) and OUT/index.json; with --navila also
-    OUT/navila/ (frames as PNG files and annotations_part_NNN.json as SAGE-3D builds NaVILA's training set).
+    OUT/navila/ (frames as PNG files and one annotations_<split>.json per split, as NaVILA's trainer reads
+    them: answers "The next action is move forward 25 cm.").
     Deterministic; rerun the same command after an interruption to resume at the first unfinished shard.
     """
     from sagebench.stages.export_training import run_export_training

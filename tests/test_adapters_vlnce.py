@@ -5,6 +5,7 @@ effect on scoring."""
 from __future__ import annotations
 
 import json
+import re
 import threading
 
 import numpy as np
@@ -14,7 +15,7 @@ from vlnce_agents import HabitatSimActions
 
 from sagebench.adapters.vlnce import serve, vlnce_action, vlnce_observations
 from sagebench.navsim.actions import Action
-from sagebench.navsim.http_policy import post
+from sagebench.navsim.http_policy import RequestFailed, post
 from sagebench.navsim.protocol import encode_request, request_fields
 
 VLNCE_RUN = ("--preset", "vlnce", "--episodes", "3", "--seed", "1")
@@ -31,6 +32,7 @@ def agent_server():
         servers.append((server, thread))
         return f"http://127.0.0.1:{server.server_address[1]}/act"
 
+    start.servers = servers
     yield start
     for server, thread in servers:
         server.shutdown()
@@ -47,9 +49,10 @@ def test_an_agent_runs_unchanged_in_process_and_over_http_with_identical_results
                                 "vlnce:vlnce_agents:DepthAgent", *VLNCE_RUN)
     assert code == 0, err
     assert stdout.startswith("preset: success distance 3 m (default: each episode's goal_radius); camera height 1.25 m "
-                             "(default 1.2); observations: the vlnce profile (default custom); agent body: the run's "
-                             "maps', radius 0.2 m, height 1.2 m, not VLN-CE's radius 0.1 m, height 1.5 m (build-scene "
-                             "--agent-radius 0.1 --band-max 1.5 builds a run for it)\n")
+                             "(default 1.2); observations: the vlnce profile (default custom); instruction tokens: the "
+                             "habitat tokenizer (default sagebench); agent body: the run's maps', radius 0.2 m, height "
+                             "1.2 m, not VLN-CE's radius 0.1 m, height 1.5 m (build-scene --agent-radius 0.1 "
+                             "--band-max 1.5 builds a run for it)\n")
     code, _, err = run_cli("rollout", "--run", tiny_run, "--out", http, "--policy",
                            agent_server(vlnce_agents.DepthAgent), *VLNCE_RUN)
     assert code == 0, err
@@ -78,25 +81,34 @@ class _FirstStepAgent:
 
 
 def test_a_full_agent_table_lets_the_least_recently_asked_agent_go_never_the_new_one(agent_server, monkeypatch):
-    """Episodes cut by the step limit never say STOP, so a long rollout fills the server's table (LIVE_AGENTS,
+    """Episodes cut by the step limit never say STOP, so a long rollout fills the server's table (LIVE_EPISODES,
     made 3 here): a new episode then evicts the agent asked least recently; the new one, and one still
-    stepping, keep theirs (an evicted agent would restart its episode from nothing mid-way)."""
+    stepping, keep theirs; the evicted one is refused, never restarted from nothing mid-way."""
     import sagebench.adapters.vlnce as vlnce
 
-    monkeypatch.setattr(vlnce, "LIVE_AGENTS", 3)
+    monkeypatch.setattr(vlnce, "LIVE_EPISODES", 3)
     url = agent_server(_FirstStepAgent)
-    obs = {"rgb": np.zeros((2, 2, 3), np.uint8), "depth": np.zeros((2, 2, 1), np.float32), "instruction": "go",
-           "instruction_tokens": np.array([5, 0], np.int64)}
 
     def ask(episode: str, step: int) -> str:
-        fields = request_fields(obs, episode_id=episode * 16, step=step, action_space="discrete", profile="vlnce")
-        content_type, body = encode_request(obs, fields)
-        return Action(json.loads(post(url, body, content_type, timeout=30.0))["action"]).name
+        return Action(json.loads(post(url, *_request(episode, step), timeout=30.0))["action"]).name
 
     first, kept = "TURN_LEFT", "MOVE_FORWARD"
     assert [ask("a", 0), ask("b", 0), ask("c", 0), ask("a", 1)] == [first, first, first, kept]
     assert [ask("d", 0), ask("d", 1)] == [first, kept]  # b, asked least recently, made room for d
-    assert [ask("a", 2), ask("c", 1), ask("b", 1)] == [kept, kept, first]
+    assert [ask("a", 2), ask("c", 1)] == [kept, kept]
+    with pytest.raises(RequestFailed, match=f"^HTTP 409 Conflict: episode {'b' * 16} is not running on this server "):
+        ask("b", 1)
+
+
+_OBS = {"rgb": np.zeros((2, 2, 3), np.uint8), "depth": np.zeros((2, 2, 1), np.float32), "instruction": "go",
+        "instruction_tokens": np.array([5, 0], np.int64)}
+
+
+def _request(episode: str, step: int) -> tuple[bytes, str]:
+    """(body, Content-Type) of step `step` of episode `episode` * 16, as HttpPolicy sends it."""
+    fields = request_fields(_OBS, episode_id=episode * 16, step=step, action_space="discrete", profile="vlnce")
+    content_type, body = encode_request(_OBS, fields)
+    return body, content_type
 
 
 def test_the_agent_gets_vlnces_observation_keys():
@@ -147,3 +159,166 @@ def test_the_preset_scores_success_within_3_m(tiny_run, tmp_path, run_cli):
     for e in data["per_episode"]:
         assert e["sr"] == float(stopped[e["episode_id"]] and e["ne"] <= 3.0)
     assert any(e["sr"] == 1.0 and e["ne"] > 1.0 for e in data["per_episode"])  # a success at 1 m would fail it
+
+
+class _Recorded(_FirstStepAgent):
+    """_FirstStepAgent, each one kept: its `steps` counts the act() calls it got."""
+
+    made: list = []
+
+    def __init__(self):
+        _Recorded.made.append(self)
+
+
+def test_a_repeated_step_gets_its_first_answer_and_the_agent_acts_once(agent_server):
+    """A retried request (its reply was lost) carries the same episode and step: the server answers it from the
+    episode's reply cache, not by acting again (an agent acting twice walks a different episode)."""
+    _Recorded.made = []
+    url = agent_server(_Recorded)
+    answers = [post(url, *_request("a", step), timeout=30.0) for step in (0, 1, 1)]
+    assert answers[1] == answers[2] and [a.steps for a in _Recorded.made] == [2]
+    with pytest.raises(RequestFailed, match=f"^HTTP 409 Conflict: episode {'a' * 16}: step 3 after step 1$"):
+        post(url, *_request("a", 3), timeout=30.0)
+
+
+def _drop_reply(server, number: int) -> None:
+    """Make `server` (serve's) act on its `number`-th request but close the connection instead of replying, as a
+    reply lost on the way does: the client retries the request."""
+    import io
+    import itertools
+
+    count = itertools.count(1)
+
+    class Dropping(server.RequestHandlerClass):
+        def do_POST(self):  # noqa: N802 - http.server's name
+            if next(count) == number:
+                self.wfile, self.close_connection = io.BytesIO(), True
+            super().do_POST()
+
+    server.RequestHandlerClass = Dropping
+
+
+def test_a_lost_reply_changes_nothing(tiny_run, tmp_path, run_cli, agent_server):
+    import vlnce_agents
+
+    inproc, http = tmp_path / "in.jsonl", tmp_path / "http.jsonl"
+    assert run_cli("rollout", "--run", tiny_run, "--out", inproc, "--policy", "vlnce:vlnce_agents:DepthAgent",
+                   *VLNCE_RUN)[0] == 0
+    url = agent_server(vlnce_agents.DepthAgent)
+    _drop_reply(next(s for s, _ in agent_server.servers), 5)  # episode 2 of the batch, step 1
+    code, _, err = run_cli("rollout", "--run", tiny_run, "--out", http, "--policy", url, *VLNCE_RUN)
+    assert code == 0, err
+    assert http.read_bytes() == inproc.read_bytes()
+
+
+class _FailsOnce:
+    """Raises at its third step, the first episode only: asked again, it would walk on as if nothing happened."""
+
+    raised = False
+
+    def reset(self):
+        self.steps = 0
+
+    def act(self, observations):
+        self.steps += 1
+        if self.steps == 3 and not _FailsOnce.raised:
+            _FailsOnce.raised = True
+            raise RuntimeError("out of memory")
+        return {"action": HabitatSimActions.STOP if self.steps > 6 else HabitatSimActions.MOVE_FORWARD}
+
+
+def _failed_lines(stdout: str) -> list[str]:
+    return [line for line in stdout.splitlines() if line.startswith("  FAILED by the policy: ")]
+
+
+@pytest.mark.parametrize("over_http", [False, True])
+def test_an_agent_that_raises_fails_its_episode_visibly(tiny_run, tmp_path, run_cli, agent_server, monkeypatch,
+                                                       over_http):
+    import vlnce_agents
+
+    _FailsOnce.raised = False
+    monkeypatch.setattr(vlnce_agents, "FailsOnce", _FailsOnce, raising=False)
+    policy = agent_server(_FailsOnce) if over_http else "vlnce:vlnce_agents:FailsOnce"
+    out = tmp_path / "p.jsonl"
+    code, stdout, _ = run_cli("rollout", "--run", tiny_run, "--out", out, "--policy", policy, *VLNCE_RUN)
+    assert code == 1  # an episode is left to run, not a complete-looking rollout
+    [line] = _failed_lines(stdout)
+    where = f"policy {policy} (step 2): HTTP 500 Internal Server Error: " if over_http else ""
+    assert re.fullmatch(rf"  FAILED by the policy: \S+: {re.escape(where)}the agent raised RuntimeError: out of "
+                        rf"memory \(at .*test_adapters_vlnce\.py:\d+\)" + (r" \(episode [0-9a-f]{16}, step 2\)"
+                                                                         if over_http else ""), line), line
+    assert len(out.read_text().splitlines()) == 2
+
+
+def test_one_agent_object_behind_a_server_refuses_a_second_episode_at_once(tiny_run, tmp_path, run_cli,
+                                                                          agent_server):
+    """--batch 2 against a server holding one agent object: the agent is reset for the episode started second, so
+    the other one's next request is refused (it fails, visibly); the one started second runs as alone."""
+    import vlnce_agents
+
+    alone, both = tmp_path / "alone.jsonl", tmp_path / "both.jsonl"
+    args = ("--preset", "vlnce", "--episodes", "2", "--seed", "1")
+    assert run_cli("rollout", "--run", tiny_run, "--out", alone, "--policy", "vlnce:vlnce_agents:DepthAgent",
+                   *args)[0] == 0
+    code, stdout, _ = run_cli("rollout", "--run", tiny_run, "--out", both, "--policy",
+                              agent_server(vlnce_agents.DepthAgent()), "--batch", "2", *args)
+    assert code == 1
+    [line] = _failed_lines(stdout)
+    assert re.search(r"HTTP 409 Conflict: episode [0-9a-f]{16}: a single agent object runs one episode at a time "
+                     r"and episode [0-9a-f]{16} started after it \(run the rollout with --batch 1, or serve the "
+                     r"agent's class\)$", line), line
+    [kept] = both.read_text().splitlines()
+    assert kept in alone.read_text().splitlines()
+
+
+def _nested(depth: int) -> dict:
+    reply: dict = {"action": 1}
+    for _ in range(depth):
+        reply = {"action": reply}
+    return reply
+
+
+class _Nested:
+    """Answers an action wrapped 200,000 deep."""
+
+    def reset(self):
+        pass
+
+    def act(self, observations):
+        return _nested(200_000)
+
+
+def test_an_answer_nested_200k_deep_fails_its_episode_not_the_rollout(tiny_run, tmp_path, run_cli, monkeypatch):
+    import vlnce_agents
+
+    monkeypatch.setattr(vlnce_agents, "Nested", _Nested, raising=False)
+    code, stdout, _ = run_cli("rollout", "--run", tiny_run, "--out", tmp_path / "p.jsonl", "--policy",
+                              "vlnce:vlnce_agents:Nested", "--preset", "vlnce", "--episodes", "1")
+    assert code == 1
+    [line] = _failed_lines(stdout)
+    assert line.endswith(": the agent's action {'action': {'action': {'action': {...}}}} is not one of VLN-CE's "
+                         "0 STOP, 1 MOVE_FORWARD, 2 TURN_LEFT, 3 TURN_RIGHT")
+
+
+def test_a_request_past_the_servers_bounds_is_refused_with_why(agent_server):
+    """Nesting a request's JSON 100,000 deep, or announcing a body over MAX_REQUEST_BYTES, gets an error reply
+    (the server neither dies in the request's thread nor reads the body)."""
+    import http.client
+    import urllib.parse
+
+    from sagebench.adapters.vlnce import MAX_REQUEST_BYTES
+
+    url = agent_server(_FirstStepAgent)
+    deep = b'{"a": ' * 100_000 + b"1" + b"}" * 100_000
+    with pytest.raises(RequestFailed, match="^HTTP 400 Bad Request: TooDeep: .* nested deeper than 64 levels$"):
+        post(url, deep, "application/json", timeout=30.0)
+    where = urllib.parse.urlsplit(url)
+    conn = http.client.HTTPConnection(where.hostname, where.port, timeout=30)
+    conn.putrequest("POST", where.path)
+    conn.putheader("Content-Type", "application/json")
+    conn.putheader("Content-Length", str(MAX_REQUEST_BYTES + 1))
+    conn.endheaders()
+    reply = conn.getresponse()
+    assert reply.status == 413 and json.loads(reply.read()) == {
+        "error": f"a request's body must have a Content-Length of at most {MAX_REQUEST_BYTES:,} bytes"}
+    conn.close()

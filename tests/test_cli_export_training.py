@@ -7,6 +7,7 @@ import dataclasses
 import io
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -217,23 +218,56 @@ def test_a_second_export_into_a_locked_out_dir_is_refused(exported, run, tmp_pat
     assert {p: p.read_bytes() for p in before} == before
 
 
-def test_navila_layout_pairs_every_step_with_the_frames_so_far(exported, run, tmp_path, run_cli):
+# NaVILA's evaluator (evaluation/vlnce_baselines/navila_trainer.py), its parsing written here: the action by the first
+# of these patterns found, then the amount
+NAVILA_ACTIONS = {"STOP": re.compile(r"\bstop\b", re.I), "MOVE_FORWARD": re.compile(r"\bis move forward\b", re.I),
+                  "TURN_LEFT": re.compile(r"\bis turn left\b", re.I),
+                  "TURN_RIGHT": re.compile(r"\bis turn right\b", re.I)}
+NAVILA_AMOUNTS = {"MOVE_FORWARD": r"move forward (\d+) cm", "TURN_LEFT": r"turn left (\d+) degree",
+                  "TURN_RIGHT": r"turn right (\d+) degree"}
+
+
+def navila_parse(answer: str) -> tuple[str, int | None]:
+    """(the action, its amount: cm or degrees) as NaVILA's evaluator reads `answer`; its `match.group` raises on an
+    answer without the amount, as there."""
+    action = next(name for name, pattern in NAVILA_ACTIONS.items() if pattern.search(answer))
+    return action, None if action == "STOP" else int(re.search(NAVILA_AMOUNTS[action], answer).group(1))
+
+
+def test_navila_layout_is_what_navilas_trainer_reads_and_its_parser_parses(exported, run, tmp_path, run_cli):
     """--navila adds NaVILA's layout from the finished shards (so it also works on a finished export): one PNG per
-    view, and per step the frames from the start to that step with the next action in words."""
+    view; per split one annotation file (NaVILA's data_path) whose every answer NaVILA's evaluator parses to the
+    step's action and amount (25 cm, 15 degrees), with the frames from the start to that step under image_path."""
     shutil.copytree(exported, tmp_path / "e")
     code, _, err = run_cli("-q", "export-training", run, "--out", tmp_path / "e", "--depth", "--renderer", "cpu",
                            "--navila", *SMALL)
     assert code == 0, err
     nav = tmp_path / "e" / "navila"
     info = json.loads((nav / "dataset_info.json").read_text())
-    rows = json.loads((nav / "annotations_part_000.json").read_text())
+    splits = {sh["split"] for sh in json.loads((tmp_path / "e" / "index.json").read_text())["shards"]}
+    assert sorted(p.name for p in nav.glob("annotations*")) == sorted(f"annotations_{s}.json" for s in splits)
+    rows = [r for s in splits for r in json.loads((nav / info["splits"][s]["data_path"]).read_text())]
     samples = _samples(exported)
-    assert info["total_samples"] == len(rows) == len(samples) and info["part_files"] == ["annotations_part_000.json"]
-    words = {"STOP": "stop", "MOVE_FORWARD": "move forward 0.25 meter", "TURN_LEFT": "turn left 15 degree",
-             "TURN_RIGHT": "turn right 15 degree"}
+    assert info["total_samples"] == len(rows) == len(samples)
+    amount = {"STOP": None, "MOVE_FORWARD": 25, "TURN_LEFT": 15, "TURN_RIGHT": 15}
     by_video = {r["video_id"]: r for r in rows}
     for s in samples:
         row = by_video[f"{s['scene_id']}_{s['episode_id']}-{s['step']}"]
-        assert row["q"] == s["instruction"] and row["a"] == f"The next action is {words[s['action_name']]}."
+        assert row["q"] == s["instruction"] and navila_parse(row["a"]) == (s["action_name"], amount[s["action_name"]])
         assert len(row["frames"]) == s["step"] + 1
-        assert (nav / "images" / row["frames"][-1]).read_bytes() == s["rgb"]
+        assert (nav / info["splits"][s["split"]]["image_path"] / row["frames"][-1]).read_bytes() == s["rgb"]
+    assert {navila_parse(r["a"])[0] for r in rows} >= {"STOP", "MOVE_FORWARD"}
+
+
+def test_a_step_navilas_evaluator_would_not_execute_is_refused_before_any_shard(run, tmp_path):
+    from sagebench.errors import ConfigError
+    from sagebench.settings.export_training import TrainingExportConfig
+    from sagebench.settings.shared import ActionConfig
+    from sagebench.training.export import export_training
+
+    config = TrainingExportConfig(navila=True, actions=ActionConfig(forward_step=0.35, turn_deg=30.0))
+    with pytest.raises(ConfigError) as err:
+        export_training(run, tmp_path / "e", config)
+    assert str(err.value) == ("--navila: NaVILA's evaluator executes moves of 25, 50, 75 cm and turns of 15, 30, 45 "
+                              "degrees; this export's are 0.35 m and 30 degrees")
+    assert not (tmp_path / "e").exists()

@@ -271,3 +271,19 @@ def test_turning_in_place_beside_a_wall_scores_no_contact(demo_eval_run):
     rm = env.sim.world(env.sim.slots[0].episode.scene_id).model
     assert contact_share(rm, [np.array([pressed, obs["pose"]])])[0][1] == 1.0  # within 1 cm of the wall
     assert info["collision_intensity"] == 0.0 and obs["pose"][:2].tolist() == pytest.approx(pressed[:2].tolist(), abs=1e-3)
+
+
+def test_each_step_hands_out_arrays_of_its_own_and_an_opaque_episode_id(tiny_run):
+    """An agent that edits an observation in place changes no later one; info names the episode as a policy server
+    would (opaque), the run's id only to an env given privileged observations."""
+    env = NavEnv(tiny_run, {"profile": "vlnce", "max_steps": 5})
+    obs, info = env.reset(seed=0)
+    real = env.sim.slots[0].episode.episode_id
+    assert re.fullmatch("[0-9a-f]{16}", info["episode_id"]) and info["episode_id"] != real
+    tokens = obs["instruction_tokens"].copy()
+    obs["instruction_tokens"][:] = 0
+    after, *_, info_after = env.step(Action.TURN_LEFT)
+    assert after["instruction_tokens"].tolist() == tokens.tolist() and tokens.any()
+    assert info_after["episode_id"] == info["episode_id"]
+    told = NavEnv(tiny_run, {"profile": "vlnce", "privileged": ["gps_compass"]}).reset(options={"episode_id": real})
+    assert told[1]["episode_id"] == real

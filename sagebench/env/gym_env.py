@@ -4,14 +4,18 @@ Constructing one sizes the process's renderer threads and makes idle ones wait p
 reset(options={"episode_id": ID}) starts that episode; without one, episodes come in an order shuffled by the
 reset seed (each once, then again). Observations: those of the config's profile (sagebench.navsim.profiles;
 by default rgb [H, W, 3] uint8, depth [H, W] float32 m, instruction text and collided), pose, gps/compass and
-instance ids only when asked for (EnvConfig.privileged) or in the `full` profile. info: episode_id,
-distance_to_goal (on foot, m), success (SR so far), collision_intensity (c of this step), steps, outcome.
+instance ids only when asked for (EnvConfig.privileged) or in the `full` profile; every array is the caller's
+own (a new one each step: editing it changes no later observation). info: episode_id (opaque, as a policy server
+gets it: 16 hex digits, stable for the env's lifetime; the run's id when privileged observations were asked for or
+in the `full` profile), distance_to_goal (on foot, m), success (SR so far), collision_intensity (c of this step),
+steps, outcome.
 """
 
 from __future__ import annotations
 
 import string
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import gymnasium as gym
@@ -19,6 +23,7 @@ import numpy as np
 from gymnasium import spaces
 
 from sagebench.navsim.actions import Action
+from sagebench.navsim.opaque import OpaqueIds
 from sagebench.navsim.profiles import env_sensors
 from sagebench.navsim.simulator import Simulator, StepResult
 from sagebench.settings.rollout import EnvConfig
@@ -62,6 +67,14 @@ def observation_space(config: EnvConfig, instructions: Sequence[str] = (), vocab
     return spaces.Dict({k: every[k]() for k in sensors.keys})
 
 
+def handed_out(sim: Simulator, opaque: OpaqueIds, r: StepResult) -> StepResult:
+    """A step's result as the env hands it out (module docstring): arrays copied, the episode id opaque unless
+    privileged."""
+    obs = {k: np.array(v) if isinstance(v, np.ndarray) else v for k, v in r.observation.items()}
+    info = r.info if sim.sensors.privileged else {**r.info, "episode_id": opaque(r.info["episode_id"])}
+    return replace(r, observation=obs, info=info)
+
+
 class NavEnv(gym.Env):
     """One episode of a run directory at a time (module docstring)."""
 
@@ -78,6 +91,7 @@ class NavEnv(gym.Env):
         self.observation_space = observation_space(config, list(self.sim.instructions.values()),
                                                    len(self.sim.vocabulary.word_list) if self.sim.vocabulary else 0)
         self._queue: list[str] = []
+        self._opaque = OpaqueIds()
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
@@ -88,7 +102,7 @@ class NavEnv(gym.Env):
             if not self._queue:
                 self._queue = [self.sim.order[i] for i in self.np_random.permutation(len(self.sim.order))]
             eid = self._queue.pop(0)
-        r = self.sim.start([eid])[0]
+        r = handed_out(self.sim, self._opaque, self.sim.start([eid])[0])
         return r.observation, r.info
 
     def step(self, action):
@@ -96,7 +110,7 @@ class NavEnv(gym.Env):
             raise RuntimeError("call reset() before step()")
         if self.sim.slots[0].done:
             raise RuntimeError("the episode has ended; call reset()")
-        r = self.sim.step([action])[0]
+        r = handed_out(self.sim, self._opaque, self.sim.step([action])[0])
         return r.observation, r.reward, r.terminated, r.truncated, r.info
 
     def render(self):
@@ -121,17 +135,18 @@ class VectorNavEnv:
         share_cores(threads)
         self.sim = Simulator(run_dir, config, scene_id=scene_id, threads=threads)
         self.config = config
+        self._opaque = OpaqueIds()
         self.single_action_space = action_space(config)
         self.single_observation_space = observation_space(
             config, list(self.sim.instructions.values()),
             len(self.sim.vocabulary.word_list) if self.sim.vocabulary else 0)
 
     def reset(self, episode_ids: Sequence[str]) -> tuple[list[dict], list[dict]]:
-        results = self.sim.start(list(episode_ids))
+        results = [handed_out(self.sim, self._opaque, r) for r in self.sim.start(list(episode_ids))]
         return [r.observation for r in results], [r.info for r in results]
 
     def step(self, actions: Sequence) -> list[StepResult]:
-        return self.sim.step(list(actions))
+        return [handed_out(self.sim, self._opaque, r) for r in self.sim.step(list(actions))]
 
     @property
     def done(self) -> list[bool]:

@@ -5,7 +5,8 @@ reply must all end within `timeout` seconds of the request's start, or the reque
 one byte a second or never is cut at the deadline, whatever each socket read does). A connection error (refused,
 reset, closed before a reply) is retried with exponential backoff from `backoff` seconds while the deadline allows,
 at most `retries` times; a retried request carries the same episode_id and step, so a server keeping state can
-answer a repeat from its cache. Anything else (a timeout, an HTTP error status or a redirect, a reply over
+answer a repeat from its cache. Anything else (a timeout, an HTTP error status, whose JSON {"error": why} the
+message quotes, or a redirect, a reply over
 http_client's size or nesting bounds or that is not an action) fails the request at once. A failed request fails
 its episode only: `act` returns a PolicyFailure in that slot and the rollout records the episode as failed by the
 policy.
@@ -18,17 +19,18 @@ results do not depend on the thread count.
 
 from __future__ import annotations
 
-import hashlib
-import hmac
-import os
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 from sagebench.episodes.episode import Episode
 from sagebench.http_client import Client, HTTPFailure, parse_json, public_url, retried
+from sagebench.navsim.opaque import OpaqueIds
 from sagebench.navsim.policies import PolicyFailure
 from sagebench.navsim.protocol import encode_request, parse_action, request_fields
 from sagebench.settings.rollout import Encoding
+
+
+MAX_SAID = 300  # characters of a server's error message shown
 
 
 class RequestFailed(Exception):
@@ -43,7 +45,7 @@ def post(url: str, body: bytes, content_type: str, *, timeout: float, retries: i
     def attempt(seconds_left: float | None) -> bytes:
         reply = client.send("POST", body=body, headers={"Content-Type": content_type}, timeout=seconds_left)
         if reply.status != 200:
-            raise HTTPFailure(f"HTTP {reply.status} {reply.reason}", kind="status")
+            raise HTTPFailure(client.clean(f"HTTP {reply.status} {reply.reason}{said(reply.body)}"), kind="status")
         return reply.body
 
     try:
@@ -54,6 +56,15 @@ def post(url: str, body: bytes, content_type: str, *, timeout: float, retries: i
         raise RequestFailed(f"connection error: {err}" if err.kind == "transport" else str(err)) from None
 
 
+def said(body: bytes) -> str:
+    """What an error reply says, as ': why' (a JSON {"error": why}, its first MAX_SAID characters), or ''."""
+    try:
+        why = parse_json(body).get("error")
+    except (ValueError, AttributeError):
+        return ""
+    return f": {why[:MAX_SAID]}" if isinstance(why, str) else ""
+
+
 class HttpPolicy:
     """POSTs observations to `url` (module docstring)."""
 
@@ -61,12 +72,8 @@ class HttpPolicy:
                  workers: int = 1, encoding: Encoding = "raw", retries: int = 3):
         self.url, self.action_space, self.profile, self.timeout = url, action_space, profile, timeout
         self.encoding, self.retries, self.workers = encoding, retries, max(1, workers)
-        self._key = os.urandom(16)
+        self.opaque_id = OpaqueIds()  # the id sent for an episode in this rollout
         self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="policy") if self.workers > 1 else None
-
-    def opaque_id(self, episode_id: str) -> str:
-        """The id sent for `episode_id` in this rollout."""
-        return hmac.new(self._key, episode_id.encode("utf-8"), hashlib.sha256).hexdigest()[:16]
 
     def begin(self, episodes: Sequence[Episode]) -> None:
         self.ids = [self.opaque_id(e.episode_id) for e in episodes]

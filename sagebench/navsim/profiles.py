@@ -14,7 +14,8 @@ Profiles (sizes are width x height):
   metres [H, W] float32, the instruction text and `collided` (a bump sensor: contact during the last action);
 - `vlnce`: VLN-CE's R2R task (habitat-lab 0.1.7 defaults + VLN-CE's vlnce_task.yaml): rgb 224 x 224 uint8,
   depth 256 x 256 [H, W, 1] float32 normalised to [0, 1] over 0-10 m, the instruction text and its tokens
-  (`instruction_tokens` [200] int64, word ids into the run's vocabulary, export-vlnce's); no bump sensor;
+  (`instruction_tokens` [200] int64, word ids into the run's vocabulary, or the one given: EnvConfig.vocab and
+  .tokenizer, sagebench.vlnce.vocab); no bump sensor;
 - `sage`: what SAGE-Bench's evaluator gives its models (Code/benchmark/environment_evaluation of SAGE-3D):
   rgb 640 x 480 uint8 and depth [H, W] float32 metres clipped to [0, 6.5] (its RGB-D models' input), and the
   instruction text; no pose (its HTTP request sends current_yaw 0.0), no bump sensor;
@@ -119,7 +120,7 @@ class Sensors:
 
 
 DESCRIPTIONS = {"instruction": "text",
-                "instruction_tokens": f"{TOKENS_PER_INSTRUCTION} int64 word ids (the run's vocabulary)",
+                "instruction_tokens": f"{TOKENS_PER_INSTRUCTION} int64 word ids (the run's vocabulary, or --vocab's)",
                 "pose": "[x, y, z, yaw] float64 world m, rad", "gps": "[forward, right] float32 m from the start",
                 "compass": "[heading] float32 rad from the start's", "collided": "bool, contact in the last action",
                 "pointgoal": "[rho, phi] float32 m, rad: the goal from the agent's pose",

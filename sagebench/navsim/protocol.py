@@ -25,6 +25,7 @@ from collections.abc import Mapping
 import cv2
 import numpy as np
 
+from sagebench.http_client import parse_json
 from sagebench.navsim.actions import Action
 from sagebench.settings.rollout import Encoding
 
@@ -80,7 +81,9 @@ def decode_request(content_type: str, body: bytes) -> tuple[dict, dict[str, np.n
     """(fields, images) of a request body in any encoding; a malformed body is a ValueError saying what."""
     kind = content_type.split(";")[0].strip().lower()
     if kind == JSON_TYPE:
-        fields = json.loads(body)
+        fields = parse_json(body)
+        if not isinstance(fields, dict):
+            raise ValueError("a JSON request must be an object")
         return ({k: v for k, v in fields.items() if k != "observations"},
                 {k: decode_image(v) for k, v in fields.get("observations", {}).items()})
     if kind != FRAME_TYPE:
@@ -89,7 +92,7 @@ def decode_request(content_type: str, body: bytes) -> tuple[dict, dict[str, np.n
         raise ValueError("frame shorter than its length prefix")
     (n,) = _LENGTH.unpack_from(body)
     start = _LENGTH.size + n
-    fields = json.loads(body[_LENGTH.size: start])
+    fields = parse_json(body[_LENGTH.size: start])
     if not isinstance(fields, dict) or not isinstance(fields.get("arrays"), dict):
         raise ValueError("a frame's header has no 'arrays'")
     images = {}

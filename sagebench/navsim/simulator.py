@@ -34,6 +34,7 @@ from sagebench.replay.contact import ContactProbe
 from sagebench.settings.rollout import EnvConfig
 from sagebench.tasks.goal_image import goal_image_file, read_goal_image
 from sagebench.tasks.goals import goal_field, success_distance
+from sagebench.vlnce.vocab import Vocabulary, read_vocabulary
 
 POSE_DECIMALS = 6  # predictions are written to the micrometre / microradian
 
@@ -98,7 +99,7 @@ class Simulator:
         episodes = [e for e in episodes if e.task == config.task]  # each task runs alone, with its observations
         if config.success_distance is not None:
             episodes = [replace(e, goal_radius=config.success_distance) for e in episodes]
-        self.vocabulary = run_vocabulary(self.run_dir) if self.sensors.tokens else None
+        self.vocabulary = vocabulary(self.run_dir, config) if self.sensors.tokens else None
         self.episodes = {e.episode_id: e for e in episodes}
         self.order = [e.episode_id for e in episodes]
         self._worlds: dict[str, World] = {}
@@ -253,6 +254,13 @@ class Simulator:
         info = {"episode_id": s.episode.episode_id, "distance_to_goal": s.distance, "success": s.success,
                 "collision_intensity": float(c_t), "steps": s.steps, "outcome": s.outcome or "running"}
         return StepResult(obs, float(reward), s.outcome in ("stop", "left_map"), s.outcome == "step_limit", info)
+
+
+def vocabulary(run_dir: Path, config: EnvConfig) -> Vocabulary:
+    """The vocabulary instruction_tokens index: the one given (--vocab), else the run's."""
+    if config.vocab is not None:
+        return read_vocabulary(config.vocab, config.tokenizer)
+    return run_vocabulary(run_dir, config.tokenizer)
 
 
 def observation(sensors: Sensors, s: Slot) -> dict:

@@ -54,14 +54,14 @@ def open_world(run_dir: Path, scene_id: str, *, replay: ReplayConfig, images: Se
     return World(scene_id=scene_id, model=model, navmap=navmap, gaussians=gaussians, renderer=drawn, bounds=navmap.bounds)
 
 
-def run_vocabulary(run_dir: Path) -> Vocabulary:
-    """The vocabulary of every instruction of the run, every scene's: the one export-vlnce writes, so tokens
-    in the closed loop are the word ids of the exported dataset."""
+def run_vocabulary(run_dir: Path, tokenizer: str = "sagebench") -> Vocabulary:
+    """The vocabulary of every instruction of the run, every scene's: the one export-vlnce writes (with its
+    tokenizer), so tokens in the closed loop are the word ids of the exported dataset."""
     texts = []
     for sid in run_scenes(run_dir, having="episodes"):
         table = read_episodes(run_episodes_dir(run_dir, sid)).select(["instruction_text"])
         texts += [t for t in table.column("instruction_text").to_pylist() if t is not None]
-    return Vocabulary.from_texts(texts)
+    return Vocabulary.from_texts(texts, tokenizer)
 
 
 def run_episodes(run_dir: Path, scene_id: str | None = None) -> tuple[list[Episode], dict[str, str]]:

@@ -30,7 +30,7 @@ from sagebench.fileio import write_bytes
 from sagebench.metrics.on_foot import NavigableMap
 from sagebench.navsim.http_policy import HttpPolicy
 from sagebench.navsim.policies import BUILT_IN, Policy, built_in
-from sagebench.navsim.profiles import Sensors
+from sagebench.navsim.profiles import Sensors, env_sensors
 from sagebench.navsim.resumable import run_into
 from sagebench.navsim.rollout import contact_sheet, select_episodes
 from sagebench.navsim.sage_policy import SCHEMES as SAGE_SCHEMES
@@ -48,7 +48,7 @@ AGENT_SPEC = re.compile(r"vlnce:(?P<module>[\w.]+):(?P<name>\w+)")  # a VLN-CE a
 
 # options that decide the predictions: a resumed rollout takes them from its record
 DECISIVE_OPTIONS = ("--split", "--episode-id", "--episodes", "--seed", "--preset", "--profile", "--width", "--height",
-                    "--max-steps", "--obs", "--privileged", "--action-space")
+                    "--max-steps", "--obs", "--privileged", "--action-space", "--tokenizer", "--vocab")
 PROFILE_FIELDS = {"profile": "--profile", "width": "--width", "observations": "--obs"}
 
 
@@ -86,6 +86,9 @@ def make_config(given: Mapping[str, object], *, resume: bool = False) -> Rollout
     if AGENT_SPEC.fullmatch(p) and (config.env.profile, config.env.action_space) != ("vlnce", "discrete"):
         raise ConfigError("a VLN-CE agent needs the vlnce profile and discrete actions (--preset vlnce)",
                           field="--profile")
+    if config.env.vocab is not None and not env_sensors(config.env).tokens:
+        raise ConfigError(f"the {config.env.profile} profile has no instruction_tokens (vlnce and full have)",
+                          field="--vocab")
     if p in BUILT_IN and "pose" not in config.env.privileged:  # the baselines steer by the pose: say so
         config = from_options(RolloutConfig, {**given, "--privileged": (*config.env.privileged, "pose")}, {"env": base})
     return config
@@ -130,6 +133,7 @@ class RolloutSummary:
     failed: list[tuple[str, str]]  # (episode id, why) the policy failed in this run
     stopped_early: bool  # the failure budget ran out
     preset: list[str]  # what the preset set differently from the defaults
+    vocab: str | None = None  # the vocabulary given and the words it lacks
 
     @property
     def complete(self) -> bool:
@@ -138,6 +142,7 @@ class RolloutSummary:
     def lines(self) -> list[str]:
         sheet = f" and {self.sheet}" if self.sheet else ""
         out = [f"preset: {'; '.join(self.preset)}"] if self.preset else []
+        out += [self.vocab] if self.vocab else []
         out.append(f"rollout {self.policy}: {self.episodes} of {self.asked} episodes ({self.stopped} stopped by the "
                    f"policy), {self.steps} steps, {self.steps / max(self.seconds, 1e-9):.1f} steps/s -> "
                    f"{self.out}{sheet}")
@@ -213,7 +218,7 @@ def _roll_out(run_dir: Path, out: Path, config: RolloutConfig, scene_id: str | N
                           episodes=len(written.predictions), stopped=sum(p.stopped for p in written.predictions),
                           steps=result.steps, seconds=time.perf_counter() - start, failed=result.failed,
                           stopped_early=result.stopped_early,
-                          preset=preset_lines(config, sim, asked))
+                          preset=preset_lines(config, sim, asked), vocab=vocab_line(config, sim, asked))
 
 
 def preset_lines(config: RolloutConfig, sim: Simulator, asked: list[str]) -> list[str]:
@@ -222,6 +227,17 @@ def preset_lines(config: RolloutConfig, sim: Simulator, asked: list[str]) -> lis
         return []
     scenes = dict.fromkeys(sim.episodes[i].scene_id for i in asked)
     return [*preset_differences(config.env, EnvConfig()), body_note([sim.world(s).model.agent for s in scenes])]
+
+
+def vocab_line(config: RolloutConfig, sim: Simulator, asked: list[str]) -> str | None:
+    """The vocabulary given (--vocab) and how many tokens of the asked episodes' instructions it lacks (<unk>)."""
+    vocab = sim.vocabulary
+    if config.env.vocab is None or vocab is None:
+        return None
+    counts = [vocab.unknown(sim.instructions.get(i, "")) for i in asked]
+    unknown, total = sum(u for u, _ in counts), sum(t for _, t in counts)
+    return (f"vocabulary {config.env.vocab}: {len(vocab.word_list):,} words, the {vocab.tokenizer} tokenizer; "
+            f"{unknown:,} of the {total:,} instruction tokens of the {len(asked):,} episodes are not in it (<unk>)")
 
 
 def open_inputs(sim: Simulator, asked: list[str], out: Path) -> None:

@@ -39,7 +39,7 @@ from sagebench.run_layout import (
 from sagebench.run_folder import claim_export_dir
 from sagebench.settings.export_training import TrainingExportConfig
 from sagebench.training.actions import path_actions
-from sagebench.training.navila import write_navila
+from sagebench.training.navila import action_words, write_navila
 from sagebench.training.shards import chunks, depth_png, open_shard, rgb_png, sample_json, sample_key, shard_samples
 
 SETTINGS_FILE = "export.json"
@@ -84,6 +84,8 @@ def export_training(run_dir: Path, out: Path, config: TrainingExportConfig = Tra
         raise DataError(f"no vln episodes to export{besides}", path=run_dir)
     if not ids:
         raise ConfigError(f"no episodes of split {config.split!r} in {run_dir}{besides}", field="--split")
+    if config.navila:
+        action_words(config.actions)  # refused before the first shard, not after the last
     backend = choose_backend(config.renderer, config.env().observations)
     settings = {"format": FORMAT, "sagebench": __version__, "renderer": backend,
                 "config": config.model_dump(mode="json", exclude=NOT_IN_SHARDS),
@@ -123,7 +125,7 @@ def _export_locked(sim: Simulator, ids: list[str], out: Path, settings: dict, co
         report(done, samples)
     write_text(out / INDEX_FILE, dumps_json({**settings, "episodes": len(ids), "samples": samples, "shards": shards}))
     if config.navila:
-        write_navila(out, [out / s["file"] for s in shards], config.actions)
+        write_navila(out, [(out / s["file"], s["split"]) for s in shards], config.actions)
     return TrainingExport(out=out, episodes=len(ids), samples=samples, shards=len(plan), written=written,
                           new_samples=new, seconds=time.perf_counter() - start, renderer=backend)
 
