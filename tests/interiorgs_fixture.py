@@ -30,7 +30,8 @@ import shapely
 import trimesh
 
 from sagebench.render.gaussians import SH_C0, Gaussians
-from sagebench.scene.loader import LoadedScene, load_scene
+from sagebench.scene.loader import SCENE_FILE, LoadedScene, load_scene
+from sagebench.scene.model import Transform
 from sagebench.settings.build_scene import BuildSceneConfig, SplatConfig
 from sagebench.splats.scene import sampled_gaussians
 from sagebench.topdown.builder import Topdown, compute_topdown
@@ -76,6 +77,31 @@ def write_interiorgs_folder(scene_dir: Path, out: Path, *, splats: SplatConfig =
     (out / "occupancy.png").write_bytes(png)
     (out / "occupancy.json").write_text(json.dumps(meta))
     return Truth(scene, g.instance_id.copy(), label_ids, td)
+
+
+def turned_scene(src: Path, dest: Path, yaw_deg: float) -> Path:
+    """The scene in `src` turned by `yaw_deg` about Z around the middle of its rooms' box (which lands on the
+    origin), written to `dest`: rooms, object transforms and door hinges turned, meshes copied as they are."""
+    scene = load_scene(src)
+    a = math.radians(yaw_deg)
+    turn = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    corners = np.concatenate([np.asarray(r.polygon)[:, :2] for r in scene.spec.rooms])
+    move = np.eye(4)
+    move[:2, :2], move[:2, 3] = turn, -turn @ ((corners.min(axis=0) + corners.max(axis=0)) / 2)
+    to = lambda x, y: tuple(float(v) for v in move[:2, :2] @ (x, y) + move[:2, 3])  # noqa: E731
+    objects = []
+    for o in scene.spec.objects:
+        m = move @ o.transform.as_matrix()
+        update = {"transform": Transform(matrix=tuple(tuple(float(v) for v in row) for row in m))}
+        if o.door:
+            update["door"] = o.door.model_copy(update={"hinge": (*to(*o.door.hinge[:2]), o.door.hinge[2])})
+        objects.append(o.model_copy(update=update))
+        (dest / o.mesh).parent.mkdir(parents=True, exist_ok=True)
+        (dest / o.mesh).write_bytes((src / o.mesh).read_bytes())
+    rooms = [r.model_copy(update={"polygon": [to(*p[:2]) for p in r.polygon]}) for r in scene.spec.rooms]
+    spec = scene.spec.model_copy(update={"rooms": rooms, "objects": objects})
+    (dest / SCENE_FILE).write_text(json.dumps(spec.model_dump(mode="json", exclude_defaults=True)))
+    return dest
 
 
 def unseen_dropped(scene: LoadedScene, g: Gaussians, contact: float = 0.005) -> Gaussians:

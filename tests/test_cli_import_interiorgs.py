@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from interiorgs_fixture import (
-    band_footprint_ious, empty_space_filled, in_box_share, iou, on_grid, write_interiorgs_folder,
+    band_footprint_ious, empty_space_filled, in_box_share, iou, on_grid, turned_scene, write_interiorgs_folder,
 )
 from sagebench.scene.assets import CATALOGUE, table
 from sagebench.scene.loader import load_scene
@@ -106,6 +106,62 @@ def test_a_run_config_takes_the_folder_and_validates_every_trajectory(interiorgs
     built = tmp_path / "out" / "scenes" / folder.name
     for path in [*sorted((interiorgs_imported / "meshes").iterdir()), interiorgs_imported / "gaussians.ply"]:
         assert (built / path.relative_to(interiorgs_imported)).read_bytes() == path.read_bytes(), path.name
+
+
+def _through_passages(run: Path, per_passage: int = 12) -> list[np.ndarray]:
+    """Planned paths [M, 4] (as gen-trajectories plans them) between navigable cells within 1.5 m of each passage
+    cell of the run's scene that pass through a passage, one per distinct path."""
+    from sagebench.astar.grid_astar import astar
+    from sagebench.astar.shortcut import shortcut_indices, waypoints
+
+    maps = np.load(next((run / "scenes").glob("*/topdown.npz")))
+    nav, res, origin = maps["navigable"], float(maps["resolution"]), tuple(maps["origin"])
+    anchors = {(int(r), int(c)): tuple(a) for (r, c), a in zip(maps["passage_cells"], maps["passage_xy"])}
+    free, rng, paths = np.argwhere(nav == 1), np.random.default_rng(0), {}
+    for cell in anchors:
+        near = free[np.abs(free - cell).max(axis=1) <= 30]
+        for a, b in near[rng.integers(len(near), size=(per_passage, 2))]:
+            found = astar(nav, tuple(map(int, a)), tuple(map(int, b)), res)
+            if found is not None and any(tuple(map(int, c)) in anchors for c in found.cells):
+                wps = waypoints(found.cells[shortcut_indices(nav, found.cells)], res, origin, 0.0, anchors)
+                paths[wps.tobytes()] = wps
+    return list(paths.values())
+
+
+@pytest.mark.slow  # turned synth apartments through the whole pipeline, a few minutes each: CI runs them
+@pytest.mark.parametrize(("seed", "yaw"), [(1, 30), (0, 15)])
+def test_every_path_through_a_turned_apartment_s_passages_is_walked(seed, yaw, run_cli, tmp_path):
+    """Issue 38: on synth apartments turned off the grid and imported as InteriorGS folders, build-scene opens
+    passages whose adjacent cells' anchors lie closer together than the replay's waypoint tolerance (seed 1 at
+    30 degrees: 1.5 cm apart near (-1.9, -4.1)). Every trajectory gen-trajectories writes passes validate, and
+    every path planned through a passage is walked to its end at the default drive speed and at slower ones
+    (`[validate.replay] max_speed`): at 0.6 and 0.7 m/s 21 and 26 of seed 1's 68 stalled there before the
+    replay drove to a turn command out of reach (goal_not_reached, incomplete)."""
+    from sagebench.replay.physics import replay_batch
+    from sagebench.replay.scene_model import open_replay_model
+    from sagebench.scene.synth import write_synth_scene
+    from sagebench.settings.shared import ReplayConfig
+    from sagebench.validation.checks import judge
+
+    write_synth_scene(tmp_path / "synth", seed=seed)
+    folder = tmp_path / f"0003_{seed:06d}"
+    write_interiorgs_folder(turned_scene(tmp_path / "synth", tmp_path / "turned", yaw), folder)
+    run = tmp_path / "run"
+    for args in (("build-scene", folder, "--out", run), ("gen-trajectories", run, "--per-scene", "40"),
+                 ("export-usd", run, "--cache-dir", tmp_path / "cache", "--colliders", "fast")):
+        code, _, err = run_cli("-q", *args)
+        assert code == 0, err
+    code, out, err = run_cli("validate", run)
+    assert code == 0 and "40/40 trajectories pass" in out, out + err
+    planned = _through_passages(run)
+    assert any((np.linalg.norm(np.diff(p[:, :2], axis=0), axis=1) < ReplayConfig().waypoint_tolerance).any()
+               for p in planned)  # the case: two waypoints closer than the tolerance
+    for speed in (0.6, 0.7, ReplayConfig().max_speed):
+        rm = open_replay_model(run, folder.name, replay=ReplayConfig(max_speed=speed))
+        paths = [np.column_stack([p[:, :2], np.full(len(p), rm.floor_z), p[:, 3]]) for p in planned]
+        failed = [(judge(rec, p, p[-1, :3], goal_radius=0.5, geodesic_distance=1.0, timestep=rm.timestep).reasons,
+                   p[:, :2].round(3).tolist()) for p, rec in zip(paths, replay_batch(rm, paths))]
+        assert not [f for f in failed if f[0]], (speed, [f for f in failed if f[0]][:2])
 
 
 def test_collision_usd_meshes_replace_the_surfaces(interiorgs_demo, run_cli, tmp_path):

@@ -56,6 +56,18 @@ def test_coincident_waypoints_are_turn_commands(room):
     assert rec.poses[:, 3].max() == pytest.approx(1.0, abs=1e-3)  # it did turn to the first commanded yaw
 
 
+@pytest.mark.parametrize("first", [0.059, 0.0585, 0.099])
+def test_a_waypoint_within_the_tolerance_of_one_reached_short_is_still_walked_to(room, first):
+    """Two passage anchors 1.5 cm apart (as build-scene's chains of narrow cells hold them, issue 38): the agent
+    counts the first reached up to 2 cm short of it (0.8 m/s x 0.05 s = 4 cm a step), which left the second,
+    a turn command, 3.4 cm away; it turned on the spot and stalled there. It drives to it, then turns."""
+    path = _path((0, -1), (first, -1), (first + 0.015, -1), (first + 0.015, -0.2))
+    rec = replay_one(room, path)
+    assert rec.outcome == "reached" and not rec.contact.any()
+    assert np.linalg.norm(rec.poses[-1, :2] - path[-1, :2]) < room.config.waypoint_tolerance
+    assert distance_to_polyline(rec.poses, path).max() < 0.01
+
+
 def test_wall_blocks_the_agent(room):
     rec = replay_one(room, _path((0, -1), (4.5, -1)))
     assert rec.outcome != "reached"

@@ -16,7 +16,7 @@ from sagebench.scene.loader import load_scene
 from sagebench.topdown.builder import BuildSceneConfig, compute_topdown
 from sagebench.topdown.footprints import mesh_parts
 from sagebench.topdown.occupancy import scene_occupancy
-from sagebench.topdown.passages import MARGIN, PASSAGE, open_passages
+from sagebench.topdown.passages import MARGIN, PASSAGE, _best_points, _clearance_field, _fitting, open_passages
 from sagebench.topdown.raster import Grid
 from sagebench.topdown.regions import label_regions
 
@@ -60,17 +60,22 @@ def test_a_map_in_one_piece_is_left_as_it_is():
     assert np.array_equal(out, nav.astype(np.uint8)) and len(passages.cells) == 0
 
 
-@pytest.mark.parametrize("gap, opened", [((0.81, 1.224), True), ((0.81, 1.195), False)])
-def test_a_passage_opens_between_two_footprints_only_where_the_agent_fits(gap, opened):
-    """Two blocks across a 2 m room leave a gap that holds no navigable cell centre. At 0.414 m, 1 cm wider than
-    the agent needs (2 x (radius + MARGIN) = 0.404 m), a passage opens: one region after, each anchor clearing
-    both blocks. At 0.385 m (7.5 mm short of the radius on each side) the rooms stay apart."""
+def _two_blocks(gap: tuple[float, float]):
+    """Two blocks across a 2 m room, a gap between x = gap[0] and gap[1]: their occupancy, plan and grid."""
     blocks = [shapely.box(0.0, 0.96, gap[0], 1.06), shapely.box(gap[1], 0.96, 2.0, 1.06)]
     scene = inline_scene([("block", "object", trimesh.creation.box(bounds=[(*b.bounds[:2], 0), (*b.bounds[2:], 2.4)]))
                           for b in blocks])
     plan, grid = shapely.box(0, 0, 2, 2), Grid((-0.1, -0.1), 0.05, (44, 44))
     parts = {i: mesh_parts(m) for i, m in scene.meshes.items()}
-    occ = scene_occupancy(scene.spec.objects, parts, plan, grid, (0.05, 1.2), RADIUS)
+    return blocks, scene_occupancy(scene.spec.objects, parts, plan, grid, (0.05, 1.2), RADIUS), plan, grid
+
+
+@pytest.mark.parametrize("gap, opened", [((0.81, 1.224), True), ((0.81, 1.195), False)])
+def test_a_passage_opens_between_two_footprints_only_where_the_agent_fits(gap, opened):
+    """Two blocks across a 2 m room leave a gap that holds no navigable cell centre. At 0.414 m, 1 cm wider than
+    the agent needs (2 x (radius + MARGIN) = 0.404 m), a passage opens: one region after, each anchor clearing
+    both blocks. At 0.385 m (7.5 mm short of the radius on each side) the rooms stay apart."""
+    blocks, occ, plan, grid = _two_blocks(gap)
     assert label_regions(occ.navigable)[1] == 2  # the cells' centres leave the gap shut
     out, passages = open_passages(occ.navigable, occ.occupied, occ.band_polys, plan, grid, RADIUS)
     assert label_regions(out)[1] == (1 if opened else 2) and bool(len(passages.cells)) is opened
@@ -78,6 +83,26 @@ def test_a_passage_opens_between_two_footprints_only_where_the_agent_fits(gap, o
     if opened:
         clearance = shapely.distance(shapely.union_all(blocks), shapely.points(passages.anchors))
         assert clearance.min() >= RADIUS + MARGIN - 1e-4, clearance.min()
+
+
+@pytest.mark.parametrize("start", [0.8, 0.8133, 0.8271])
+@pytest.mark.parametrize("width", [0.4031, 0.4046, 0.4063, 0.4137])
+def test_a_cell_settled_early_is_decided_as_the_full_search_decides_it(start, width):
+    """build-scene searches a left-out cell only until it is known whether the agent fits there (issue 40): on
+    gaps around the agent's width (2 x (radius + MARGIN) = 0.404 m), their middle line off the search's points,
+    every free cell is decided as the full search decides it, and a cell's best point and clearance do not
+    depend on which other cells are searched with it (the passage's anchors are searched on their own)."""
+    _, occ, plan, grid = _two_blocks((start, start + width))
+    rc = np.argwhere(~occ.occupied & ~occ.navigable)
+    clearance = _clearance_field(occ.occupied, occ.band_polys, plan, grid)
+    points, best = _best_points(rc, clearance, grid)
+    need = RADIUS + MARGIN
+    xy = np.asarray(grid.origin) + (rc[:, ::-1] + 0.5) * grid.resolution
+    in_gap = (xy[:, 0] > start) & (xy[:, 0] < start + width) & (xy[:, 1] > 0.96) & (xy[:, 1] < 1.06)
+    assert in_gap.any() and bool((best[in_gap] >= need).any()) is (width >= 2 * need)
+    assert np.array_equal(_fitting(rc, clearance, grid, need), best >= need)
+    some = np.flatnonzero(best >= need - 0.01)
+    assert np.array_equal(_best_points(rc[some], clearance, grid)[0], points[some])
 
 
 def test_trajectories_through_the_passage_keep_to_the_geometry_and_replay_clean(tmp_path, run_cli):

@@ -248,7 +248,9 @@ def _control(paths: _Paths, rows: np.ndarray, follow: _Follow, pose: np.ndarray,
     Turn-then-drive: a waypoint is reached within waypoint_tolerance (a turn command when its yaw is within
     yaw_tolerance too); the agent turns at up to max_turn_rate towards the next one and drives only while the
     heading error is below turn_in_place, at up to max_speed and never past the waypoint, so it traces the
-    polyline. Returns v [B] m/s, omega [B] rad/s and the outcome [B] (0 while running, else REACHED/STALLED).
+    polyline. A waypoint counts as reached up to waypoint_tolerance short, so a turn command (a waypoint within
+    waypoint_tolerance of the one before) may lie farther off than that: the agent drives to it first.
+    Returns v [B] m/s, omega [B] rad/s and the outcome [B] (0 while running, else REACHED/STALLED).
     """
     dt = config.timestep
     xy, yaw = pose[:, :2], pose[:, 2]
@@ -265,9 +267,10 @@ def _control(paths: _Paths, rows: np.ndarray, follow: _Follow, pose: np.ndarray,
             break
         idx[advance] += 1
     bearing = np.arctan2(target[:, 1] - xy[:, 1], target[:, 0] - xy[:, 0])
-    err = np.where(turn, yaw_err, _wrap(bearing - yaw))
+    turning = turn & (dist < config.waypoint_tolerance)  # a turn command not within reach is driven to first
+    err = np.where(turning, yaw_err, _wrap(bearing - yaw))
     omega = np.clip(err / dt, -config.max_turn_rate, config.max_turn_rate)
-    drive = ~turn & (np.abs(err) <= config.turn_in_place)
+    drive = ~turning & (np.abs(err) <= config.turn_in_place)
     v = np.where(drive, np.minimum(config.max_speed, dist / dt) * np.cos(err), 0.0)
 
     new_target = idx != follow.idx[rows]

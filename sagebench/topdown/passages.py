@@ -16,6 +16,7 @@ come within (step / 2)^2 / (2 radius) of it (3 mm at 0.05 m), inside validate's 
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,6 +31,9 @@ PASSAGE = 2  # navigable value of a cell the agent fits in only off its centre, 
 SUB = 5  # points per side of each search step where a left-out cell is judged
 REFINE = 3  # finer search steps around the best point
 MARGIN = 0.002  # m of clearance past the agent's radius an anchor needs (the replay's prism is up to 1 mm wider)
+SLACK = 1e-9  # m kept in bounds that settle a cell early: far above the distances' rounding, far below a step
+
+Clearance = Callable[[np.ndarray], np.ndarray]  # shapely points [N] -> clearance [N], m (`_clearance_field`)
 
 
 @dataclass(frozen=True)
@@ -54,49 +58,73 @@ def open_passages(navigable: np.ndarray, occupied: np.ndarray, band_polys: np.nd
     rc = np.argwhere(candidates)
     if not len(rc):
         return out, none
-    anchors, clearance = _best_points(rc, occupied, band_polys, plan, grid)
+    clearance = _clearance_field(occupied, band_polys, plan, grid)
     fits = np.zeros(navigable.shape, dtype=bool)
-    fits[rc[:, 0], rc[:, 1]] = clearance >= radius + MARGIN
-    anchor_of = {(int(r), int(c)): a for (r, c), a in zip(rc, anchors)}
+    fits[rc[:, 0], rc[:, 1]] = _fitting(rc, clearance, grid, need=radius + MARGIN)
     chain = _bridges(labels, fits)
     if not chain:
         return out, none
     cells = np.array(chain, dtype=np.int32)
     out[cells[:, 0], cells[:, 1]] = PASSAGE
-    return out, Passages(cells, np.array([anchor_of[(int(r), int(c))] for r, c in cells]))
+    return out, Passages(cells, _best_points(cells, clearance, grid)[0])
 
 
-def _best_points(rc: np.ndarray, occupied: np.ndarray, band_polys: np.ndarray, plan: BaseGeometry,
-                 grid: Grid) -> tuple[np.ndarray, np.ndarray]:
+def _fitting(rc: np.ndarray, clearance: Clearance, grid: Grid, need: float) -> np.ndarray:
+    """[N] bool: whether `_best_points` finds `need` m of clearance in each cell [N, 2] (row, col), searching
+    only as far as it takes to know: the cell's centre (the first step's middle point) settles a cell that clears
+    `need` there or cannot reach it anywhere in the cell (`_best_points` on settling)."""
+    half = grid.resolution / 2
+    centre = _corners(rc, grid) + half
+    at_centre = clearance(shapely.points(centre[:, 0], centre[:, 1]))
+    fits = at_centre >= need
+    open_ = ~fits & (np.maximum(at_centre, 0.0) + half * np.sqrt(2) >= need - SLACK)
+    fits[open_] = _best_points(rc[open_], clearance, grid, need=need)[1] >= need
+    return fits
+
+
+def _best_points(rc: np.ndarray, clearance: Clearance, grid: Grid,
+                 need: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """For each cell [N, 2] (row, col): the point of most clearance from the exact geometry (world xy [N, 2])
     and that clearance [N], m. Searched on SUB x SUB points, then REFINE times on SUB x SUB points around the
     best one at a fifth of the spacing (kept inside the cell), so an anchor in a gap lies on its middle line to
-    within a fraction of a millimetre (first point in row-major order on ties)."""
+    within a fraction of a millimetre (first point in row-major order on ties). Each cell's search is its own.
+
+    With `need` (m), a cell's search stops once it is settled whether its best clears `need`: the best only
+    grows, every later point lies within `half` of the best point on each axis, and clearance changes at most
+    1:1 with position (distances do; a point outside the plan has less than any inside), so a cell whose best
+    plus half x sqrt(2) falls short of `need` never reaches it. Its point and clearance are then where it
+    stopped; the decision best >= need is the full search's."""
     res = grid.resolution
-    lo = np.column_stack([grid.origin[0] + rc[:, 1] * res, grid.origin[1] + rc[:, 0] * res])  # [N, 2]
-    centre = lo + res / 2
-    best_xy, best = centre, np.full(len(rc), -np.inf)
+    lo = _corners(rc, grid)
+    best_xy, best = lo + res / 2, np.full(len(rc), -np.inf)
     half = res / 2
     steps = (np.arange(SUB) + 0.5) / SUB * 2 - 1  # [SUB] in (-1, 1)
-    dx, dy = np.meshgrid(steps, steps, indexing="xy")
+    dx, dy = (d.ravel()[None] for d in np.meshgrid(steps, steps, indexing="xy"))
+    on = np.arange(len(rc))  # the cells still searched
     for _ in range(REFINE + 1):
-        x = np.clip(centre[:, 0, None] + dx.ravel()[None] * half, lo[:, 0, None], lo[:, 0, None] + res)
-        y = np.clip(centre[:, 1, None] + dy.ravel()[None] * half, lo[:, 1, None], lo[:, 1, None] + res)
-        clearance = _clearance(shapely.points(x.ravel(), y.ravel()), occupied, band_polys, plan, grid)
-        clearance = clearance.reshape(x.shape)
-        k = np.argmax(clearance, axis=1)
-        rows = np.arange(len(rc))
-        better = clearance[rows, k] > best
-        best_xy = np.where(better[:, None], np.column_stack([x[rows, k], y[rows, k]]), best_xy)
-        best = np.maximum(best, clearance[rows, k])
-        centre, half = best_xy, half / SUB
+        x = np.clip(best_xy[on, 0, None] + dx * half, lo[on, 0, None], lo[on, 0, None] + res)
+        y = np.clip(best_xy[on, 1, None] + dy * half, lo[on, 1, None], lo[on, 1, None] + res)
+        found = clearance(shapely.points(x.ravel(), y.ravel())).reshape(x.shape)
+        rows, k = np.arange(len(on)), np.argmax(found, axis=1)
+        better = found[rows, k] > best[on]
+        best_xy[on] = np.where(better[:, None], np.column_stack([x[rows, k], y[rows, k]]), best_xy[on])
+        best[on] = np.maximum(best[on], found[rows, k])
+        half = half / SUB
+        if need is not None:
+            on = on[(best[on] < need) & (np.maximum(best[on], 0.0) + half * np.sqrt(2) >= need - SLACK)]
     return best_xy, best
 
 
-def _clearance(pts: np.ndarray, occupied: np.ndarray, band_polys: np.ndarray, plan: BaseGeometry,
-               grid: Grid) -> np.ndarray:
-    """Distance [N] (m) from each point to the nearest geometry in the band or the floor plan's edge; negative
-    outside the plan. Cells blocked only by a solid span (no clipped triangle touches them) count as squares."""
+def _corners(rc: np.ndarray, grid: Grid) -> np.ndarray:
+    """World xy [N, 2] of the low corner of each cell [N, 2] (row, col)."""
+    res = grid.resolution
+    return np.column_stack([grid.origin[0] + rc[:, 1] * res, grid.origin[1] + rc[:, 0] * res])
+
+
+def _clearance_field(occupied: np.ndarray, band_polys: np.ndarray, plan: BaseGeometry, grid: Grid) -> Clearance:
+    """The distance [N] (m) from each of N points to the nearest geometry in the band or the floor plan's edge;
+    negative outside the plan. Cells blocked only by a solid span (no clipped triangle touches them) count as
+    squares. The geometry and its tree are built once, for every query."""
     res = grid.resolution
     h, w = occupied.shape
     shapes = shapely.polygons(band_polys) if len(band_polys) else np.zeros(0, dtype=object)
@@ -108,14 +136,19 @@ def _clearance(pts: np.ndarray, occupied: np.ndarray, band_polys: np.ndarray, pl
     squares = shapely.box(grid.origin[0] + solid[:, 1] * res, grid.origin[1] + solid[:, 0] * res,
                           grid.origin[0] + (solid[:, 1] + 1) * res, grid.origin[1] + (solid[:, 0] + 1) * res)
     geoms = np.concatenate([shapes, np.asarray(squares, dtype=object).reshape(-1)])
-    out = shapely.distance(plan.boundary, pts)
-    if len(geoms):
-        tree = shapely.STRtree(geoms)
-        (idx, near), dist = tree.query_nearest(pts, return_distance=True, all_matches=False)
-        nearest = np.full(len(pts), np.inf)
-        nearest[idx] = dist
-        out = np.minimum(out, nearest)
-    return np.where(shapely.contains_xy(plan, shapely.get_x(pts), shapely.get_y(pts)), out, -1.0)
+    tree = shapely.STRtree(geoms) if len(geoms) else None
+    edge = plan.boundary
+
+    def clearance(pts: np.ndarray) -> np.ndarray:
+        out = shapely.distance(edge, pts)
+        if tree is not None:
+            (idx, _near), dist = tree.query_nearest(pts, return_distance=True, all_matches=False)
+            nearest = np.full(len(pts), np.inf)
+            nearest[idx] = dist
+            out = np.minimum(out, nearest)
+        return np.where(shapely.contains_xy(plan, shapely.get_x(pts), shapely.get_y(pts)), out, -1.0)
+
+    return clearance
 
 
 def _centres(grid: Grid) -> tuple[np.ndarray, np.ndarray]:
@@ -126,7 +159,8 @@ def _centres(grid: Grid) -> tuple[np.ndarray, np.ndarray]:
 def _bridges(labels: np.ndarray, fits: np.ndarray) -> list[tuple[int, int]]:
     """The cells of `fits` [H, W] bool on the shortest 4-connected chains that join the regions of `labels`
     [H, W] int32 (0: not navigable): one breadth-first search from every region cell at once (row-major order);
-    where the fronts of two regions not yet joined meet, the cells back to each region are opened."""
+    where the fronts of two regions not yet joined meet, the cells back to each region are opened. Only region
+    cells next to a cell of `fits` start it: regions are 4-connected components, so no other can meet a front."""
     h, w = labels.shape
     owner = labels.astype(np.int64).copy()  # the region whose front reached each cell
     parent = np.full((h, w, 2), -1, dtype=np.int64)
@@ -137,7 +171,8 @@ def _bridges(labels: np.ndarray, fits: np.ndarray) -> list[tuple[int, int]]:
             k = joined[k]
         return k
 
-    queue = deque((int(r), int(c)) for r, c in np.argwhere(labels > 0))
+    near_fits = ndimage.binary_dilation(fits, structure=ndimage.generate_binary_structure(2, 1))
+    queue = deque((int(r), int(c)) for r, c in np.argwhere((labels > 0) & near_fits))
     opened: list[tuple[int, int]] = []
     while queue:
         r, c = queue.popleft()
