@@ -228,8 +228,8 @@ def test_rollout_predictions_are_scored_as_measured(demo_eval_run, tmp_path, run
 
 
 @pytest.mark.parametrize("args, message", [
-    (("--policy", "nope"), "error: --policy: 'nope' is neither an http(s):// URL, vlnce:MODULE:NAME nor one of oracle, "
-     "straight, random"),
+    (("--policy", "nope"), "error: --policy: 'nope' is neither an http(s):// URL, sage+http:// or sage+socket:// URL, "
+     "vlnce:MODULE:NAME nor one of oracle, straight, random, stationary, explorer"),
     (("--obs", "rgb,colour"), "error: --obs: 'colour' is not one of rgb, depth (or none)"),
     (("--obs", "rgb,instance"), "error: --obs: instance ids are privileged: ask for them with --privileged instance"),
     (("--width", "0"), "error: --width: "),
