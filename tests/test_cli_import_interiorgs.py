@@ -204,7 +204,50 @@ def _ins_id_of_5000_digits(path: Path) -> None:
     path.write_text(json.dumps(labels).replace('"@"', "9" * 5000))  # json.dumps cannot write such an int itself
 
 
+def _ply_chunk_edit(fn):
+    """An edit of the compressed PLY's chunk table (float32 bounds of 256 Gaussians each) by `fn(table)`."""
+    def edit(path: Path) -> None:
+        from sagebench.splats.ply import _parse_header
+
+        data = bytearray(path.read_bytes())
+        elements, body = _parse_header(bytes(data), path)
+        chunk = elements[0]
+        end = body + chunk.count * chunk.dtype.itemsize
+        table = np.frombuffer(bytes(data[body:end]), dtype=chunk.dtype).copy()
+        fn(table)
+        data[body:end] = table.tobytes()
+        path.write_bytes(bytes(data))
+    return edit
+
+
+def _box_corners(size: tuple[float, float, float]) -> list[dict]:
+    """The 8 corners of an axis-aligned box of `size` (m) at the origin, bottom face first."""
+    x, y, z = size
+    return [{"x": a, "y": b, "z": c} for c in (0.0, z) for a, b in ((0.0, 0.0), (x, 0.0), (x, y), (0.0, y))]
+
+
+def _occupancy_edit(**changes):
+    def edit(path: Path) -> None:
+        path.write_text(json.dumps({**json.loads(path.read_text()), **changes}))
+    return edit
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")  # a numpy warning before the error line fails the row
 @pytest.mark.parametrize(("name", "edit", "message"), [
+    ("labels.json", _labels_edit(lambda labels: labels[-1].__setitem__("bounding_box", _box_corners((20000, 1, 1)))),
+     "{d}/labels.json: [81].bounding_box: a box of 1 x 20000 x 1 m is 4.2e+08 voxels at --voxel 0.04 m, over the "
+     "budget of 3.4e+07 voxels per object"),
+    ("labels.json", lambda p: p.write_text("[]"),
+     "{d}/labels.json: holds no labels: an InteriorGS scene labels each of its objects"),
+    ("labels.json", _labels_edit(lambda labels: [lab.__setitem__("ins_id", "7") for lab in labels]),
+     "{d}/labels.json: [1].ins_id: all 82 labels have ins_id '7': each instance needs its own"),
+    ("occupancy.json", _occupancy_edit(min=[1e308, -0.2, 0.0], max=None),
+     "{d}/occupancy.json: min[0]: Input should be less than or equal to 1000000"),
+    ("3dgs_compressed.ply", _ply_chunk_edit(lambda t: t["min_x"].__setitem__(3, np.float32("inf"))),
+     "{d}/3dgs_compressed.ply: vertex: Gaussian 768 has a non-finite position (256 of 290192 do)"),
+    ("3dgs_compressed.ply", _ply_chunk_edit(lambda t: t["max_scale_x"].__setitem__(3, 3e38)),
+     "{d}/3dgs_compressed.ply: vertex: Gaussian 771 has a scale over e^50 m (149 of 290192 do)"),
+
     ("labels.json", _ins_id_of_5000_digits,
      "{d}/labels.json: malformed JSON: Exceeds the limit (4300 digits) for integer string conversion: value has 5000 "
      "digits"),
@@ -235,6 +278,38 @@ def test_bad_folders_get_one_line_and_nothing_is_written(interiorgs_demo, run_cl
     assert (code, out) == (2, "")
     assert err == f"error: {message.format(d=folder)}\n"
     assert not (tmp_path / "out").exists() and snapshot(tmp_path) == before
+
+
+def test_a_voxel_too_fine_for_the_budget_is_refused_before_anything_is_allocated(interiorgs_demo, run_cli, tmp_path):
+    before = snapshot(tmp_path)
+    code, out, err = run_cli("import-interiorgs", interiorgs_demo[0], "--out", tmp_path / "out", "--voxel", "0.0001")
+    assert (code, out) == (2, "")
+    assert err == ("error: --voxel: 0.0001 m makes 3.4e+12 voxels of the 1.68 x 2.41 x 0.85 m box of labels.json [40] "
+                   "(sofa), over the budget of 3.4e+07 voxels per object; use --voxel 0.0048 or more\n")
+    assert snapshot(tmp_path) == before
+
+
+def test_a_repeated_ins_id_is_renamed_and_a_door_on_no_wall_is_a_warning(interiorgs_demo, run_cli, tmp_path):
+    def zero_length_wall_0(path: Path) -> None:  # the wall that holds holes[0], a DOOR, shrunk to a point
+        structure = json.loads(path.read_text())
+        structure["walls"][0]["location"][1] = structure["walls"][0]["location"][0]
+        path.write_text(json.dumps(structure))
+
+    folder = _broken(interiorgs_demo[0], tmp_path, "structure.json", zero_length_wall_0)
+    _labels_edit(lambda labels: labels[81].__setitem__("ins_id", labels[80]["ins_id"]))(folder / "labels.json")
+    code, out, err = run_cli("import-interiorgs", folder, "--out", tmp_path / "out")
+    assert code == 0, err
+    first = json.loads((interiorgs_demo[0] / "labels.json").read_text())[80]["ins_id"]
+    warnings = [line for line in err.splitlines() if line.startswith("warning: ")]
+    assert warnings == [
+        f"warning: 1 labels repeat an earlier label's ins_id and are renamed, so that each ins_id names one instance: "
+        f"labels.json [81] '{first}' -> '{first}#2'",
+        "warning: 1 openings lie on no wall, so no wall is cut for them (walls of length 0: walls[0]): structure.json "
+        "holes[0] (DOOR)"]
+    report = json.loads((tmp_path / "out" / "interiorgs_import.json").read_text())
+    labels = [v["label"] for v in report["instances"].values() if v["label"] is not None]
+    assert len(labels) == len(set(labels)) and f"{first}#2" in labels
+    assert report["openings_on_no_wall"] == [0]
 
 
 def test_labels_holding_no_gaussians_and_a_disagreeing_occupancy_map_are_warnings(interiorgs_demo, run_cli, tmp_path):

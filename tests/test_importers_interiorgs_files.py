@@ -45,6 +45,18 @@ def test_occupancy_png_is_the_grid_turned_by_180_degrees(tmp_path):
     assert occ.origin == (10.0, 20.0) and occ.scale == 0.5  # that cell's centre: (10.75, 20.75)
 
 
+def test_a_16_bit_occupancy_png_reads_as_its_8_bit_twin(tmp_path):
+    """A 16-bit grey PNG (0, 32639, 65535) is the 8-bit map (0, 127, 255) scaled: unknown stays unknown, not free."""
+    grid = np.array([[0, 127, 255], [255, 127, 0]], dtype=np.uint8)
+    (tmp_path / "occupancy.json").write_text(json.dumps({"scale": 0.5, "min": [0.0, 0.0]}))
+    cv2.imwrite(str(tmp_path / "eight.png"), grid)
+    cv2.imwrite(str(tmp_path / "sixteen.png"), grid.astype(np.uint16) * 257)
+    eight = read_occupancy(tmp_path / "eight.png", tmp_path / "occupancy.json")
+    sixteen = read_occupancy(tmp_path / "sixteen.png", tmp_path / "occupancy.json")
+    assert sixteen.values.dtype == np.uint8 and np.array_equal(sixteen.values, eight.values)
+    assert sixteen.free.sum() == 2
+
+
 def test_a_folder_is_told_apart_from_a_scene(interiorgs_demo, demo_scene_dir, tmp_path):
     assert is_interiorgs_folder(interiorgs_demo[0])
     assert not is_interiorgs_folder(demo_scene_dir)

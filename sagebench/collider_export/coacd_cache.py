@@ -35,7 +35,7 @@ class PieceResult:
     """The convex parts of one concave piece, the method that made them and how well they fit the agent band."""
 
     parts: list[ConvexPart]
-    method: str  # hull, voxel or coacd
+    method: str  # hull, voxel, coacd or coacd_fine (methods.Method)
     key: str
     band_error_cm: float  # the worse of the band over/under figures against the piece
     cached: bool = False  # read back from the cache in this run

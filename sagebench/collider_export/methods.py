@@ -13,7 +13,9 @@ piece's (quality.band_errors), else the best of them. `fast` and `balanced` try 
 CoACD after hole closing was once 84 cm off in the band (pymeshfix dropped half a cushion), which the
 measure catches. Which methods a piece gets depends on the piece alone, never on the clock: CoACD, whose
 work grows with the faces it cuts, is left out for pieces of more than `coacd_max_faces` faces (`ladder`).
-V-HACD (the vhacdx package) was measured and left out: on the 19 bench pieces whose hull misses the band it
+A piece that every method of its mode leaves outside the tolerance escalates (ESCALATION) to `coacd_fine`
+(CoACD at 0.4 of the threshold, resolution 2000, up to the part budget whatever --coacd-max-hulls says); the
+piece keeps the closest of all, and colliders.json names the method it ended with. V-HACD (the vhacdx package) was measured and left out: on the 19 bench pieces whose hull misses the band it
 always used its 32 hulls, 11 of them within 2 cm (voxel 17, CoACD 16) in 3x the voxel time.
 """
 
@@ -30,7 +32,7 @@ from sagebench.collider_export.repair import close_holes
 from sagebench.collider_export.voxel import voxel_parts
 from sagebench.settings.export_usd import ColliderSettings
 
-Method = Literal["hull", "voxel", "coacd"]
+Method = Literal["hull", "voxel", "coacd", "coacd_fine"]
 UNSHAPING = frozenset({"piece_limit_s"})  # ColliderSettings fields that never change the parts
 
 LADDERS: dict[str, tuple[Method, ...]] = {
@@ -40,9 +42,19 @@ LADDERS: dict[str, tuple[Method, ...]] = {
 }
 
 
+# tried, in this order, only by a piece that every method of its mode left outside the band tolerance (open
+# concave furniture: an open C of 270 degrees was 3.2 cm off by CoACD and 3.0 by voxels, 1.0 by coacd_fine; voxels
+# of half the tolerance merged to the 32-part budget were 19 cm off, so finer voxels are no escalation)
+ESCALATION: tuple[Method, ...] = ("coacd_fine",)
+FINE_THRESHOLD = 0.4  # coacd_fine's concavity threshold, as a share of --coacd-threshold
+FINE_RESOLUTION = 2000  # coacd_fine's sampling resolution (CoACD's own default)
+
+
 def ladder(settings: ColliderSettings, faces: int) -> tuple[Method, ...]:
-    """The methods a piece of `faces` faces tries, in order: its mode's, CoACD left out above coacd_max_faces."""
-    return tuple(m for m in LADDERS[settings.mode] if m != "coacd" or faces <= settings.coacd_max_faces)
+    """The methods a piece of `faces` faces tries, in order: its mode's, then the escalation's finer ones; CoACD's
+    left out above coacd_max_faces."""
+    return tuple(m for m in (*LADDERS[settings.mode], *ESCALATION)
+                 if not m.startswith("coacd") or faces <= settings.coacd_max_faces)
 
 
 def run_method(method: Method, vertices: np.ndarray, faces: np.ndarray, settings: ColliderSettings,
@@ -61,7 +73,9 @@ def run_method(method: Method, vertices: np.ndarray, faces: np.ndarray, settings
         raise RuntimeError("its holes could not be closed")
     cap = settings.max_parts if settings.coacd.max_convex_hull < 0 else min(settings.coacd.max_convex_hull,
                                                                             settings.max_parts)
-    params = settings.coacd.model_copy(update={"max_convex_hull": cap})
+    fine = {"threshold": settings.coacd.threshold * FINE_THRESHOLD, "resolution": FINE_RESOLUTION,
+            "max_convex_hull": settings.max_parts} if method == "coacd_fine" else {}
+    params = settings.coacd.model_copy(update={"max_convex_hull": cap, **fine})
     return [hull_part(v) for v, _ in run_coacd(*closed, params, threads=1)]
 
 

@@ -17,6 +17,7 @@ in id order, names the same object as SAGE-3D's item ids), then walls, floors an
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,7 +27,7 @@ import trimesh
 from pydantic import ValidationError
 
 from sagebench import ui
-from sagebench.errors import DataError, first_error
+from sagebench.errors import ConfigError, DataError, first_error
 from sagebench.fileio import dumps_json, write_bytes
 from sagebench.importers.boxes import BoxError, OrientedBox, box_from_corners, box_owner
 from sagebench.importers.config import OCCUPANCY_PICTURE, REPORT_FILE
@@ -43,7 +44,9 @@ from sagebench.run_layout import SCENE_FILE
 from sagebench.scene.model import Door, Room, SceneObject, SceneSpec
 from sagebench.settings.build_scene import BuildSceneConfig
 from sagebench.settings.import_interiorgs import InteriorGSConfig
-from sagebench.splat_geometry.surface import SurfaceSettings, gaussian_points, object_surface
+from sagebench.splat_geometry.surface import (
+    MAX_VOXELS, SurfaceSettings, gaussian_points, grid_voxels, object_surface,
+)
 from sagebench.splats.ply import read_ply, write_ply
 from sagebench.splats.scene import TRAINED_FILES
 
@@ -84,14 +87,16 @@ def import_interiorgs(src: Path, config: InteriorGSConfig = InteriorGSConfig(),
     """Read the InteriorGS folder `src` and make its sagebench scene (nothing is written)."""
     folder = read_folder(src)
     scene_id = folder.scene_id
-    gaussians = read_ply(folder.ply)
-    if gaussians.count == 0:
-        raise DataError("holds no Gaussians", path=folder.ply, field="vertex")
     warnings: list[str] = []
     rooms = _rooms(folder)
     walls, pieces, piece_wall, matched_holes = _walls(folder)
     slabs = _slabs(folder, rooms)
     objects = _labelled(folder, rooms)
+    _check_voxel_budget(folder, objects, config.voxel)
+    warnings += _renamed_ids(folder) + _openings_on_no_wall(folder, matched_holes)
+    gaussians = read_ply(folder.ply)
+    if gaussians.count == 0:
+        raise DataError("holds no Gaussians", path=folder.ply, field="vertex")
     _match_doors(objects, walls, folder, rooms)
     things = [*objects, *walls, *slabs]
     for k, t in enumerate(things, start=1):
@@ -260,6 +265,55 @@ def _match_doors(objects: list[_Thing], walls: list[_Thing], folder: InteriorGSF
             degrees = {"open": {"open_deg": pose.angle_deg}, "ajar": {"ajar_deg": pose.angle_deg}}.get(pose.state, {})
             door.kind, door.pose = "door", pose
             door.door = Door(state=pose.state, hinge=pose.hinge, swing=pose.swing, **degrees)
+
+
+def _renamed_ids(folder: InteriorGSFolder) -> list[str]:
+    renamed = [lab for lab in folder.labels if lab.renamed_from is not None]
+    if not renamed:
+        return []
+    return [f"{len(renamed)} labels repeat an earlier label's ins_id and are renamed, so that each ins_id names one "
+            "instance: labels.json " + ", ".join(f"[{lab.index}] {lab.renamed_from!r} -> {lab.ins_id!r}"
+                                                 for lab in renamed[:10]) + (" ..." if len(renamed) > 10 else "")]
+
+
+def _openings_on_no_wall(folder: InteriorGSFolder, matched: set[int]) -> list[str]:
+    """A warning for the holes no wall took (their doors and windows are left out), naming 0 m walls if any."""
+    lost = sorted(set(range(len(folder.holes))) - matched)
+    if not lost:
+        return []
+    points = [k for k, w in enumerate(folder.walls) if np.allclose(w.a, w.b)]
+    why = f" (walls of length 0: {', '.join(f'walls[{k}]' for k in points[:10])})" if points else ""
+    return [f"{len(lost)} openings lie on no wall, so no wall is cut for them{why}: structure.json "
+            + ", ".join(f"holes[{k}] ({folder.holes[k].kind})" for k in lost[:10]) + (" ..." if len(lost) > 10 else "")]
+
+
+def _check_voxel_budget(folder: InteriorGSFolder, objects: list[_Thing], voxel: float) -> None:
+    """Refuse, before anything is allocated, an object whose surface grid would exceed MAX_VOXELS: the label's box
+    when it is too big even at the default voxel, else --voxel."""
+    if not objects:
+        return
+    worst = max(objects, key=lambda t: grid_voxels(t.box.half, voxel))
+    cells = grid_voxels(worst.box.half, voxel)
+    if cells <= MAX_VOXELS:
+        return
+    size = " x ".join(f"{2 * h:.2f}".rstrip("0").rstrip(".") for h in worst.box.half)
+    default = InteriorGSConfig.model_fields["voxel"].default
+    if voxel >= default or grid_voxels(worst.box.half, default) > MAX_VOXELS:
+        raise DataError(f"a box of {size} m is {cells:.2g} voxels at --voxel {voxel:g} m, over the budget of "
+                        f"{MAX_VOXELS:.2g} voxels per object", path=folder.path / LABELS,
+                        field=f"[{worst.label}].bounding_box")
+    raise ConfigError(f"{voxel:g} m makes {cells:.2g} voxels of the {size} m box of labels.json [{worst.label}] "
+                      f"({worst.category}), over the budget of {MAX_VOXELS:.2g} voxels per object; use --voxel "
+                      f"{_coarsest_fit(worst.box.half):g} or more", field="--voxel")
+
+
+def _coarsest_fit(half: np.ndarray) -> float:
+    """The finest voxel (m, rounded up to a tenth of a millimetre) whose grid over the box fits MAX_VOXELS."""
+    lo, hi = 1e-6, 1.0
+    for _ in range(60):
+        mid = (lo + hi) / 2
+        lo, hi = (lo, mid) if grid_voxels(half, mid) <= MAX_VOXELS else (mid, hi)
+    return math.ceil(hi * 1e4) / 1e4
 
 
 def _room_of(point: np.ndarray, rooms: list[shapely.Polygon]) -> str | None:

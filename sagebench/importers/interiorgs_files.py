@@ -7,7 +7,8 @@ The folder (`NNNN_NNNNNN/`, per the dataset card of manycore-research/InteriorGS
 - `structure.json`: `rooms[]` (`profile` polygon, `room_type`), `walls[]` (`location` segment, `thickness`,
   `height`), `holes[]` (`profile` 3D polygon, `thickness`, `type` DOOR or WINDOW), `ins[]` (not read: labels.json
   holds the same boxes with their orientation);
-- `occupancy.png` (255 free, 0 occupied, 127 unknown) and `occupancy.json` (`scale` m per pixel, `min` corner).
+- `occupancy.png` (255 free, 0 occupied, 127 unknown; a 16-bit PNG is scaled to these) and `occupancy.json`
+  (`scale` m per pixel, `min` corner).
 
 Every coordinate is metres in one frame with Z up (the card's Right, Back, Up), the floor at z = 0. Each
 problem is one DataError naming the file and the field.
@@ -35,7 +36,8 @@ REQUIRED = (LABELS, STRUCTURE, OCCUPANCY_PNG, OCCUPANCY_JSON)
 FREE, OCCUPIED, UNKNOWN = 255, 0, 127  # occupancy.png values
 SIZE_SLACK_PX = 1.5  # occupancy.json's extent / scale may differ from the image size by this much (rounding)
 
-Finite = Annotated[float, Field(allow_inf_nan=False)]
+MAX_COORD_M = 1e6  # a coordinate farther than this from the origin is no indoor scene's (and its grids would overflow)
+Finite = Annotated[float, Field(allow_inf_nan=False, ge=-MAX_COORD_M, le=MAX_COORD_M)]
 LABEL_MAX = 128  # characters of a label or ins_id: a label names the object's category and its mesh files
 Word = Annotated[str, Field(max_length=LABEL_MAX, pattern=r"^[^\x00-\x1f\x7f]*$")]  # one line, as scene.json's names
 
@@ -136,6 +138,7 @@ class Label:
     ins_id: str
     label: str
     corners: np.ndarray
+    renamed_from: str | None = None  # the ins_id as written, when an earlier label has it too
 
 
 @dataclass(frozen=True)
@@ -229,11 +232,37 @@ def read_labels(path: Path) -> tuple[Label, ...]:
     prefix = "labels" if isinstance(raw, dict) else ""
     if not isinstance(items, list):
         raise DataError('must hold a list of labels (or {"labels": [...]})', path=path)
+    if not items:
+        raise DataError("holds no labels: an InteriorGS scene labels each of its objects", path=path)
     out = []
     for i, item in enumerate(items):
         lab = _validated(_Label, item, path, f"{prefix}[{i}]")
         corners = np.array([[c.x, c.y, c.z] for c in lab.bounding_box], dtype=np.float64)
         out.append(Label(i, str(lab.ins_id), lab.label.strip(), corners))
+    ids = {lab.ins_id for lab in out}
+    if len(out) > 1 and len(ids) == 1 and "" not in ids:
+        raise DataError(f"all {len(out)} labels have ins_id {out[0].ins_id!r}: each instance needs its own",
+                        path=path, field=f"{prefix}[1].ins_id")
+    return _renamed_duplicates(out)
+
+
+def _renamed_duplicates(labels: list[Label]) -> tuple[Label, ...]:
+    """Each label whose ins_id an earlier label already has gets `<ins_id>#<k>` (k = 2, 3, ... the first free),
+    remembered in `renamed_from`, so that an ins_id names one instance (interiorgs_import.json maps instances
+    back to labels by it). A label without an ins_id has none to repeat."""
+    taken = {lab.ins_id for lab in labels}
+    seen: set[str] = set()
+    out = []
+    for lab in labels:
+        if lab.ins_id and lab.ins_id in seen:
+            k = 2
+            while f"{lab.ins_id}#{k}" in taken:
+                k += 1
+            new = f"{lab.ins_id}#{k}"
+            taken.add(new)
+            lab = Label(lab.index, new, lab.label, lab.corners, renamed_from=lab.ins_id)
+        seen.add(lab.ins_id)
+        out.append(lab)
     return tuple(out)
 
 
@@ -252,6 +281,15 @@ def _structure(path: Path) -> dict[str, tuple]:
     }
 
 
+def _grey(im: Any) -> np.ndarray:
+    """[H, W] uint8 of an opened image: a 16-bit grey PNG (PIL mode I;16 or I) scaled from 0..65535 to 0..255, so
+    that 32767 reads as 127 (unknown) instead of being clipped to 255 (free) as PIL's conversion to L does."""
+    if im.mode.startswith("I"):
+        wide = np.asarray(im).astype(np.float64)
+        return np.clip(np.round(wide / 257.0), 0, 255).astype(np.uint8)
+    return np.asarray(im.convert("L"))
+
+
 def read_occupancy(png: Path, meta_path: Path) -> OccupancyMap:
     """occupancy.png and occupancy.json; the JSON's extent must match the image's size."""
     from PIL import Image, UnidentifiedImageError
@@ -261,7 +299,7 @@ def read_occupancy(png: Path, meta_path: Path) -> OccupancyMap:
         raise DataError("min and max need at least x and y", path=meta_path, field="min")
     try:
         with Image.open(png) as im:
-            image = np.asarray(im.convert("L"))
+            image = _grey(im)
     except (OSError, UnidentifiedImageError) as err:
         raise DataError(f"cannot read the image: {err}", path=png) from None
     h, w = image.shape

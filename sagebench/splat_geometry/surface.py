@@ -24,6 +24,7 @@ standard deviation along that axis (a large flat splat covers more than its cent
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,6 +35,7 @@ from sagebench.collider_export.convex import hull_part
 from sagebench.collider_export.voxel import band_outside, greedy_boxes, layer_weights, merge_boxes
 from sagebench.render.gaussians import Gaussians
 
+MAX_VOXELS = 2**25  # voxels of one object's grid at most: its weights, labels and masks take about 0.8 GB
 _CORNER_INSET = 1e-3  # enclosed cells contribute their corners pulled this fraction of a voxel inwards, so that
 # two boxes' hulls never share a point (a shared edge would join them into one part, one hull, for the footprint)
 
@@ -74,6 +76,12 @@ def quat_matrices(q_wxyz: np.ndarray) -> np.ndarray:
         np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
         np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1),
     ], axis=1)
+
+
+def grid_voxels(half: np.ndarray, pitch: float) -> float:
+    """Voxels of the grid object_surface lays over a box of half extents `half` [3] (m) at `pitch`, at most (a
+    float, so that a box of kilometres at a micrometre pitch is counted, not allocated)."""
+    return math.prod(float(np.floor(2 * h / pitch)) + 4 for h in np.asarray(half, dtype=np.float64))
 
 
 def object_surface(points: np.ndarray, weights: np.ndarray, centre: np.ndarray, axes: np.ndarray,

@@ -24,6 +24,7 @@ _TYPES = {
     "int": "<i4", "int32": "<i4", "uint": "<u4", "uint32": "<u4",
     "float": "<f4", "float32": "<f4", "double": "<f8", "float64": "<f8",
 }
+MAX_LOG_SCALE = 50.0  # log scale (m) of the largest Gaussian read: e^50 m is past any scene, and exp() stays finite
 CHUNK_SIZE = 256  # Gaussians per chunk in the compressed layout
 _CHUNK_BOUNDS = ["min_x", "min_y", "min_z", "max_x", "max_y", "max_z",
                  "min_scale_x", "min_scale_y", "min_scale_z", "max_scale_x", "max_scale_y", "max_scale_z"]
@@ -70,6 +71,10 @@ def _checked(g: Gaussians, path: Path) -> Gaussians:
         if bad.any():
             raise DataError(f"Gaussian {int(np.argmax(bad))} has a non-finite {name} "
                             f"({int(bad.sum())} of {g.count} do)", path=path, field="vertex")
+    huge = (g.log_scales > MAX_LOG_SCALE).any(axis=1)
+    if huge.any():
+        raise DataError(f"Gaussian {int(np.argmax(huge))} has a scale over e^{MAX_LOG_SCALE:g} m "
+                        f"({int(huge.sum())} of {g.count} do)", path=path, field="vertex")
     zero = ~(np.abs(g.quats_wxyz) > 0).any(axis=1)
     if zero.any():
         raise DataError(f"Gaussian {int(np.argmax(zero))} has a zero rotation quaternion "
@@ -182,7 +187,8 @@ def _unorm(bits: np.ndarray, shift: int, width: int) -> np.ndarray:
 
 
 def _lerp(lo: np.ndarray, hi: np.ndarray, t: np.ndarray) -> np.ndarray:
-    return lo * (1.0 - t) + hi * t
+    with np.errstate(invalid="ignore", over="ignore"):  # non-finite chunk bounds: _checked names them, once
+        return lo * (1.0 - t) + hi * t
 
 
 def _decode_compressed(tables: dict[str, np.ndarray], path: Path) -> Gaussians:
