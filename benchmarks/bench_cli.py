@@ -1,7 +1,9 @@
 """What a user waits for at the command line: each command run as a subprocess, against the same work in-process.
 
 Start-up (`--help`, a bad scene refused in one line; target 0.5 s, with a bare `python -c pass` as the floor),
-gen-trajectories --per-scene 200, the validate stage, `run` on two demo apartments and a no-op re-run. Every
+gen-trajectories --per-scene 200, the validate stage, `run` on two demo apartments and a no-op re-run; then each
+command's CPU-seconds beside the same command run on REFERENCE's code (git archive, same environment: what the lazy
+imports and the passive wait by default of issue 40 saved, alternated runs). Every
 command runs once untimed first (numba's cache and the OS file cache warm, as for a user's second call);
 figures are the median of several runs where a run is short. The load average is in the notes: other work
 on the machine slows subprocess start-up most.
@@ -10,6 +12,7 @@ on the machine slows subprocess start-up most.
 from __future__ import annotations
 
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -21,6 +24,7 @@ from benchmarks.demo_run import built_demo_run
 
 TARGET_S = 0.5
 SCENE = "demo_apartment_0"
+REFERENCE = "fea28b8"  # main before issue 40's start-up work
 
 
 def _cli() -> list[str]:
@@ -113,6 +117,50 @@ def run() -> list[dict]:
             for _ in range(3))
         rows.append({"name": "run re-run, everything skipped", "reference": "in-process run_pipeline",
                      "cli s": cli_s, "in-process s": in_s, "ratio": cli_s / in_s, "notes": _load()})
+        rows += _against_reference(root, cli, root / "cli", SCENE)
+    return rows
+
+
+def _cpu(cmd: list[str], env: dict[str, str], cwd: Path, ok: tuple[int, ...] = (0, 1)) -> float:
+    """CPU-seconds (user + system) of one run of `cmd` and its children."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=cwd)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if proc.returncode not in ok:
+        raise RuntimeError(f"{' '.join(cmd)}: exit {proc.returncode}: {proc.stderr.strip()[-500:]}")
+    return after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+
+
+def _against_reference(root: Path, cli: list[str], run_dir: Path, scene: str, repeat: int = 3) -> list[dict]:
+    """Each command's median CPU-s here and on REFERENCE's sagebench, runs alternated after one warm-up each; the
+    environment without thread settings of its own (what a user's shell has)."""
+    ref = root / "reference"
+    ref.mkdir()
+    archive = subprocess.run(["git", "archive", REFERENCE, "sagebench"], capture_output=True, check=True,
+                             cwd=Path(__file__).parent.parent).stdout
+    subprocess.run(["tar", "-x", "-C", str(ref)], input=archive, check=True)
+    env = {k: v for k, v in os.environ.items() if k not in ("OMP_WAIT_POLICY", "NUMBA_NUM_THREADS", "PYTHONPATH")}
+    envs = {"here": env, "ref": env | {"PYTHONPATH": str(ref)}}  # before the editable install's finder
+    py = [sys.executable, "-m", "sagebench", "-q"]
+    preds = root / "oracle.jsonl"
+    subprocess.run([*cli, "-q", "baseline", "--agent", "oracle", "--run", str(run_dir), "--out", str(preds)],
+                   check=True, capture_output=True)
+    commands = {"--help": ["--help"], "verify": ["verify", str(run_dir)],
+                "evaluate (oracle)": ["evaluate", "--run", str(run_dir), "--predictions", str(preds)],
+                "validate --scene": ["validate", str(run_dir), "--scene", scene],
+                "gen-trajectories --per-scene 8": ["gen-trajectories", str(run_dir), "--scene", scene, "--per-scene", "8"]}
+    rows = []
+    for name, args in commands.items():
+        cpu: dict[str, list[float]] = {"here": [], "ref": []}
+        for i in range(repeat + 1):
+            for who in ("here", "ref"):
+                t = _cpu([*py, *args], envs[who], root)  # not the checkout: `-m` puts the cwd first
+                if i:
+                    cpu[who].append(t)
+        here, before = statistics.median(cpu["here"]), statistics.median(cpu["ref"])
+        rows.append({"name": f"{name}: CPU-s", "reference": f"{REFERENCE} (main before)", "cli s": here,
+                     "in-process s": before, "ratio": before / here,
+                     "notes": f"CPU-s here {here:.2f}, on {REFERENCE} {before:.2f}; {_load()}"})
     return rows
 
 

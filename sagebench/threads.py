@@ -14,6 +14,11 @@ steps/s at 0.18-0.27 CPU-s per step, against 5.3-7.1 steps/s and 0.053-0.065 CPU
 Call it at a process's entry point (a command, an env's constructor, a worker's start). It is idempotent: the
 first call fixes the wait policy and the pool size; a later call can only lower the calling thread's count,
 since libgomp reads its settings once, when numba's pool starts.
+
+Before that, importing sagebench (every command, and a program using the Python API) calls `passive_by_default`:
+idle threads sleep and numba's pool has this process's cores, unless the environment says otherwise, in every
+process, also one that never reaches a `share_cores` (validate: 5.53 CPU-s spinning against 3.99 passive on a
+loaded machine, issue 40). A later first `share_cores` still chooses its own values.
 """
 
 from __future__ import annotations
@@ -39,6 +44,7 @@ class ThreadSetup:
 
 _lock = threading.Lock()
 _first: ThreadSetup | None = None
+_defaults: dict[str, str] = {}  # what passive_by_default set (not the user): share_cores's first call may replace it
 
 
 def available_cores() -> int:
@@ -58,6 +64,20 @@ def _pool_started() -> bool:
     return bool(getattr(parallel, "_is_initialized", False))
 
 
+def passive_by_default() -> None:
+    """Idle OpenMP threads sleep and numba's pool has this process's cores (module docstring), for the variables
+    the environment leaves unset; nothing once a pool is running or `share_cores` has run."""
+    with _lock:
+        if _first is not None or _pool_started():
+            return
+        wanted = {"OMP_WAIT_POLICY": "PASSIVE"}
+        if "numba" not in sys.modules:  # numba reads its pool size when it is imported
+            wanted["NUMBA_NUM_THREADS"] = str(available_cores())
+        for var, value in wanted.items():
+            if var not in os.environ:
+                os.environ[var] = _defaults[var] = value
+
+
 def share_cores(threads: int | None = None, *, wait: WaitPolicy = "passive") -> ThreadSetup:
     """Size this process's compute threads to `threads` cores (None: every core it may use) and make idle OpenMP
     threads wait as `wait` says (module docstring); returns what is in effect."""
@@ -68,6 +88,9 @@ def share_cores(threads: int | None = None, *, wait: WaitPolicy = "passive") -> 
     with _lock:
         started = _pool_started()
         if _first is None and not started:
+            for var, value in _defaults.items():  # the defaults give way to this first call's choice
+                if os.environ.get(var) == value:
+                    del os.environ[var]
             if wait != "openmp":
                 os.environ.setdefault("OMP_WAIT_POLICY", wait.upper())
             os.environ["NUMBA_NUM_THREADS"] = str(n)

@@ -22,6 +22,7 @@ LAYERS = {
     "report": 3,  # reads finished outputs through the stages' readers (evaluate's scores, render's views)
     "stages": 2,
     "scene": 0, "fileio": 0, "input_files": 0, "errors": 0, "settings": 0, "ui": 0, "run_layout": 0, "http_client": 0,
+    "threads": 0,  # the standard library only; the package's __init__ sets the process defaults with it
     "__init__": 0,
 }
 LIBRARY = 1

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from shapely.geometry import Point, Polygon, shape
 
-from sagebench.instructions import instructions_for
+from sagebench.instructions.registry import instructions_for
 from sagebench.instructions.base import TrajectoryText, make_context
 from sagebench.instructions.grounding import Grounder
 from sagebench.instructions.high_level import describe, scenario_data

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from sagebench.instructions import GENERATORS, instructions_for
+from sagebench.instructions.registry import GENERATORS, instructions_for
 from sagebench.instructions.base import TrajectoryText
 from hypothesis import given, settings
 from hypothesis import strategies as st

@@ -14,7 +14,7 @@ from sagebench import ui
 from sagebench.astar.sampling import Trajectory
 from sagebench.episodes.ids import episode_id
 from sagebench.episodes.splits import assign_splits, instruction_held_out
-from sagebench.instructions import instructions_for
+from sagebench.instructions.registry import instructions_for
 from sagebench.instructions.balance import TypeBalance
 from sagebench.instructions.base import SceneContext, TrajectoryText
 from sagebench.instructions.execution import BlockedMap

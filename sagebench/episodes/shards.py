@@ -90,10 +90,19 @@ def read_episodes(path: Path) -> pa.Table:
     for f, schema in zip(files, schemas, strict=True):
         check_shard_schema(schema, f)
     schema = TASK_SCHEMA if any("task" in s.names for s in schemas) else EPISODE_SCHEMA
-    tables = [pq.read_table(f, schema=schema) for f in files]
+    tables = [read_shard(f, schema) for f in files]
     for f, table in zip(files, tables, strict=True):
         check_task_table(table, f)
     return pa.concat_tables(tables)
+
+
+def read_shard(path: Path, schema: pa.Schema) -> pa.Table:
+    """One shard file as a table of `schema` (a column it lacks reads null). Read as one file, not as a dataset:
+    pyarrow.dataset imports pandas, which alone costs a command more CPU than the reading."""
+    table = pq.ParquetFile(path).read()
+    columns = [table.column(f.name).cast(f.type) if f.name in table.column_names else pa.nulls(len(table), f.type)
+               for f in schema]
+    return pa.Table.from_arrays(columns, schema=schema)
 
 
 OPTIONAL_COLUMNS = frozenset({"split"})  # shards written before the split column lack it

@@ -30,12 +30,14 @@ nothing.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
-import mujoco
 import numpy as np
 
-from sagebench.replay.contact import CONTACT_DISTANCE, contact_share
-from sagebench.replay.physics import ReplayModel, replay_batch
+from sagebench.replay import CONTACT_DISTANCE
+
+if TYPE_CHECKING:  # MuJoCo loads only when poses are replayed: predictions with c(t) need none
+    from sagebench.replay.physics import ReplayModel
 
 ICP_NOTE = ("measured: c(t) from sagebench rollout's simulator; self-reported: the agent's own; derived: evaluate "
             "replayed each step from pose t-1 towards pose t, c(t) = the larger of the share of the motion contact "
@@ -69,6 +71,8 @@ def replay_intensity(rm: ReplayModel, poses: Sequence[np.ndarray], *, threads: i
     z = np.full(len(moving), rm.floor_z)
     paths = [np.array([[sx, sy, zz, a], [tx, ty, zz, a]]) for (sx, sy), (tx, ty), zz, a
              in zip(starts[moving], targets[moving], z, yaw)]
+    from sagebench.replay.physics import replay_batch
+
     records = replay_batch(rm, paths, threads=threads)
     c = np.zeros(len(starts))
     if records:
@@ -91,6 +95,8 @@ def derive_intensity(rm: ReplayModel, poses: Sequence[np.ndarray], *, threads: i
     """Derived c(t) [T_i] per pose sequence [T_i, 4]: the larger of the replayed motion shortfall and the share of
     the step in contact, a pure turn's contact left out (module docstring)."""
     blocked = replay_intensity(rm, poses, threads=threads)
+    from sagebench.replay.contact import contact_share
+
     near = contact_share(rm, poses, threads=threads)
     tol = rm.config.waypoint_tolerance
     return [np.maximum(b, np.where(pure_turns(p, min_step=tol), 0.0, n)) for p, b, n in zip(poses, blocked, near)]

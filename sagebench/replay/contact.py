@@ -13,9 +13,9 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
+from sagebench.replay import CONTACT_DISTANCE
 from sagebench.replay.physics import AGENT_GEOM, ReplayModel
 
-CONTACT_DISTANCE = 0.01  # m: an agent cylinder this close to a collider touches it
 SAMPLE_SPACING = 0.02  # m between the positions checked along a step
 
 

@@ -88,7 +88,7 @@ def _validation(run_dir: Path, sid: str) -> dict[str, dict]:
     if not path.is_file():
         return {}
     try:
-        rows = pq.read_table(path).to_pylist()
+        rows = pq.ParquetFile(path).read().to_pylist()  # not read_table: pyarrow.dataset imports pandas
     except (OSError, pa.ArrowException) as err:
         raise DataError(f"cannot read validate's results: {err}", path=path) from None
     return {r["trajectory_id"]: r for r in rows if isinstance(r.get("trajectory_id"), str)}

@@ -12,6 +12,7 @@ import hashlib
 import json
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -30,14 +31,15 @@ from sagebench.evaluation.scoring import (
 from sagebench.fileio import write_json
 from sagebench.input_files import read_regular
 from sagebench.metrics import NavigableMap
-from sagebench.replay.physics import ReplayModel
-from sagebench.replay.scene_model import open_replay_model
 from sagebench.run_folder import Output, claim_output_file
 from sagebench.run_layout import SEMANTIC_MAP, TOPDOWN, run_scene_dir
 from sagebench.settings.evaluate import EvaluateConfig
 from sagebench.settings.shared import SPLITS
 from sagebench.topdown.grid_file import read_topdown_grids
 from sagebench.topdown.semantic_map import read_semantic_map
+
+if TYPE_CHECKING:  # MuJoCo loads only for predictions without c(t), whose poses are replayed
+    from sagebench.replay.physics import ReplayModel
 
 
 # ---------------------------------------------------------------- inputs
@@ -186,6 +188,15 @@ def _r(x: float) -> float | None:
     return round(float(x), 6) if np.isfinite(x) else None
 
 
+def _replay_models(run_dir: Path, scene_ids: list[str], config: EvaluateConfig) -> dict[str, ReplayModel]:
+    """The replay model of each scene whose poses are replayed (MuJoCo is imported only then)."""
+    if not scene_ids:
+        return {}
+    from sagebench.replay.scene_model import open_replay_model
+
+    return {sid: open_replay_model(run_dir, sid, replay=config.replay) for sid in scene_ids}
+
+
 def _derived(models: dict[str, ReplayModel], episodes: list[Episode], matched: dict[str, Prediction],
              workers: int) -> dict[str, np.ndarray]:
     """Evaluate's c(t) [T] by episode id for the predictions without one, replayed in their scene's model."""
@@ -251,7 +262,7 @@ def _scored(run_dir: Path, predictions: Path, config: EvaluateConfig, scene_id: 
     need_replay = sorted({by_id[p.episode_id].scene_id for p in matched.values() if p.collision_intensity is None})
     maps = {sid: read_navigable_map(run_dir, sid) for sid in sorted({e.scene_id for e in episodes})}
     check_on_map(rows, lambda eid: maps[by_id[eid].scene_id].bounds, predictions)
-    models = {sid: open_replay_model(run_dir, sid, replay=config.replay) for sid in need_replay}
+    models = _replay_models(run_dir, need_replay, config)
     tasks = task_scoring(record)
     scores = score_episodes(episodes, matched, _derived(models, episodes, matched, config.workers), maps, config.metrics,
                             tasks)
