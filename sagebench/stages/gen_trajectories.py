@@ -67,7 +67,7 @@ class SceneEpisodes:
     llm_summary: str | None = None  # what the chat model contributed, in llm mode
     unreachable_rooms: tuple[str, ...] = ()  # rooms whose objects (and themselves) were no start or goal
     high_level_summary: str | None = None  # the high-level types' counts against their quotas, and why any fell short
-    task_episodes: dict[str, int] = field(default_factory=dict)  # task -> its rows, for each task but vln
+    by_task: dict[str, tuple[int, int]] = field(default_factory=dict)  # task -> (trajectories, rows); {} for vln alone
 
     def summary(self) -> str:
         line = (f"gen-trajectories {self.scene_id}: {self.trajectories} trajectories, {self.rows} episode rows "
@@ -77,8 +77,9 @@ class SceneEpisodes:
                      f"{', '.join(self.unreachable_rooms)} and the objects in them")
         if self.high_level_summary is not None:
             line += f"\n  high-level types: {self.high_level_summary}"
-        if self.task_episodes:
-            line += "\n  tasks: " + ", ".join(f"{task} {n} episode(s)" for task, n in self.task_episodes.items())
+        if self.by_task:
+            line += "\n  by task: " + "; ".join(f"{task} {t} trajectories, {n} episode rows"
+                                                for task, (t, n) in self.by_task.items())
         return line if self.llm_summary is None else f"{line}\n  llm: {self.llm_summary}"
 
 
@@ -122,11 +123,20 @@ def generate_scene(scene_dir: Path, run_dir: Path, config: GenTrajectoriesConfig
         shards = write_shards(rows, tmp, round(config.shard_mb * 2**20), schema)
     with staged_dir(run_previews_dir(run_dir, spec.scene_id)) as tmp:
         write_bytes(tmp / PREVIEW, png)
-    return SceneEpisodes(spec.scene_id, out_dir, len(vln.result.trajectories) if vln else 0, len(rows),
+    by_task = _by_task(rows) if schema is TASK_SCHEMA else {}
+    trajectories = sum(t for t, _ in by_task.values()) if schema is TASK_SCHEMA else len(vln.result.trajectories)
+    return SceneEpisodes(spec.scene_id, out_dir, trajectories, len(rows),
                          [out_dir / p.name for p in shards],
                          None if vln is None or vln.instructor is None else vln.instructor.summary(),
                          unreachable_rooms(smap), None if vln is None or vln.made.balance is None else
-                         vln.made.balance.summary(), {t: len(r) for t, r in sorted(tasks.items())})
+                         vln.made.balance.summary(), by_task)
+
+
+def _by_task(rows: list[dict]) -> dict[str, tuple[int, int]]:
+    """task -> (its trajectories, its rows), in the shards' order (vln first)."""
+    tasks = dict.fromkeys(r["task"] for r in rows)
+    return {t: (len({r["trajectory_id"] for r in rows if r["task"] == t}), sum(r["task"] == t for r in rows))
+            for t in tasks}
 
 
 @dataclass(frozen=True)
