@@ -213,3 +213,16 @@ def test_imagenav_s_goal_image_is_the_scene_s_view_from_the_goal_pose(made, wall
         assert np.abs(seen["imagegoal"] - np.clip(view * 255.0, 0, 255)).max() <= 1.0, row["episode_id"]
         if walled:
             assert seen["imagegoal"].std() > 10 and np.abs(seen["imagegoal"] - seen["rgb"].astype(float)).mean() > 5
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("made", ["demo_tasks_run", "interiorgs_tasks_run"])
+def test_the_explorer_covers_at_least_twice_what_a_random_walk_does(made, request, run_cli, tmp_path):
+    run = request.getfixturevalue(made)
+    coverage = {}
+    for agent in ("explorer", "random"):
+        pred = tmp_path / f"{agent}.jsonl"
+        code, _, err = run_cli("-q", "baseline", "--run", run, "--out", pred, "--agent", agent, "--task", "nogoal")
+        assert code == 0, err
+        coverage[agent] = _evaluate(run_cli, run, pred, tmp_path)["nogoal"]["coverage"]
+    assert coverage["explorer"] >= 2 * coverage["random"] > 0, coverage
