@@ -505,13 +505,14 @@ def import_sage_episodes_cmd(
     Instruction types map to sagebench's (Attribute-based -> Attribute_Based, Area-based -> Area_Based, Default
     -> Single_Goal); Goal-less instructions become nogoal episodes from their sample's start (80 s, SAGE's
     budget), and a sample with SAGE-Bench's target_object, goal_position or target_image(_position) fields an
-    objectnav, pointnav or imagenav episode (docs/tasks.md); instructions of an unknown type are left out and
-    counted.
+    objectnav, pointnav or imagenav episode (docs/tasks.md; an objectnav sample's goal viewpoints, which SAGE's
+    files lack, are the navigable cells within its success radius of any instance of its category, as
+    gen-trajectories finds them); instructions of an unknown type are left out and counted.
 
-    Reads FILE and RUN/scenes/<id>/scene.json and topdown.npz. Values are checked as generated episodes are
-    (radii > 0, the scene's instances and rooms, unique ids, paths of 2 or more points on the navigable map
-    (a no-goal sample: its start), non-empty instructions); a path point at most 0.5 m off the navigable map
-    is moved onto it and counted.
+    Reads FILE and RUN/scenes/<id>/scene.json, topdown.npz and semantic_map.json. Values are checked as generated
+    episodes are (radii > 0, the scene's instances and rooms, unique ids, paths of 2 or more points on the
+    navigable map (a no-goal sample: its start), non-empty instructions); a path point at most 0.5 m off the
+    navigable map is moved onto it and counted.
 
     Writes RUN/episodes/<id>/part-<split>-NNNNN.parquet, replacing that scene's episodes, and the stamp
     RUN/.stamps/<id>/import_sage.json in place of gen-trajectories'. Refuses (exit 2) a scene.json that

@@ -107,7 +107,8 @@ CONTRACT: dict[str, StageFiles] = {
     "export_vlnce": StageFiles(reads=(Place("episodes"), *NORMALISED_SCENE)),  # writes its own directory
     "export_habitat": StageFiles(reads=(Place("episodes"), *NORMALISED_SCENE)),  # writes its own directory
     "export_sage": StageFiles(reads=(Place("episodes"), Place("scene", SCENE_FILE))),  # writes its own directory
-    "import_sage": StageFiles(reads=(Place("scene", SCENE_FILE), Place("scene", TOPDOWN)),  # and a GVLN file
+    "import_sage": StageFiles(reads=(Place("scene", SCENE_FILE), Place("scene", TOPDOWN), Place("scene", SEMANTIC_MAP)),
+                              # and a GVLN file
                               writes=(Place("episodes"),)),
     "rollout": StageFiles(reads=(Place("episodes"), Place("scene", TOPDOWN), Place("scene", GAUSSIANS), *REPLAY_MODEL)),
     # writes its own directory; reads validate's results, evaluate's inputs and the Gaussians (views) when there

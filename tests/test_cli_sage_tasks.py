@@ -176,16 +176,41 @@ def _tree(root: Path) -> dict[str, str]:
             for p in sorted(root.rglob("*")) if p.is_file()}
 
 
-@pytest.mark.parametrize(("edit", "message"), [
-    (lambda s: s.update(target_object="unicorn"),
+def test_a_sage_objectnav_sample_gets_the_viewpoints_gen_trajectories_gives_its_category(demo_eval_run, run_cli,
+                                                                                         tmp_path):
+    """SAGE's ObjectNav samples name a category and no viewpoints: they are found on import as gen-trajectories
+    finds them, the main region's navigable cells within the success radius of any instance."""
+    assert run_cli("export-sage", demo_eval_run, "--out", tmp_path / "first")[0] == 0
+    plain = _plain_sage_file(tmp_path / "plain.json", _file(tmp_path / "first", "vln"), ())
+    doc = json.loads(plain.read_text())
+    doc["scenes"][0]["samples"] = [dict(s, target_object="bed") for s in doc["scenes"][0]["samples"][:2]]
+    plain.write_text(json.dumps(doc))
+    runs = {}
+    for name, args in (("imported", ["import-sage-episodes", plain, "--scene", SCENE, "--goal-radius", "1", "--run"]),
+                       ("generated", ["gen-trajectories", "--tasks", "objectnav", "--objectnav-categories", "bed",
+                                      "--task-episodes", "1"])):
+        runs[name] = tmp_path / name
+        shutil.copytree(demo_eval_run / "scenes", runs[name] / "scenes")
+        code, _, err = run_cli(*args, runs[name])
+        assert code == 0, err
+    imported, generated = (read_episodes(runs[n] / "episodes" / SCENE).to_pylist() for n in ("imported", "generated"))
+    assert {(row_task(r), r["goal_category"], r["goal_radius"]) for r in imported} == {("objectnav", "bed", 1.0)}
+    assert len({r["trajectory_id"] for r in imported}) == 2
+    assert all(r["goal_instance_ids"] == generated[0]["goal_instance_ids"] for r in imported)
+    assert all(r["goal_viewpoints"] == generated[0]["goal_viewpoints"] for r in imported)
+
+
+@pytest.mark.parametrize(("edit", "args", "message"), [
+    (lambda s: s.update(target_object="unicorn"), (),
      "{f}: scenes[0].samples[0].target_object: category 'unicorn' has no instance in scene 'demo_apartment_0'"),
-    (lambda s: s.update(goal_position=s["points"][-1]["position"], points=s["points"][:1]),
+    (lambda s: s.update(goal_position=s["points"][-1]["position"], points=s["points"][:1]), (),
      "{f}: scenes[0].samples[0].points: 1 point: a pointnav sample is a path, its start and goal at least"),
-    (lambda s: s.update(target_object="bed"),
-     "{f}: scenes[0].samples[0].sagebench.goal_viewpoints: no goal viewpoints: an objectnav sample needs them (the "
-     "navigable points within its success radius of any bed instance)"),
+    (lambda s: s.update(target_object="bed"), ("--goal-radius", "0.01"),
+     "{f}: scenes[0].samples[0].target_object: no navigable cell of the main region within 0.01 m of a bed "
+     "instance: no goal viewpoint"),
 ])
-def test_a_task_sample_missing_what_its_task_needs_gets_one_line(demo_eval_run, run_cli, tmp_path, edit, message):
+def test_a_task_sample_missing_what_its_task_needs_gets_one_line(demo_eval_run, run_cli, tmp_path, edit, args,
+                                                                 message):
     assert run_cli("export-sage", demo_eval_run, "--out", tmp_path / "first")[0] == 0
     plain = _plain_sage_file(tmp_path / "plain.json", _file(tmp_path / "first", "vln"))
     doc = json.loads(plain.read_text())
@@ -194,6 +219,6 @@ def test_a_task_sample_missing_what_its_task_needs_gets_one_line(demo_eval_run, 
     run = tmp_path / "run"
     shutil.copytree(demo_eval_run / "scenes", run / "scenes")
     before = _tree(tmp_path)
-    code, out, err = run_cli("import-sage-episodes", plain, "--run", run, "--scene", SCENE)
+    code, out, err = run_cli("import-sage-episodes", plain, "--run", run, "--scene", SCENE, *args)
     assert (code, out, err) == (2, "", f"error: {message.format(f=plain)}\n")
     assert _tree(tmp_path) == before

@@ -116,6 +116,28 @@ def test_task_episodes_are_the_same_bytes_on_every_run(all_tasks, tiny_built, tm
     assert [_sha(run / "episodes/tiny" / s) for s in shards] == [_sha(all_tasks / "episodes/tiny" / s) for s in shards]
 
 
+def test_the_summary_counts_every_tasks_trajectories_and_rows(tiny_built, tmp_path, run_cli):
+    """A run with tasks says how many trajectories and episode rows each task has, and totals them all (not vln's
+    alone); vln alone prints as before tasks existed."""
+    run = _copy(tiny_built, tmp_path / "run")
+    code, out, err = run_cli("gen-trajectories", str(run), "--per-scene", "4", "--min-geodesic", "1", "--tasks", ALL,
+                             "--task-episodes", "6")
+    assert code == 0, err
+    shards = sorted((run / "episodes/tiny").glob("*.parquet"))
+    rows = pq.read_table(shards).to_pylist()
+    tasks = dict.fromkeys(r["task"] for r in rows)
+    ids = {t: {r["trajectory_id"] for r in rows if r["task"] == t} for t in tasks}
+    lines = out.splitlines()
+    assert lines[0] == (f"gen-trajectories tiny: {sum(map(len, ids.values()))} trajectories, {len(rows)} episode rows "
+                        f"in {len(shards)} shard(s) -> {run / 'episodes/tiny'}")
+    assert list(tasks) == ["vln", *sorted(set(tasks) - {"vln"})] and len(ids["nogoal"]) == 6
+    assert "  by task: " + "; ".join(f"{t} {len(ids[t])} trajectories, {sum(r['task'] == t for r in rows)} episode "
+                                     "rows" for t in tasks) in lines
+    code, out, _ = run_cli("gen-trajectories", str(_copy(tiny_built, tmp_path / "vln")), "--per-scene", "4",
+                           "--min-geodesic", "1")
+    assert out.startswith("gen-trajectories tiny: 4 trajectories, ") and "by task" not in out
+
+
 def test_the_card_lists_the_task_columns_only_for_a_run_with_tasks(all_tasks, tiny_built):
     from sagebench.episodes.card import card_text
 

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 from test_fuzz_inputs import snapshot
 
-SPLITS = "Input should be 'train', 'val_seen', 'val_unseen' or 'test'"
+SPLITS = "Input should be 'train', 'val_seen', 'val_unseen', 'test', 'trajectory_unseen' or 'instruction_unseen'"
 TYPES = ("Input should be 'Add_Object', 'Scenario_Driven', 'Relative_Relationship', 'Attribute_Based', "
          "'Area_Based', 'Single_Goal' or 'Base_Action'")
 HEX16 = "String should match pattern '^[0-9a-f]{16}$'"
@@ -129,7 +129,7 @@ SAGE_CASES: list[tuple[str, Callable[[dict], Any], str]] = [
     ("point-in-the-table", _point([-1.0, -1.0, 0.5]), f"{S0}.points[1].position: (-1, -1) is off the navigable map of "
                                                       "scene 'tiny': no navigable cell within 0.5 m"),
     ("one-point-path", _sample(lambda s: s.update(points=s["points"][:1])),
-     f"{S0}.points: List should have at least 2 items after validation, not 1"),
+     f"{S0}.points: 1 point: a vln sample is a path, its start and goal at least"),
     ("episode-ids-all-the-same", _every_instruction(lambda ins: ins["sagebench"].update(episode_id="0" * 16)),
      f"{S0}.instructions[1].sagebench.episode_id: episode id '0000000000000000' again (first at "
      f"{S0}.instructions[0].sagebench.episode_id): each episode has its own id"),

@@ -359,3 +359,52 @@ def test_the_default_minimum_share_fails_a_mostly_template_scene_and_says_how_to
     counts = dict((why, int(n)) for n, why in re.findall(r"(\d+) ([a-z ]+)", grouped.group(2)))
     assert sum(counts.values()) == int(grouped.group(1)) and "wrong goal" in counts, line  # grouped by reason
     assert not (run / "episodes").exists()
+
+
+# ---------------------------------------------------------------- nogoal's instruction in llm mode
+
+PHRASINGS = ["Explore this home as widely as you can without bumping into anything.",
+             "Look around every part of the place, and avoid hitting furniture or walls.",
+             "Wander through as much of the house as possible while never colliding with objects.",
+             "Survey the whole environment carefully, avoiding collisions with walls and things."]
+
+
+def _phrasing(body: dict, n: int) -> Reply:
+    """The next of PHRASINGS (those the prompt quotes are written), but a first answer for the first and third
+    that the checks refuse: one that is no exploring, one that repeats the first."""
+    prompt = body["messages"][0]["content"]
+    k = sum(p in prompt.split("Your previous answer was:")[0] for p in PHRASINGS)
+    if "was rejected because" not in prompt and k in (0, 2):
+        return answer("Go to the kitchen and wait there." if k == 0 else PHRASINGS[0])
+    return answer(PHRASINGS[k])
+
+
+def test_llm_mode_phrases_each_nogoal_instruction_its_own_way(fake_llm, run_cli, run, tmp_path):
+    """Each nogoal episode of a scene gets its own wording of SAGE's exploration instruction, checked (it still says
+    explore and avoid collisions, repeats none before it) and asked again when it does not; template mode and a
+    model whose answers never pass keep SAGE's sentence."""
+    from sagebench.episodes.shards import read_episodes
+    from sagebench.episodes.tasks import NOGOAL_INSTRUCTION
+
+    server = fake_llm(_phrasing)
+    args = ["gen-trajectories", run, "--tasks", "nogoal", "--task-episodes", "4", "--instructions", "llm",
+            "--llm-base-url", server.url, "--llm-model", "fake", "--llm-cache-dir", tmp_path / "cache"]
+    code, out, err = run_cli(*args)
+    assert code == 0, err
+    assert "nogoal: 4 of 4 instructions phrased by the model, 0 SAGE-Bench's sentence" in out
+    rows = read_episodes(run / "episodes" / "demo_apartment_0").to_pylist()
+    assert [(r["instruction_text"], r["instruction_source"]) for r in rows] == [(p, "llm:fake") for p in PHRASINGS]
+    retried = [p for p in server.prompts if "was rejected because" in p]
+    assert len(retried) == 2 and "it does not tell the robot to explore" in retried[0]
+    assert "it repeats a phrasing already written" in retried[1]
+    sent, first = len(server.prompts), _files(run / "episodes")
+    assert run_cli(*args)[0] == 0 and len(server.prompts) == sent and _files(run / "episodes") == first  # cached
+
+    never = fake_llm(lambda b, n: answer("Go to the kitchen and wait there."))
+    other = ["--llm-base-url", never.url, "--llm-model", "fake", "--llm-cache-dir", tmp_path / "other"]
+    for more in ([*args[6:8], *other], []):  # a model whose answers never pass; then template mode
+        code, out, err = run_cli(*args[:6], *more)
+        assert code == 0, err
+        rows = read_episodes(run / "episodes" / "demo_apartment_0").to_pylist()
+        assert [(r["instruction_text"], r["instruction_source"]) for r in rows] == [(NOGOAL_INSTRUCTION, "template")] * 4
+        assert ("nogoal: 0 of 4 instructions phrased by the model, 4 SAGE-Bench's sentence" in out) == bool(more)

@@ -1,6 +1,7 @@
 """The stages after gen-trajectories on a run holding every task's episodes (docs/tasks.md): `sagebench run` with
 tasks in its config, validate, verify, report, export-vlnce and export-training, and each task run closed-loop by
-the baselines and scored by evaluate. The run is the tiny scene through `sagebench run`."""
+the baselines and scored by evaluate. The run is the tiny scene through `sagebench run`; the closed loop runs on
+the demo apartment and on the imported InteriorGS fixture too."""
 
 from __future__ import annotations
 
@@ -34,8 +35,38 @@ def tasks_run(tiny_scene, tmp_path_factory) -> Path:
     return folder / "out"
 
 
+def _with_tasks(scenes: Path, folder: Path) -> Path:
+    """A run of the built `scenes` (a run's scenes/) with 3 episodes of every task, exported for the simulator."""
+    from sagebench.stages.export_usd import export_usd
+
+    run = folder / "run"
+    shutil.copytree(scenes, run / "scenes")
+    with pytest.raises(SystemExit) as done:
+        main(["-q", "gen-trajectories", str(run), "--per-scene", "3", "--tasks", ",".join(TASKS), "--task-episodes",
+              "3"])
+    assert done.value.code in (0, None)
+    export_usd(run, cache_dir=folder / "coacd_cache")
+    return run
+
+
+@pytest.fixture(scope="module")
+def demo_tasks_run(demo_built_run, tmp_path_factory) -> Path:
+    """The demo apartment with every task's episodes. Read-only."""
+    return _with_tasks(demo_built_run / "scenes", tmp_path_factory.mktemp("demo_tasks"))
+
+
+@pytest.fixture(scope="module")
+def interiorgs_tasks_run(interiorgs_imported, tmp_path_factory) -> Path:
+    """The imported InteriorGS fixture built, with every task's episodes. Read-only."""
+    from sagebench.stages.build_scene import build_scene
+
+    folder = tmp_path_factory.mktemp("interiorgs_tasks")
+    build_scene(interiorgs_imported, folder / "built")
+    return _with_tasks(folder / "built" / "scenes", folder)
+
+
 def _rows(run: Path) -> list[dict]:
-    return pq.read_table(sorted((run / "episodes/tiny").glob("part-*.parquet"))).to_pylist()
+    return pq.read_table(sorted((run / "episodes").glob("*/part-*.parquet"))).to_pylist()
 
 
 def _count(rows: list[dict]) -> dict[str, int]:
@@ -133,9 +164,14 @@ def _evaluate(run_cli, run: Path, predictions: Path, tmp_path: Path) -> dict:
     return doc.get("by_task") or {"vln": doc["overall"]}  # VLN's predictions alone are scored as before tasks
 
 
-def test_every_task_runs_closed_loop_and_is_scored(tasks_run, run_cli, tmp_path):
-    """The oracle succeeds on every goal task; a stationary agent never succeeds and covers nothing, scored per
-    task alone and in one batch of every task."""
+@pytest.mark.parametrize("made", ["tasks_run", pytest.param("demo_tasks_run", marks=pytest.mark.slow),
+                                  pytest.param("interiorgs_tasks_run", marks=pytest.mark.slow)])
+def test_every_task_runs_closed_loop_and_is_scored(made, request, run_cli, tmp_path):
+    """On the tiny scene, the demo apartment and the imported InteriorGS fixture, every task has episodes; the
+    oracle succeeds on every goal task; a stationary agent never succeeds and covers nothing, scored per task alone
+    and in one batch of every task."""
+    tasks_run = request.getfixturevalue(made)
+    assert all(n > 0 for n in _count(_rows(tasks_run)).values()), _count(_rows(tasks_run))
     stationary = []
     for task in TASKS:
         for agent in ("oracle", "stationary"):
@@ -148,10 +184,45 @@ def test_every_task_runs_closed_loop_and_is_scored(tasks_run, run_cli, tmp_path)
             if agent == "oracle" and task in GOAL_TASKS:
                 assert scores[task]["sr"] >= 0.95, (task, scores)
             if agent == "stationary":
-                assert scores[task]["sr"] == 0.0, (task, scores)
+                assert scores[task]["sr"] == 0.0 and scores[task].get("coverage", 0.0) < 0.02, (task, scores)
                 stationary.append(pred.read_text())
     batch = tmp_path / "batch.jsonl"
     batch.write_text("".join(stationary))
     scores = _evaluate(run_cli, tasks_run, batch, tmp_path)
     assert sorted(scores) == sorted(TASKS) and all(s["sr"] == 0.0 for s in scores.values()), scores
     assert scores["nogoal"]["coverage"] < 0.02
+
+
+@pytest.mark.parametrize("made, walled", [("tasks_run", False),  # the tiny room has no walls: some views are empty
+                                          pytest.param("demo_tasks_run", True, marks=pytest.mark.slow),
+                                          pytest.param("interiorgs_tasks_run", True, marks=pytest.mark.slow)])
+def test_imagenav_s_goal_image_is_the_scene_s_view_from_the_goal_pose(made, walled, request):
+    """An imagenav agent is shown the Gaussians' view from the goal camera (what `sagebench render --pose` gives
+    there), not a placeholder: in a walled apartment it is a picture, and not the view at the start."""
+    from sagebench.env import NavEnv
+    from sagebench.settings.render import RenderConfig
+    from sagebench.settings.rollout import EnvConfig
+    from sagebench.stages.render import render_view
+
+    run = request.getfixturevalue(made)
+    env = NavEnv(run, EnvConfig(task="imagenav", width=32, height=24, observations=("rgb",), renderer="cpu"))
+    for row in (r for r in _rows(run) if r["task"] == "imagenav"):
+        seen, _ = env.reset(options={"episode_id": row["episode_id"]})
+        (x, y, _), yaw = row["goal_position"], row["goal_yaw"]
+        view = render_view(run, row["scene_id"], (x, y, yaw), RenderConfig(width=32, height=24, renderer="cpu")).rgb
+        assert np.abs(seen["imagegoal"] - np.clip(view * 255.0, 0, 255)).max() <= 1.0, row["episode_id"]
+        if walled:
+            assert seen["imagegoal"].std() > 10 and np.abs(seen["imagegoal"] - seen["rgb"].astype(float)).mean() > 5
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("made", ["demo_tasks_run", "interiorgs_tasks_run"])
+def test_the_explorer_covers_at_least_twice_what_a_random_walk_does(made, request, run_cli, tmp_path):
+    run = request.getfixturevalue(made)
+    coverage = {}
+    for agent in ("explorer", "random"):
+        pred = tmp_path / f"{agent}.jsonl"
+        code, _, err = run_cli("-q", "baseline", "--run", run, "--out", pred, "--agent", agent, "--task", "nogoal")
+        assert code == 0, err
+        coverage[agent] = _evaluate(run_cli, run, pred, tmp_path)["nogoal"]["coverage"]
+    assert coverage["explorer"] >= 2 * coverage["random"] > 0, coverage

@@ -105,7 +105,7 @@ def _objectnav(task, scene_id, smap, m, config, rng, where) -> list[dict]:
             continue
         wps = cell_path(m.nav, m.grid, start, viewpoints[nearest[tuple(start)]], m.workspace)[1]
         rows.append(_row(task, scene_id, m, config, wps, radius, rng, goal_category=category, goal_instance_ids=ids,
-                         goal_viewpoints=_world(m, viewpoints)[:, :3].tolist(),
+                         goal_viewpoints=cell_points(m, viewpoints),
                          instruction_text=f"Find the {category.replace('_', ' ')}", instruction_source="template"))
     return rows
 
@@ -115,23 +115,36 @@ def _category_goals(smap: SemanticMap, m: SceneMap, config: GenTrajectoriesConfi
     """category -> (its instance ids, its viewpoint cells [K, 2]): the asked categories (each must have an instance
     with a viewpoint), else every object category that has one."""
     asked = config.task.objectnav_categories
-    grid = Grid(m.grid.origin, m.grid.resolution, m.nav.shape)
     out = {}
     for category in asked or sorted({i.category for i in smap.instances if i.kind == "object"}):
-        instances = [i for i in smap.instances if i.category == category and i.polygon.coordinates]
-        footprint = np.zeros(m.nav.shape, dtype=bool)
-        for inst in instances:
-            footprint |= polygon_mask(MultiPolygon([Polygon(p[0], p[1:]) for p in inst.polygon.coordinates]), grid)
-        near = ndimage.distance_transform_edt(~footprint) * grid.resolution <= config.task.objectnav_success_m
-        viewpoints = np.argwhere(m.main & near) if footprint.any() else np.zeros((0, 2), dtype=np.int64)
+        ids, viewpoints = category_viewpoints(smap, m, category, config.task.objectnav_success_m)
         if len(viewpoints):
-            out[category] = ([i.instance_id for i in instances], viewpoints)
+            out[category] = (ids, viewpoints)
         elif asked:
-            why = "no instance" if not instances else \
+            why = "no instance" if not ids else \
                 f"no navigable cell of the main region within {config.task.objectnav_success_m:g} m of an instance"
             raise DataError(f"objectnav category {category!r}: {why}; nothing written", path=where,
                             field="--objectnav-categories")
     return out
+
+
+def category_viewpoints(smap: SemanticMap, m: SceneMap, category: str, radius: float) -> tuple[list[int], np.ndarray]:
+    """The ids of `category`'s instances (those with a footprint) and its goal viewpoints, cells [K, 2]: the main
+    region's standable cells whose centre lies within `radius` of any instance's footprint cell."""
+    instances = [i for i in smap.instances if i.category == category and i.polygon.coordinates]
+    grid = Grid(m.grid.origin, m.grid.resolution, m.nav.shape)
+    footprint = np.zeros(m.nav.shape, dtype=bool)
+    for inst in instances:
+        footprint |= polygon_mask(MultiPolygon([Polygon(p[0], p[1:]) for p in inst.polygon.coordinates]), grid)
+    if not footprint.any():
+        return [i.instance_id for i in instances], np.zeros((0, 2), dtype=np.int64)
+    near = ndimage.distance_transform_edt(~footprint) * grid.resolution <= radius
+    return [i.instance_id for i in instances], np.argwhere(m.main & near)
+
+
+def cell_points(m: SceneMap, cells: np.ndarray) -> list[list[float]]:
+    """[K, 3] x, y, floor z of cell centres: goal viewpoints as an episode row holds them."""
+    return _world(m, cells)[:, :3].tolist()
 
 
 def _point_goal(task, scene_id, smap, m, config, rng, where) -> list[dict]:

@@ -35,6 +35,7 @@ from pydantic import (
 )
 
 from sagebench.episodes.ids import episode_id
+from sagebench.episodes.task_rows import SceneMap, category_viewpoints, cell_points
 from sagebench.episodes.tasks import NOGOAL_INSTRUCTION, VLN, goal_image_recipe, pointgoal_polar, row_task
 from sagebench.errors import DataError, first_error
 from sagebench.gvln.frame import SAGE_Z, sage_rotation, to_sage_xy, wrap, yaw_from_sage_rotation
@@ -43,6 +44,7 @@ from sagebench.input_files import read_json
 from sagebench.metrics.on_foot import NavigableMap
 from sagebench.scene.model import SceneSpec
 from sagebench.settings.shared import Split, Task
+from sagebench.topdown.semantic_map import SemanticMap
 
 ITEM_KINDS = ("object", "door", "window")
 # sagebench's instruction types -> SAGE-3D's spelling (prompt_traj_to_instruction.json); the rest are the same
@@ -281,6 +283,7 @@ class _Context:
 
     spec: SceneSpec
     navmap: NavigableMap
+    goal_maps: tuple[SemanticMap, SceneMap]  # where an objectnav sample's goal viewpoints are found
     path: Path
     goal_radius: float
     split: str
@@ -290,14 +293,16 @@ class _Context:
         return [(r.id, shapely.Polygon(r.polygon)) for r in self.spec.rooms]
 
 
-def rows_from_gvln(scene: GvlnScene, spec: SceneSpec, navmap: NavigableMap, *, goal_radius: float, split: str,
-                   budget: tuple[float, int]) -> GvlnRows:
+def rows_from_gvln(scene: GvlnScene, spec: SceneSpec, navmap: NavigableMap, goal_maps: tuple[SemanticMap, SceneMap], *,
+                   goal_radius: float, split: str, budget: tuple[float, int]) -> GvlnRows:
     """sagebench episode rows of the scene `spec` for every sample and instruction of `scene`, checked as generated
     rows are: instances and rooms of the scene, path points on its navigable map `navmap` (or moved onto it from at
     most SNAP_M away), trajectory and episode ids unique. Each sample's task is sagebench.gvln.tasks.sample_task's;
     SAGE-3D's Goal-less instructions are no-goal episodes from their sample's start (`budget`: their time and step
-    budget where the file has none); instructions of a type sagebench does not know are left out and counted."""
-    ctx, out = _Context(spec, navmap, scene.path, goal_radius, split, budget), GvlnRows()
+    budget where the file has none); an objectnav sample's goal viewpoints, where the file has none, are found on
+    `goal_maps` (the scene's semantic map and gen-trajectories' map of it) as gen-trajectories finds them;
+    instructions of a type sagebench does not know are left out and counted."""
+    ctx, out = _Context(spec, navmap, goal_maps, scene.path, goal_radius, split, budget), GvlnRows()
     for i, sample in enumerate(scene.samples):
         where = f"scenes[0].samples[{i}]"
         extra = sample.sagebench or _SampleExtra()
@@ -366,7 +371,7 @@ def _task_columns(task: str, sample: _Sample, extra: _SampleExtra, base: dict[st
         return {"task": task, "goal_yaw": yaw,
                 "goal_image": extra.goal_image or sample.target_image or goal_image_recipe(gx, gy, yaw)}
     if task == "objectnav":
-        return _objectnav_columns(sample, extra, ctx, where)
+        return _objectnav_columns(sample, extra, base["goal_radius"], ctx, where)
     return {"task": task}
 
 
@@ -377,19 +382,30 @@ def _nogoal_columns(base: dict[str, Any], budget: tuple[float, int]) -> dict[str
             "budget_s": float(budget[0]), "budget_steps": int(budget[1])}
 
 
-def _objectnav_columns(sample: _Sample, extra: _SampleExtra, ctx: _Context, where: str) -> dict[str, Any]:
-    """An ObjectNav sample's category (SAGE's target_object), every instance of it, and its goal viewpoints."""
+def _objectnav_columns(sample: _Sample, extra: _SampleExtra, radius: float, ctx: _Context,
+                       where: str) -> dict[str, Any]:
+    """An ObjectNav sample's category (SAGE's target_object), every instance of it, and its goal viewpoints: the
+    file's, else the main region's navigable cells within the success `radius` of any instance (SAGE's files have
+    none)."""
     category = extra.goal_category or sample.target_object
     key = "sagebench.goal_category" if extra.goal_category else "target_object"
     ids = extra.goal_instance_ids or [o.instance_id for o in ctx.spec.objects if o.category == category]
     if not ids:
         raise DataError(f"category {category!r} has no instance in scene {ctx.spec.scene_id!r}", path=ctx.path,
                         field=f"{where}.{key}")
-    if not extra.goal_viewpoints:
-        raise DataError(f"no goal viewpoints: an objectnav sample needs them (the navigable points within its success "
-                        f"radius of any {category} instance)", path=ctx.path, field=f"{where}.sagebench.goal_viewpoints")
+    viewpoints = extra.goal_viewpoints or _viewpoints(category, radius, ctx, f"{where}.{key}")
     return {"task": "objectnav", "goal_category": category, "goal_instance_ids": list(ids),
-            "goal_viewpoints": extra.goal_viewpoints}
+            "goal_viewpoints": viewpoints}
+
+
+def _viewpoints(category: str, radius: float, ctx: _Context, where: str) -> list[list[float]]:
+    """The goal viewpoints of `category` in the scene, as gen-trajectories finds them; none is a DataError."""
+    smap, maps = ctx.goal_maps
+    cells = category_viewpoints(smap, maps, category, radius)[1]
+    if not len(cells):
+        raise DataError(f"no navigable cell of the main region within {radius:g} m of a {category} instance: no goal "
+                        "viewpoint", path=ctx.path, field=where)
+    return cell_points(maps, cells)
 
 
 def _vln_rows(sample: _Sample, base: dict[str, Any], out: GvlnRows, ctx: _Context, where: str) -> None:

@@ -146,6 +146,12 @@ def _endpoint(ctx: SceneContext, name: str, room: str | None, kind: str) -> str:
     return f"{name}, in {ctx.room_names.get(room or '', 'no room')}"
 
 
+def exploration_prompt(instruction: str, written: list[str]) -> str:
+    """The prompt for one more phrasing of the no-goal instruction, different from those `written` before it."""
+    return string.Template(_prompt_file("nogoal.txt")).substitute(
+        instruction=instruction, written="\n".join(f"  - {w}" for w in written) or "  - (none yet)")
+
+
 def retry_prompt(prompt: str, answer: str, problems: list[str]) -> str:
     return string.Template(_prompt_file("retry.txt")).substitute(
         prompt=prompt, answer=answer.strip()[:400], problems="; ".join(problems))

@@ -163,8 +163,8 @@ class GenTrajectoriesConfig(SamplingConfig):
     instructions: Annotated[Literal["template", "llm", "none"], Option("--instructions")] = Field(
         default="template",
         description="template: two low-level rows (Base_Action, Single_Goal) and one high-level row per trajectory; "
-                    "llm: the high-level row from a chat model (grounded, else the template); none: one bare row per "
-                    "trajectory.")
+                    "llm: the high-level row from a chat model (grounded, else the template), and each nogoal "
+                    "episode's instruction its phrasing of SAGE-Bench's; none: one bare row per trajectory.")
     goal_radius_m: Annotated[float, Option("--goal-radius")] = Field(
         default=1.0, gt=0,
         description="Success radius written with each episode, m: the stand point is ~0.2-0.3 m from the target, so "

@@ -22,7 +22,7 @@ from sagebench.astar.sampling import GridMap, SamplingResult, sample_trajectorie
 from sagebench.episodes.preview import render_paths
 from sagebench.episodes.rows import EpisodeRows, episode_rows
 from sagebench.episodes.task_rows import scene_map, task_rows
-from sagebench.episodes.tasks import TASK_SCHEMA, VLN, schema_for
+from sagebench.episodes.tasks import NOGOAL_INSTRUCTION, TASK_SCHEMA, VLN, schema_for
 from sagebench.episodes.shards import write_shards
 from sagebench.episodes.targets import scene_context, scene_sight, scene_targets, unreachable_rooms
 from sagebench.errors import ConfigError, DataError, ServiceError
@@ -67,7 +67,7 @@ class SceneEpisodes:
     llm_summary: str | None = None  # what the chat model contributed, in llm mode
     unreachable_rooms: tuple[str, ...] = ()  # rooms whose objects (and themselves) were no start or goal
     high_level_summary: str | None = None  # the high-level types' counts against their quotas, and why any fell short
-    task_episodes: dict[str, int] = field(default_factory=dict)  # task -> its rows, for each task but vln
+    by_task: dict[str, tuple[int, int]] = field(default_factory=dict)  # task -> (trajectories, rows); {} for vln alone
 
     def summary(self) -> str:
         line = (f"gen-trajectories {self.scene_id}: {self.trajectories} trajectories, {self.rows} episode rows "
@@ -77,8 +77,9 @@ class SceneEpisodes:
                      f"{', '.join(self.unreachable_rooms)} and the objects in them")
         if self.high_level_summary is not None:
             line += f"\n  high-level types: {self.high_level_summary}"
-        if self.task_episodes:
-            line += "\n  tasks: " + ", ".join(f"{task} {n} episode(s)" for task, n in self.task_episodes.items())
+        if self.by_task:
+            line += "\n  by task: " + "; ".join(f"{task} {t} trajectories, {n} episode rows"
+                                                for task, (t, n) in self.by_task.items())
         return line if self.llm_summary is None else f"{line}\n  llm: {self.llm_summary}"
 
 
@@ -111,6 +112,7 @@ def generate_scene(scene_dir: Path, run_dir: Path, config: GenTrajectoriesConfig
     vln = _vln_rows(scene_dir, spec, smap, grid, occupancy, config, api_key) if VLN in config.tasks else None
     rooms = {r.id: MultiPolygon([Polygon(r.polygon)]) for r in spec.rooms}
     tasks = task_rows(spec.scene_id, smap, scene_map(grid, rooms), config, scene_dir / SEMANTIC_MAP)
+    tasks, llm = _llm_nogoal(tasks, config, vln, api_key)
     schema = schema_for(config.tasks)
     rows = [({**r, "task": VLN} if schema is TASK_SCHEMA else r) for r in (vln.made.rows if vln else [])]
     rows += [r for task in sorted(tasks) for r in tasks[task]]
@@ -122,11 +124,42 @@ def generate_scene(scene_dir: Path, run_dir: Path, config: GenTrajectoriesConfig
         shards = write_shards(rows, tmp, round(config.shard_mb * 2**20), schema)
     with staged_dir(run_previews_dir(run_dir, spec.scene_id)) as tmp:
         write_bytes(tmp / PREVIEW, png)
-    return SceneEpisodes(spec.scene_id, out_dir, len(vln.result.trajectories) if vln else 0, len(rows),
+    by_task = _by_task(rows) if schema is TASK_SCHEMA else {}
+    trajectories = sum(t for t, _ in by_task.values()) if schema is TASK_SCHEMA else len(vln.result.trajectories)
+    return SceneEpisodes(spec.scene_id, out_dir, trajectories, len(rows),
                          [out_dir / p.name for p in shards],
-                         None if vln is None or vln.instructor is None else vln.instructor.summary(),
-                         unreachable_rooms(smap), None if vln is None or vln.made.balance is None else
-                         vln.made.balance.summary(), {t: len(r) for t, r in sorted(tasks.items())})
+                         llm, unreachable_rooms(smap), None if vln is None or vln.made.balance is None else
+                         vln.made.balance.summary(), by_task)
+
+
+def _by_task(rows: list[dict]) -> dict[str, tuple[int, int]]:
+    """task -> (its trajectories, its rows), in the shards' order (vln first)."""
+    tasks = dict.fromkeys(r["task"] for r in rows)
+    return {t: (len({r["trajectory_id"] for r in rows if r["task"] == t}), sum(r["task"] == t for r in rows))
+            for t in tasks}
+
+
+def _llm_nogoal(tasks: dict[str, list[dict]], config: GenTrajectoriesConfig, vln: _VlnRows | None,
+                api_key: str | None) -> tuple[dict[str, list[dict]], str | None]:
+    """In llm mode, the task rows with each nogoal row's instruction a phrasing of SAGE's exploration instruction
+    by the chat model (through the vln rows' client when there is one); and what the model gave (None in template
+    mode)."""
+    rows = tasks.get("nogoal") if config.instructions == "llm" else None
+    notes = []
+    if rows:
+        from sagebench.instructions.exploration import exploration_instructions
+        from sagebench.instructions.llm_client import ChatClient
+
+        client = vln.instructor.client if vln and vln.instructor else ChatClient(config.llm, api_key=api_key)
+        said = exploration_instructions(client, NOGOAL_INSTRUCTION, len(rows))
+        tasks = {**tasks, "nogoal": [{**r, "instruction_text": text, "instruction_source": source}
+                                     for r, (text, source) in zip(rows, said)]}
+        llm = sum(source != "template" for _, source in said)
+        notes.append(f"nogoal: {llm} of {len(rows)} instructions phrased by the model, {len(rows) - llm} "
+                     "SAGE-Bench's sentence")
+    if vln and vln.instructor:
+        notes.insert(0, vln.instructor.summary())
+    return tasks, "; ".join(notes) or None
 
 
 @dataclass(frozen=True)

@@ -1,10 +1,11 @@
 """`import-sage-episodes`: SAGE-Bench's GVLN episodes for a scene of a run -> sagebench episode rows, so that SAGE-3D's
 own test episodes run and are scored in sagebench's closed loop (rollout, evaluate).
 
-Reads FILE (a GVLN trajectory file, sagebench.gvln.episodes) and RUN/scenes/<id>/scene.json and topdown.npz of the
-scene it is for: the one whose id is its `scene_name` or ends with "_<scene_name>" (an imported InteriorGS scene
-`0001_839920` is SAGE-3D's `839920`), or --scene. The file's values are checked as generated episodes are (its
-path points on the navigable map, moved onto it from at most SNAP_M away). Writes
+Reads FILE (a GVLN trajectory file, sagebench.gvln.episodes) and RUN/scenes/<id>/scene.json, topdown.npz and
+semantic_map.json (objectnav's goal viewpoints, where the file has none) of the scene it is for: the one whose id
+is its `scene_name` or ends with "_<scene_name>" (an imported InteriorGS scene `0001_839920` is SAGE-3D's
+`839920`), or --scene. The file's values are checked as generated episodes are (its path points on the navigable
+map, moved onto it from at most SNAP_M away). Writes
 RUN/episodes/<id>/part-<split>-NNNNN.parquet, replacing that scene's episodes whole (a staged directory renamed
 into place).
 """
@@ -15,19 +16,24 @@ from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
+from sagebench.astar.sampling import GridMap
 from sagebench.episodes.shards import write_shards
+from sagebench.episodes.task_rows import scene_map
 from sagebench.episodes.tasks import schema_for
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import staged_dir
 from sagebench.gvln.episodes import SNAP_M, read_gvln, rows_from_gvln
 from sagebench.input_files import read_input
 from sagebench.metrics import NavigableMap
-from sagebench.run_layout import CONTRACT, SCENE_FILE, SCENES, TOPDOWN, require, run_episodes_dir, run_scene_dir
+from sagebench.run_layout import (
+    CONTRACT, SCENE_FILE, SCENES, SEMANTIC_MAP, TOPDOWN, require, run_episodes_dir, run_scene_dir,
+)
 from sagebench.scene.loader import parse_spec
 from sagebench.settings.gen_trajectories import TaskConfig
 from sagebench.settings.import_sage_episodes import SageImportConfig
 from sagebench.stamps import check_reads
 from sagebench.topdown.grid_file import read_topdown_grids
+from sagebench.topdown.semantic_map import read_semantic_map
 
 SHARD_BYTES = 128 * 2**20
 
@@ -62,8 +68,11 @@ def import_sage_episodes(path: Path, run_dir: Path, config: SageImportConfig = S
     spec = parse_spec(read_input(scene_dir / SCENE_FILE), scene_dir / SCENE_FILE)
     grids = read_topdown_grids(scene_dir / TOPDOWN)
     navmap = NavigableMap(grids.navigable, grids.resolution, grids.origin, snap_radius=SNAP_M)
+    grid = GridMap(grids.navigable, grids.resolution, grids.origin, float(spec.floor_height), grids.anchors)
+    goal_maps = read_semantic_map(scene_dir / SEMANTIC_MAP), scene_map(grid, {})  # objectnav's viewpoints
     budget = TaskConfig().nogoal_budget_s, TaskConfig().nogoal_budget_steps
-    got = rows_from_gvln(scene, spec, navmap, goal_radius=config.goal_radius, split=config.split, budget=budget)
+    got = rows_from_gvln(scene, spec, navmap, goal_maps, goal_radius=config.goal_radius, split=config.split,
+                         budget=budget)
     if not got.rows:
         raise DataError("no episode to import (no sample, or every instruction of a type sagebench does not know)",
                         path=path)
