@@ -388,27 +388,35 @@ def test_ctrl_c_stops_a_cold_export_and_a_rerun_reuses_every_finished_piece(tmp_
     assert {p: p.stat().st_mtime_ns for p in finished} == finished  # read back, never made again
 
 
-def test_an_object_the_part_budget_keeps_off_its_footprint_is_refused_or_named_in_a_warning(tmp_path, run_cli):
-    # one part for the U-shaped planter: its hull fills the U, far past the 2 cm tolerance in the agent band
+def test_a_piece_no_method_fits_within_its_budgets_is_refused_naming_it_or_named_in_a_warning(tmp_path, run_cli):
+    # one part for the U-shaped planter, the last resort's budget too: its hull fills the U, far past the 2 cm
+    # tolerance in the agent band
     run = make_run(tmp_path)
+    one_part = ["--colliders", "fast", "--max-parts", "1", "--exact-max-parts", "1"]
     before = _hashes(run / "scenes" / "tiny")
-    code, _, err = run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", "--colliders", "balanced",
-                           "--max-parts", "1")
-    last = err.rstrip().splitlines()[-1]
-    assert code == 2 and last.startswith("error: planter_4: colliders 15.0 cm off in the agent band cover free floor at ")
-    assert last.endswith("that the object leaves open (a doorway?): hull parts of one of its pieces at the "
-                                 "1-part budget (--max-parts); nothing was written")
+    code, out, err = run_cli("-q", "export-usd", run, "--cache-dir", tmp_path / "cache", *one_part)
+    (last,) = err.splitlines()
+    assert code == 2 and out == ""
+    assert last.startswith("error: planter_4: colliders 15.0 cm off in the agent band cover free floor at ")
+    assert last.endswith("that the object leaves open (a doorway?): hull parts of its piece meshes/planter.obj "
+                         "(concave piece 0) at the 1-part budget (--max-parts); nothing was written")
     assert _hashes(run / "scenes" / "tiny") == before
     # without build-scene's occupancy (a scene whose maps were written by other means) the warning is all there is
     (run / "scenes" / "tiny" / "topdown.npz").unlink()
-    code, _, err = run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", "--colliders", "balanced",
-                           "--max-parts", "1")
+    code, _, err = run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", *one_part)
     assert code == 0
     (line,) = [x for x in err.splitlines() if "tolerance" in x]
     assert line.startswith("warning: planter_4: colliders ") and line.endswith(
-        "over the 2 cm tolerance: hull parts of one of its pieces at the 1-part budget (--max-parts)")
-    code, _, err = run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", "--colliders", "balanced")
+        "over the 2 cm tolerance: hull parts of its piece meshes/planter.obj (concave piece 0) at the 1-part budget "
+        "(--max-parts)")
+    # the last resort's own budget lets exact voxels fit the U where the 1-part budget cannot
+    code, _, err = run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", "--colliders", "fast",
+                           "--max-parts", "1")
     assert code == 0 and "tolerance" not in err
+    (planter,) = [o for o in json.loads((run / "scenes" / "tiny" / "colliders" / "colliders.json").read_text())[
+        "objects"] if o["name"] == "planter_4"]
+    assert [p["method"] for p in planter["concave_pieces"]] == ["voxel_exact"]
+    assert 1 < len(planter["parts"]) <= 128 and planter["quality"]["band_over_cm"] <= 2.0
 
 
 def test_nurec_and_sage_layout_then_back_to_particlefields(tmp_path, run_cli):
@@ -451,3 +459,49 @@ def test_sage_layout_without_gaussians_is_an_error_and_writes_nothing(tmp_path, 
     assert code == 2 and err.splitlines()[-1] == \
         "error: --layout sage needs the scene's Gaussians (gaussians.ply): run build-scene again"
     assert _hashes(run) == before
+
+
+def write_open_concave_scene(src: Path) -> None:
+    """A room whose furniture is open concave shapes, as artist meshes are: a torus ottoman and a sectional sofa,
+    an annulus (0.9..1.05 m radius, 0.7 m tall) with a 0.9 m wide opening and three faces missing."""
+    import shapely
+
+    from sagebench.importers.interiorgs_structure import slab
+
+    ring = shapely.Point(0, 0).buffer(1.05, 32).difference(shapely.Point(0, 0).buffer(0.9, 32))
+    c = slab(ring.difference(shapely.box(0, -0.45, 2, 0.45)), 0.0, 0.7)
+    meshes = {"meshes/floor.ply": _box((5, 4, 0.05), (2.5, 2, -0.025)),
+              "meshes/ottoman.ply": trimesh.creation.torus(0.4, 0.12),
+              "meshes/sofa.ply": trimesh.Trimesh(c.vertices, c.faces[3:], process=False)}
+    for rel, mesh in meshes.items():
+        (src / rel).parent.mkdir(parents=True, exist_ok=True)
+        mesh.export(src / rel)
+    (src / "scene.json").write_text(json.dumps({
+        "scene_id": "open", "units": "m", "up_axis": "Z",
+        "rooms": [{"id": "room_0", "type": "living_room", "polygon": [[0, 0], [5, 0], [5, 4], [0, 4]]}],
+        "objects": [
+            {"instance_id": 1, "category": "floor", "kind": "floor", "mesh": "meshes/floor.ply", "room_id": "room_0"},
+            {"instance_id": 2, "category": "ottoman", "mesh": "meshes/ottoman.ply", "room_id": "room_0",
+             "transform": {"translation": [1.0, 1.0, 0.12]}},
+            {"instance_id": 3, "category": "sofa", "mesh": "meshes/sofa.ply", "room_id": "room_0",
+             "transform": {"translation": [3.2, 2.2, 0.0]}}]}))
+
+
+def test_open_concave_furniture_exports_within_the_band_and_replays_clean(tmp_path, run_cli):
+    # the open C's voxels merged to the 32-part budget were 26.5 cm off and covered its open middle: no USD at all;
+    # exact voxels at the tolerance, within the last resort's budget, fit it
+    src, run = tmp_path / "src", tmp_path / "run"
+    write_open_concave_scene(src)
+    build_scene(src, run, FEW_GAUSSIANS)
+    assert run_cli("-q", "gen-trajectories", run, "--per-scene", "6")[0] == 0
+    code, out, err = run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", "--colliders", "fast")
+    assert code == 0 and "tolerance" not in err, err
+    index = {o["name"]: o for o in json.loads((run / "scenes" / "open" / "colliders" / "colliders.json").read_text())[
+        "objects"]}
+    assert [p["method"] for p in index["sofa_3"]["concave_pieces"]] == ["voxel_exact"]
+    assert len(index["sofa_3"]["parts"]) <= 128
+    assert max(index[n]["quality"]["band_over_cm"] for n in ("sofa_3", "ottoman_2")) <= 2.0
+    model = mujoco.MjModel.from_xml_path(str(run / "scenes" / "open" / "scene.xml"))
+    assert model.nmesh == sum(len(o["parts"]) for o in index.values())
+    code, out, err = run_cli("validate", run, "--frames-per-scene", "0")
+    assert code == 0 and "validate open: 2/2 trajectories pass" in out, out + err

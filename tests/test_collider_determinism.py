@@ -101,13 +101,14 @@ def test_a_wall_whose_collider_would_close_its_doorway_fails_the_export_naming_i
     """Were `fast` to end at the walls' hulls (as the time budget once made it), the export stops with one line
     naming the first such wall and writes nothing."""
     monkeypatch.setitem(methods.LADDERS, "fast", ("hull",))
+    monkeypatch.setitem(methods.ESCALATIONS, "fast", ())
     run = _fresh(house_run, tmp_path, "hulls")
     code, out, err = run_cli("export-usd", run, "--cache-dir", tmp_path / "cache", "--colliders", "fast")
     assert code == 2 and out == ""
     assert err.strip().splitlines()[-1] == (
         "error: wall_1: colliders 333.0 cm off in the agent band cover free floor at (2.12, 1.82) that the object "
-        "leaves open (a doorway?): no method of --colliders fast came closer on one of its pieces (best: hull, "
-        "333.0 cm in 1 parts); nothing was written")
+        "leaves open (a doorway?): no method of --colliders fast came closer on its piece meshes/wall_south_east.obj "
+        "(concave piece 0) (best: hull, 333.0 cm in 1 parts); nothing was written")
     assert not any((run / "scenes" / SCENE / name).exists() for name in OUTPUTS)
 
 

@@ -98,9 +98,10 @@ def test_the_safety_limit_is_not_part_of_the_cache_key_and_coacd_is_left_out_of_
     assert piece_key(piece, QUALITY, BAND) == piece_key(piece, QUALITY.model_copy(update={"piece_limit_s": 5.0}), BAND)
     assert piece_key(piece, QUALITY, BAND) != piece_key(piece, QUALITY.model_copy(update={"coacd_max_faces": 5}), BAND)
     few = QUALITY.model_copy(update={"coacd_max_faces": len(m.faces)})
-    assert ladder(few, len(m.faces)) == ("coacd", "voxel", "hull")
-    assert ladder(few, len(m.faces) + 1) == ("voxel", "hull")
-    assert ladder(BALANCED.model_copy(update={"coacd_max_faces": 0}), 1) == ("hull", "voxel")
+    assert ladder(few, len(m.faces)) == ("coacd", "voxel", "hull", "coacd_fine", "voxel_exact")
+    assert ladder(few, len(m.faces) + 1) == ("voxel", "hull", "voxel_exact")
+    assert ladder(BALANCED.model_copy(update={"coacd_max_faces": 0}), 1) == ("hull", "voxel", "voxel_exact")
+    assert ladder(BALANCED.model_copy(update={"mode": "fast"}), 1) == ("hull", "voxel", "voxel_exact")  # no CoACD
 
 
 def test_equal_pieces_run_once_and_workers_do_not_change_results(tmp_path):

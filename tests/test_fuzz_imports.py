@@ -170,25 +170,31 @@ def test_damaged_gvln_files(damage, expect, gvln, tiny_run, run_cli, tmp_path):
     _refused_exactly(run_cli, ["import-sage-episodes", path, "--run", run], tmp_path, f"{path}: {expect}")
 
 
-def test_a_point_just_off_the_map_is_moved_onto_it_and_counted(gvln, tiny_run, run_cli, tmp_path):
-    """(3.0, 0.05) lies 0.175 m from the nearest navigable cell (the floor's edge less the agent's radius): the start
-    moves to that cell's centre, the summary counts it, and every other value is the file's."""
+def test_a_start_and_a_goal_just_off_the_map_are_moved_onto_it_and_counted(gvln, tiny_run, run_cli, tmp_path):
+    """(3.0, 0.05) lies 0.175 m from the nearest navigable cell (the floor's edge less the agent's radius): one
+    sample's start and another's goal there move to that cell's centre, the summary counts them (starts and goals,
+    the farthest move), and every other value is the file's."""
     from sagebench.episodes.shards import read_episodes
 
     run = _run_copy(tiny_run, tmp_path)
     doc = copy.deepcopy(gvln)
-    _point([-3.0, -0.05, 0.5], j=0)(doc)  # SAGE-3D's frame: x and y turned by 180 degrees
+    samples = doc["scenes"][0]["samples"]
+    samples[0]["points"][0]["position"] = [-3.0, -0.05, 0.5]  # SAGE-3D's frame: x and y turned by 180 degrees
+    samples[1]["points"][-1]["position"] = [-3.0, -0.05, 0.5]
     path = tmp_path / "trajectories_tiny.json"
     path.write_text(json.dumps(doc))
     code, out, err = run_cli("import-sage-episodes", path, "--run", run)
     assert (code, err) == (0, "")
-    assert out.startswith("import-sage-episodes tiny: 4 trajectories, 12 episode rows, 1 path points snapped onto the "
-                          "navigable map (within 0.5 m) -> ")
+    assert out.startswith("import-sage-episodes tiny: 4 trajectories, 12 episode rows, 2 path points snapped onto the "
+                          "navigable map (within 0.5 m; 1 starts, 1 goals, the farthest 0.18 m) -> ")
     rows = read_episodes(run / "episodes" / "tiny").to_pylist()
     before = {r["episode_id"]: r for r in read_episodes(tiny_run / "episodes" / "tiny").to_pylist()}
-    moved = [r for r in rows if r["trajectory_id"] == doc["scenes"][0]["samples"][0]["sagebench"]["trajectory_id"]]
+    moved = [r for r in rows if r["trajectory_id"] == samples[0]["sagebench"]["trajectory_id"]]
     assert len(moved) == 3 and all(r["start_position"][:2] == pytest.approx([3.025, 0.225]) for r in moved)
     assert all(r["reference_path"][0][:2] == r["start_position"][:2] for r in moved)
+    ended = [r for r in rows if r["trajectory_id"] == samples[1]["sagebench"]["trajectory_id"]]
+    assert ended and all(r["goal_position"][:2] == pytest.approx([3.025, 0.225]) for r in ended)
+    moved += ended
     for row in (r for r in rows if r not in moved):  # the frame's turn and back moves the last bit at most
         old = before[row["episode_id"]]
         assert all(np.allclose(row[c], old[c], atol=1e-9) if isinstance(old[c], float | list) else row[c] == old[c]

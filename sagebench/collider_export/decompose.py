@@ -11,7 +11,7 @@ import numpy as np
 from sagebench.collider_export.coacd_cache import PartCache, PieceResult, split_key
 from sagebench.collider_export.convex import ConvexPart, ConvexSplit, merge_parts, split_convex, weld
 from sagebench.collider_export.fanout import map_processes
-from sagebench.collider_export.methods import band_error_cm, ladder
+from sagebench.collider_export.methods import band_error_cm, ladder, part_budget
 from sagebench.collider_export.pieces import Piece, decompose_pieces
 from sagebench.collider_export.quality import BandReach
 from sagebench.collider_export.vertex_limit import within_vertex_limit
@@ -80,7 +80,8 @@ def _decompose(meshes: Mapping[str, tuple[np.ndarray, np.ndarray]], settings: Co
             continue
         pieces = [next(results) for _ in split.concave]
         parts = list(split.parts) + [p for r in pieces for p in r.parts]
-        kept = merge_to_budget(parts, meshes[name], settings, band) if len(parts) > settings.max_parts else parts
+        budget = object_budget(pieces, settings)
+        kept = merge_to_budget(parts, meshes[name], settings, band, budget) if len(parts) > budget else parts
         exact = len(split.parts) if kept is parts else 0
         out[name] = MeshColliders(within_vertex_limit(kept), exact, pieces, merged=len(parts) - len(kept))
     return {name: out[name] for name in meshes}
@@ -109,9 +110,19 @@ def plan_pieces(meshes: Mapping[str, tuple[np.ndarray, np.ndarray]], settings: C
             jobs.append(Piece(f"{name} (whole mesh: {len(split.parts) + len(split.concave)} pieces)",
                               *weld(*meshes[name]), ("voxel",)))
         else:
-            jobs += [Piece(f"{name} (concave piece {k})", pv, pf, ladder(settings, len(pf)))
+            jobs += [Piece(piece_name(name, k), pv, pf, ladder(settings, len(pf)))
                      for k, (pv, pf) in enumerate(split.concave)]
     return PiecePlan(splits, frozenset(over), jobs)
+
+
+def piece_name(mesh: str, k: int) -> str:
+    """How messages name a mesh's k-th concave piece."""
+    return f"{mesh} (concave piece {k})"
+
+
+def object_budget(pieces: list[PieceResult], settings: ColliderSettings) -> int:
+    """The parts a mesh may keep: the part budget, or the last resort's where one of its pieces needed it."""
+    return max((part_budget(p.method, settings) for p in pieces), default=settings.max_parts)
 
 
 def split_meshes(meshes: Mapping[str, tuple[np.ndarray, np.ndarray]], cache: PartCache, *, tolerance: float,
@@ -130,30 +141,37 @@ def split_meshes(meshes: Mapping[str, tuple[np.ndarray, np.ndarray]], cache: Par
 
 
 def merge_to_budget(parts: list[ConvexPart], mesh: tuple[np.ndarray, np.ndarray], settings: ColliderSettings,
-                    band: tuple[float, float]) -> list[ConvexPart]:
-    """`parts` of the mesh (vertices [V, 3], faces [F, 3]) merged to the part budget, each merge kept within
+                    band: tuple[float, float], budget: int) -> list[ConvexPart]:
+    """`parts` of the mesh (vertices [V, 3], faces [F, 3]) merged to `budget` parts, each merge kept within
     the band tolerance of the mesh's footprint in the agent's band (z, m) where some pair allows it
     (convex.merge_parts)."""
     import trimesh
 
     source = trimesh.Trimesh(*mesh, process=False)
     reach = BandReach(source, np.concatenate([p.vertices for p in parts]), band)
-    return merge_parts(parts, settings.max_parts, band, reach=reach, tolerance=settings.band_tolerance_cm / 100)
+    return merge_parts(parts, budget, band, reach=reach, tolerance=settings.band_tolerance_cm / 100)
 
 
-def tolerance_cause(mc: MeshColliders, settings: ColliderSettings) -> str:
+def tolerance_cause(mesh: str, mc: MeshColliders, settings: ColliderSettings) -> str:
     """Why a mesh's colliders may miss its agent-band footprint by more than the tolerance, for the messages:
     the part budget (a whole-mesh voxel collider, a piece whose best method used every part it may, parts merged)
-    or its methods (none came closer on some piece within fewer parts)."""
-    budget = f"at the {settings.max_parts}-part budget (--max-parts)"
-    worst = max(mc.pieces, key=lambda p: p.band_error_cm, default=None)
+    or its methods (none, the escalation's included, came closer on the piece named)."""
+    worst = max(range(len(mc.pieces)), key=lambda k: mc.pieces[k].band_error_cm, default=None)
     if mc.whole:
-        return f"voxelised whole {budget}: more than {WHOLE_MESH_FACTOR} times that many pieces"
-    if worst is not None and worst.band_error_cm > settings.band_tolerance_cm:
-        if len(worst.parts) >= settings.max_parts:
-            return f"{worst.method} parts of one of its pieces {budget}"
-        return (f"no method of --colliders {settings.mode} came closer on one of its pieces (best: {worst.method}, "
-                f"{worst.band_error_cm:.1f} cm in {len(worst.parts)} parts)")
+        return (f"voxelised whole at the {settings.max_parts}-part budget (--max-parts): more than "
+                f"{WHOLE_MESH_FACTOR} times that many pieces")
+    if worst is not None and mc.pieces[worst].band_error_cm > settings.band_tolerance_cm:
+        piece, name = mc.pieces[worst], piece_name(mesh, worst)
+        if len(piece.parts) >= part_budget(piece.method, settings):
+            return f"{piece.method} parts of its piece {name} at the {budget_text([piece], settings)}"
+        return (f"no method of --colliders {settings.mode} came closer on its piece {name} (best: {piece.method}, "
+                f"{piece.band_error_cm:.1f} cm in {len(piece.parts)} parts)")
     if mc.merged:
-        return f"{mc.merged} parts merged {budget}"
+        return f"{mc.merged} parts merged at the {budget_text(mc.pieces, settings)}"
     return "each of its pieces is within it on its own; the parts together are not"
+
+
+def budget_text(pieces: list[PieceResult], settings: ColliderSettings) -> str:
+    """`32-part budget (--max-parts)`, or the last resort's where one of `pieces` needed it."""
+    budget = object_budget(pieces, settings)
+    return f"{budget}-part budget ({'--max-parts' if budget == settings.max_parts else '--exact-max-parts'})"

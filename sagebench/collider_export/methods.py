@@ -13,9 +13,11 @@ piece's (quality.band_errors), else the best of them. `fast` and `balanced` try 
 CoACD after hole closing was once 84 cm off in the band (pymeshfix dropped half a cushion), which the
 measure catches. Which methods a piece gets depends on the piece alone, never on the clock: CoACD, whose
 work grows with the faces it cuts, is left out for pieces of more than `coacd_max_faces` faces (`ladder`).
-A piece that every method of its mode leaves outside the tolerance escalates (ESCALATION) to `coacd_fine`
-(CoACD at 0.4 of the threshold, resolution 2000, up to the part budget whatever --coacd-max-hulls says); the
-piece keeps the closest of all, and colliders.json names the method it ended with. V-HACD (the vhacdx package) was measured and left out: on the 19 bench pieces whose hull misses the band it
+A piece that every method of its mode leaves outside the tolerance escalates (ESCALATIONS): `balanced` and
+`quality` to `coacd_fine` (CoACD at 0.4 of the threshold, resolution 2000, up to the part budget whatever
+--coacd-max-hulls says), every mode last to `voxel_exact` (voxels of half the tolerance, their boxes merged only
+down to the larger last-resort budget --exact-max-parts: at the 32-part budget they were 19 cm off on an open C,
+at 128 parts 1 cm); the piece keeps the closest of all, and colliders.json names the method it ended with. V-HACD (the vhacdx package) was measured and left out: on the 19 bench pieces whose hull misses the band it
 always used its 32 hulls, 11 of them within 2 cm (voxel 17, CoACD 16) in 3x the voxel time.
 """
 
@@ -32,7 +34,7 @@ from sagebench.collider_export.repair import close_holes
 from sagebench.collider_export.voxel import voxel_parts
 from sagebench.settings.export_usd import ColliderSettings
 
-Method = Literal["hull", "voxel", "coacd", "coacd_fine"]
+Method = Literal["hull", "voxel", "coacd", "coacd_fine", "voxel_exact"]
 UNSHAPING = frozenset({"piece_limit_s"})  # ColliderSettings fields that never change the parts
 
 LADDERS: dict[str, tuple[Method, ...]] = {
@@ -43,18 +45,33 @@ LADDERS: dict[str, tuple[Method, ...]] = {
 
 
 # tried, in this order, only by a piece that every method of its mode left outside the band tolerance (open
-# concave furniture: an open C of 270 degrees was 3.2 cm off by CoACD and 3.0 by voxels, 1.0 by coacd_fine; voxels
-# of half the tolerance merged to the 32-part budget were 19 cm off, so finer voxels are no escalation)
-ESCALATION: tuple[Method, ...] = ("coacd_fine",)
+# concave furniture: an open C of 270 degrees was 3.2 cm off by CoACD and 3.0 by voxels, 1.0 by coacd_fine and by
+# voxel_exact); `fast` never runs CoACD
+ESCALATIONS: dict[str, tuple[Method, ...]] = {
+    "fast": ("voxel_exact",),
+    "balanced": ("coacd_fine", "voxel_exact"),
+    "quality": ("coacd_fine", "voxel_exact"),
+}
 FINE_THRESHOLD = 0.4  # coacd_fine's concavity threshold, as a share of --coacd-threshold
 FINE_RESOLUTION = 2000  # coacd_fine's sampling resolution (CoACD's own default)
+EXACT_PITCH_MIN = 0.01  # m, voxel_exact's finest voxels (voxel_pitch's least): a piece's cells grow as 1 / pitch^3
 
 
 def ladder(settings: ColliderSettings, faces: int) -> tuple[Method, ...]:
     """The methods a piece of `faces` faces tries, in order: its mode's, then the escalation's finer ones; CoACD's
     left out above coacd_max_faces."""
-    return tuple(m for m in (*LADDERS[settings.mode], *ESCALATION)
+    return tuple(m for m in (*LADDERS[settings.mode], *ESCALATIONS[settings.mode])
                  if not m.startswith("coacd") or faces <= settings.coacd_max_faces)
+
+
+def part_budget(method: str, settings: ColliderSettings) -> int:
+    """The most parts a piece's `method` may give, and an object with a piece that ended with it may keep."""
+    return max(settings.exact_max_parts, settings.max_parts) if method == "voxel_exact" else settings.max_parts
+
+
+def exact_pitch(settings: ColliderSettings) -> float:
+    """voxel_exact's voxel size, m: half the band tolerance, no finer than EXACT_PITCH_MIN."""
+    return max(settings.band_tolerance_cm / 200, EXACT_PITCH_MIN)
 
 
 def run_method(method: Method, vertices: np.ndarray, faces: np.ndarray, settings: ColliderSettings,
@@ -63,11 +80,11 @@ def run_method(method: Method, vertices: np.ndarray, faces: np.ndarray, settings
     in the piece's frame; raises when the method fails."""
     if method == "hull":
         return [hull_part(vertices)]
-    if method == "voxel":
+    if method in ("voxel", "voxel_exact"):
         # the voxel footprint is a pitch coarse: a box within tolerance of it may reach half a cell farther
-        return voxel_parts(vertices, faces, pitch=settings.voxel_pitch, max_parts=settings.max_parts,
-                           band=band,
-                           tolerance=max(settings.band_tolerance_cm / 100 - settings.voxel_pitch / 2, 0.0))
+        pitch = settings.voxel_pitch if method == "voxel" else exact_pitch(settings)
+        return voxel_parts(vertices, faces, pitch=pitch, max_parts=part_budget(method, settings), band=band,
+                           tolerance=max(settings.band_tolerance_cm / 100 - pitch / 2, 0.0))
     closed = close_holes(vertices, faces)
     if closed is None:
         raise RuntimeError("its holes could not be closed")

@@ -111,7 +111,7 @@ def build_export(scene: LoadedScene, gaussians: Gaussians | None, floor: FloorMa
                                  else mean_colour(per_object[obj.instance_id])))
         index.append(_index_entry(obj.instance_id, name, obj.mesh, part_files, mc, quality.get(obj.instance_id)))
     names = {o.instance_id: prim_name(o) for o in objects}
-    causes = {o.instance_id: tolerance_cause(colliders[o.mesh], config.colliders) for o in spec.objects}
+    causes = {o.instance_id: tolerance_cause(o.mesh, colliders[o.mesh], config.colliders) for o in spec.objects}
     if floor is not None:
         check_free_floor([(names[o.instance_id], matrices[o.instance_id], colliders[o.mesh].parts,
                            quality[o.instance_id].band_error_cm, causes[o.instance_id])

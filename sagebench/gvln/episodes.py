@@ -273,6 +273,8 @@ class GvlnRows:
     rows: list[dict[str, Any]] = field(default_factory=list)
     skipped: Counter[str] = field(default_factory=Counter)  # instructions left out, by type (no task to give them)
     snapped: int = 0  # path points moved onto the navigable map (within SNAP_M)
+    snapped_ends: Counter[str] = field(default_factory=Counter)  # of them, samples' starts and goals ("start", "goal")
+    snapped_max_m: float = 0.0  # the farthest any of them moved
     trajectories: dict[str, str] = field(default_factory=dict)  # id -> where it was given
     episodes: dict[str, str] = field(default_factory=dict)
 
@@ -313,7 +315,7 @@ def rows_from_gvln(scene: GvlnScene, spec: SceneSpec, navmap: NavigableMap, goal
         if task != "nogoal" and len(path) < 2:
             raise DataError(f"1 point: a {task} sample is a path, its start and goal at least", path=scene.path,
                             field=f"{where}.points")
-        out.snapped += moved
+        _count_snapped(out, moved, task)
         tid = extra.trajectory_id or _hashed(spec.scene_id, str(sample.trajectory_id))
         given = ("sagebench.trajectory_id", tid) if extra.trajectory_id else ("trajectory_id", sample.trajectory_id)
         _unique("trajectory", tid, given[1], out.trajectories, scene.path, f"{where}.{given[0]}")
@@ -484,12 +486,23 @@ def _unique(what: str, key: str, shown: str | int, seen: dict[str, str], path: P
     seen[key] = field_
 
 
+def _count_snapped(out: GvlnRows, moved: np.ndarray, task: str) -> None:
+    """Add a sample's moved points (`moved` [M]: how far each path point moved onto the map, m) to `out`'s counts:
+    all of them, its start and its goal (the last point, but for a no-goal sample's)."""
+    out.snapped += int((moved > 0).sum())
+    out.snapped_max_m = max(out.snapped_max_m, float(moved.max()))
+    out.snapped_ends["start"] += int(moved[0] > 0)
+    out.snapped_ends["goal"] += int(task != "nogoal" and len(moved) > 1 and moved[-1] > 0)
+
+
 def _reference_path(sample: _Sample, spec: SceneSpec, navmap: NavigableMap, path: Path, where: str
-                    ) -> tuple[np.ndarray, int]:
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """[M, 4] world waypoints [x, y, floor, yaw] on the navigable map (each point's own heading, the last one keeping
-    the one before), and the number of points moved onto the map; a point farther off is a DataError."""
+    the one before), and [M] how far each point was moved onto the map (m, 0 where it was on it); a point farther
+    off is a DataError."""
     pts = sample.points
-    xy, moved = navmap.place(to_sage_xy(np.array([p.position[:2] for p in pts], dtype=np.float64)))
+    given = to_sage_xy(np.array([p.position[:2] for p in pts], dtype=np.float64))
+    xy, moved = navmap.place(given)
     off = np.flatnonzero(np.isnan(xy[:, 0]))
     if len(off):
         x, y = pts[off[0]].position[:2]
@@ -498,7 +511,8 @@ def _reference_path(sample: _Sample, spec: SceneSpec, navmap: NavigableMap, path
     yaws = [yaw_from_sage_rotation(p.rotation) for p in pts]
     if len(yaws) > 1:
         yaws[-1] = yaws[-2]  # SAGE-3D resets the last point's rotation
-    return np.column_stack([xy, np.full(len(pts), spec.floor_height), [wrap(y) for y in yaws]]), int(moved.sum())
+    distance = np.where(moved, np.linalg.norm(xy - given, axis=1), 0.0)
+    return np.column_stack([xy, np.full(len(pts), spec.floor_height), [wrap(y) for y in yaws]]), distance
 
 
 def _room_at(point: np.ndarray, rooms: list[tuple[str, shapely.Polygon]]) -> str | None:

@@ -51,6 +51,9 @@ class ColliderSettings(BaseModel):
     coacd: Annotated[CoacdParams, EXPAND] = CoacdParams()
     max_parts: Annotated[int, Option("--max-parts")] = Field(
         default=32, ge=1, description="Part budget per object; parts are merged to stay within it.")
+    exact_max_parts: Annotated[int, Option("--exact-max-parts")] = Field(
+        default=128, ge=1, description="Part budget of an object with a piece that only the last resort, exact "
+                                       "voxels at the band tolerance, fits (never below --max-parts).")
     coacd_max_faces: Annotated[int, Option("--coacd-max-faces")] = Field(
         default=4000, ge=0, description="CoACD is tried only on pieces of at most this many faces.")
     piece_limit_s: Annotated[float, Option("--piece-limit")] = Field(

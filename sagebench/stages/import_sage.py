@@ -46,10 +46,15 @@ class SageImport:
     rows: int
     skipped: Counter
     snapped: int  # path points moved onto the navigable map
+    snapped_ends: Counter  # of them, samples' starts and goals ("start", "goal")
+    snapped_max_m: float  # the farthest any of them moved
 
     def lines(self) -> list[str]:
+        moved = (f"{self.snapped} path points snapped onto the navigable map (within {SNAP_M:g} m"
+                 + (f"; {self.snapped_ends['start']} starts, {self.snapped_ends['goal']} goals, the farthest "
+                    f"{self.snapped_max_m:.2f} m" if self.snapped else "") + ")")
         out = [f"import-sage-episodes {self.scene_id}: {self.trajectories} trajectories, {self.rows} episode rows, "
-               f"{self.snapped} path points snapped onto the navigable map (within {SNAP_M:g} m) -> {self.out_dir}"]
+               f"{moved} -> {self.out_dir}"]
         if self.skipped:
             out.append("left out instructions of types sagebench does not know: "
                        + ", ".join(f"{k} {v}" for k, v in sorted(self.skipped.items())))
@@ -79,7 +84,8 @@ def import_sage_episodes(path: Path, run_dir: Path, config: SageImportConfig = S
     out = run_episodes_dir(run_dir, sid)
     with staged_dir(out) as tmp:
         write_shards(got.rows, tmp, SHARD_BYTES, schema_for(r["task"] for r in got.rows))
-    return SageImport(sid, out, len({r["trajectory_id"] for r in got.rows}), len(got.rows), got.skipped, got.snapped)
+    return SageImport(sid, out, len({r["trajectory_id"] for r in got.rows}), len(got.rows), got.skipped, got.snapped,
+                      got.snapped_ends, got.snapped_max_m)
 
 
 def _scene_for(name: str, run_dir: Path, path: Path) -> str:
