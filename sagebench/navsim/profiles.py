@@ -5,7 +5,7 @@ would not have on an R2R-style task) are never in a profile but `full`, and any 
 asked for by name (`privileged`):
 - `pose`: the agent's world pose [x, y, z, yaw] (float64, m and rad);
 - `gps_compass`: `gps` [2] float32, the agent's position relative to the episode's start in the start's frame
-  (x forward, y left, m), and `compass` [1] float32, its heading relative to the start's (rad in [-pi, pi)),
+  ([forward, right], m), and `compass` [1] float32, its heading relative to the start's (rad in [-pi, pi)),
   as habitat's episodic GPS and compass sensors give them;
 - `instance`: the instance-id image [H, W] int32 (ground-truth segmentation).
 

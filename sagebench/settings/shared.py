@@ -120,9 +120,9 @@ class MetricConfig:
 
 @dataclass(frozen=True)
 class TaskMetricConfig:
-    """Constants of the other tasks' metrics (docs/tasks.md); apart from MetricConfig so that a VLN run's results
+    """Constants of the other tasks' metrics (docs/tasks/*.md); apart from MetricConfig so that a VLN run's results
     stay as they were."""
 
     viewpoint_tolerance: float = 0.1  # ObjectNav: success within this of a goal viewpoint on foot, m (habitat's 0.1)
     coverage_success: float = 0.1  # no-goal: success needs at least this coverage (and no collision); calibrated
-    # on the demo (docs/metrics.md): SAGE's 80 s sweep at most 0.40 of it, the explorer 0.13, a random walk 0.03
+    # on the demo (docs/tasks/nogoal.md): SAGE's 80 s sweep at most 0.40 of it, the explorer 0.13, a random walk 0.03

@@ -1,5 +1,5 @@
 """ImageNav's goal image: the PNG file an episode names (an imported episode's, run-relative), else the view rendered
-from the goal pose (gen-trajectories' `render:x,y,yaw`, docs/tasks.md). A file is what the agent is shown, so it must
+from the goal pose (gen-trajectories' `render:x,y,yaw`, docs/tasks/imagenav.md). A file is what the agent is shown, so it must
 be a PNG of the rgb observation's size: anything else is refused before the rollout writes a byte."""
 
 from __future__ import annotations
