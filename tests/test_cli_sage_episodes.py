@@ -168,3 +168,29 @@ def test_bad_files_get_one_line_and_nothing_is_written(exported, demo_eval_run, 
     assert (code, out) == (2, "")
     assert err == f"error: {message.format(f=bad, run=run)}\n"
     assert not (run / "episodes").exists()
+
+
+def test_an_interiorgs_scene_s_sage_offset_moves_exported_points_and_the_import_moves_them_back(demo_eval_run,
+                                                                                               run_cli, tmp_path):
+    run = tmp_path / "run"
+    for part in ("scenes", "episodes"):
+        shutil.copytree(demo_eval_run / part, run / part)
+    spec_path = run / "scenes" / SCENE / "scene.json"
+    offset = (-0.004, -0.002)  # what SAGE's format2-rounded map bounds put into its 3D frame (import-interiorgs)
+    spec_path.write_text(json.dumps({**json.loads(spec_path.read_text()), "sage_offset": list(offset)}))
+    code, _, err = run_cli("export-sage", run, "--out", tmp_path / "sage")
+    assert code == 0, err
+    before = read_episodes(run / "episodes" / SCENE).to_pylist()
+    rows = {r["episode_id"]: r for r in before}
+    doc = json.loads((tmp_path / "sage" / SCENE / f"trajectories_{SCENE}.json").read_text())
+    for sample in doc["scenes"][0]["samples"]:
+        row = rows[sample["instructions"][0]["sagebench"]["episode_id"]]
+        for point, world in zip(sample["points"], row["reference_path"]):
+            assert point["position"][:2] == pytest.approx([offset[0] - world[0], offset[1] - world[1]], abs=1e-12)
+    code, _, err = run_cli("import-sage-episodes", tmp_path / "sage" / SCENE / f"trajectories_{SCENE}.json",
+                           "--run", run)
+    assert code == 0, err
+    after = {r["episode_id"]: r for r in read_episodes(run / "episodes" / SCENE).to_pylist()}
+    for eid, row in rows.items():
+        if row["instruction_text"] is not None:
+            assert np.allclose(after[eid]["reference_path"], row["reference_path"], atol=1e-9)
