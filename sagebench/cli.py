@@ -472,10 +472,12 @@ def export_sage_cmd(
 ) -> None:
     """Export the episodes as SAGE-3D's GVLN trajectory files (SAGE-Bench's episode format).
 
-    Positions and headings in SAGE-3D's 3D frame (the world turned by 180 degrees about Z), one sample per
-    trajectory, one instruction per episode row; SAGE-3D's episodes_adapter.py reads them.
+    Positions and headings in SAGE-3D's 3D frame (the world turned by 180 degrees about Z, moved by an InteriorGS
+    scene's sage_offset), one sample per trajectory, one instruction per episode row; SAGE-3D's episodes_adapter.py
+    reads them. A goal in a room is named by the object nearest it (SAGE-Bench scores a goal by an object's box
+    grown by 1 m); a trajectory whose goal has no object within 0.9 m is left out, and counted.
 
-    Reads RUN_DIR/episodes/<id>/part-*.parquet and RUN_DIR/scenes/<id>/scene.json.
+    Reads RUN_DIR/episodes/<id>/part-*.parquet and RUN_DIR/scenes/<id>/scene.json and semantic_map.json.
 
     Writes OUT/<id>/trajectories_<id>.json per scene (its vln episodes), OUT/<task-type>/<id>/trajectories_<id>.json
     for each other task (nogoalnav, objectnav, pointnav, imgnav: the run_benchmark.py --task-type that reads

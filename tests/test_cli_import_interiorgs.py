@@ -15,11 +15,13 @@ import pytest
 from interiorgs_fixture import (
     band_footprint_ious, empty_space_filled, in_box_share, iou, on_grid, turned_scene, write_interiorgs_folder,
 )
+from sagebench.gvln.frame import to_sage_xy
 from sagebench.scene.assets import CATALOGUE, table
 from sagebench.scene.loader import load_scene
 from sagebench.splats.ply import read_ply
 from sagebench.topdown.raster import Grid
 from test_fuzz_inputs import snapshot
+from tests.sage_benchmark import sage_semantic_map, sage_to_2d
 
 
 def _label_of(scene_dir: Path) -> dict[int, int]:
@@ -345,3 +347,17 @@ def test_out_holding_other_files_is_refused(interiorgs_demo, run_cli, tmp_path):
     assert err == (f"error: {tmp_path / 'out'}: --out: is not empty and not a scene written by `sagebench "
                    "import-interiorgs`; choose another --out (or --force to replace it)\n")
     assert (tmp_path / "out" / "notes.txt").read_text() == "mine"
+
+
+def test_the_import_records_where_sage_s_rounded_map_bounds_put_its_3d_frame(interiorgs_demo, interiorgs_imported):
+    folder, _ = interiorgs_demo
+    meta = json.loads((folder / "occupancy.json").read_text())
+    png = cv2.imread(str(folder / "occupancy.png"), cv2.IMREAD_GRAYSCALE)
+    start, scale = np.array(meta["min"][:2]), meta["scale"]
+    smap = sage_semantic_map(json.loads((folder / "labels.json").read_text()), png, tuple(start), scale)
+    offset = json.loads((interiorgs_imported / "interiorgs_import.json").read_text())["sage_offset_m"]
+    assert load_scene(interiorgs_imported).spec.sage_offset == pytest.approx(offset, abs=0)
+    world = np.array([0.5, -1.0])
+    # SAGE's evaluator takes the exported point back to its 2D map: the world turned about the grid's centre
+    turned = 2 * start + np.array(png.shape[::-1]) * scale - world
+    assert sage_to_2d(list(to_sage_xy(world, tuple(offset))), smap) == pytest.approx(turned, abs=1e-9)

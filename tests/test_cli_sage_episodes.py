@@ -16,7 +16,8 @@ import pytest
 from sagebench.episodes.shards import read_episodes
 from sagebench.gvln.episodes import item_names
 from sagebench.scene.loader import load_scene
-from tests.sage_benchmark import sage_adapter, sage_heading
+from interiorgs_fixture import obb_corners
+from tests.sage_benchmark import object_success, sage_adapter, sage_heading, sage_semantic_map
 
 SCENE = "demo_apartment_0"
 
@@ -57,8 +58,32 @@ def test_sage_s_reader_sees_our_starts_goals_headings_and_instructions(demo_eval
             assert e["instruction"] == row["instruction_text"]
             assert e["instruction_type"] == {"Attribute_Based": "Attribute-based", "Area_Based": "Area-based"}.get(
                 row["instruction_type"], row["instruction_type"])
-            assert (e["start_item"], e["end_item"]) == (names.get(row["start_instance_id"], row["start_room"]),
-                                                       names.get(row["goal_instance_id"], row["goal_room"]))
+            assert e["start_item"] == names.get(row["start_instance_id"], row["start_room"])
+            # a room goal ends at an object SAGE-Bench's evaluator can look up (the next test scores it)
+            assert e["end_item"] == names[row["goal_instance_id"]] if row["goal_instance_id"] else (
+                e["end_item"] in names.values())
+
+
+def test_sage_bench_s_evaluator_scores_a_room_goal_by_the_object_it_ends_at(demo_eval_run, exported):
+    scene = load_scene(demo_eval_run / "scenes" / SCENE)
+    items = sorted((o for o in scene.spec.objects if o.kind in ("object", "door", "window")),
+                   key=lambda o: o.instance_id)
+    labels = [{"label": o.category, "bounding_box": [dict(zip("xyz", map(float, c)))
+                                                     for c in obb_corners(scene.meshes[o.instance_id])]} for o in items]
+    corners = np.array([[v["x"], v["y"]] for lab in labels for v in lab["bounding_box"]])
+    lo, hi = np.floor(corners.min(axis=0)) - 1.05, np.ceil(corners.max(axis=0)) + 1  # cell centres on 0.1 m
+    shape = np.ceil((hi - lo) / 0.1).astype(int)[::-1]
+    smap = sage_semantic_map(labels, np.full(shape, 127, np.uint8), tuple(lo), 0.1)  # walls and outside all round
+    samples = json.loads(exported.read_text())["scenes"][0]["samples"]
+    room_goals = [s for s in samples if s["sagebench"]["goal_instance_id"] is None]
+    assert room_goals
+    for sample in room_goals:
+        for ins in sample["instructions"]:
+            assert object_success(smap, ins["end"], sample["points"][-1]["position"]) is True, ins["end"]
+    marker = json.loads((exported.parents[1] / "sage_export.json").read_text())
+    rows = read_episodes(demo_eval_run / "episodes" / SCENE).to_pylist()
+    in_rooms = {r["trajectory_id"] for r in rows if r["goal_instance_id"] is None and r["instruction_text"]}
+    assert len(in_rooms) == len(room_goals) + sum(marker.get("room_goals_left_out", {}).values())
 
 
 def test_import_of_the_export_reproduces_the_episodes(demo_eval_run, exported, run_cli, tmp_path):
@@ -143,3 +168,29 @@ def test_bad_files_get_one_line_and_nothing_is_written(exported, demo_eval_run, 
     assert (code, out) == (2, "")
     assert err == f"error: {message.format(f=bad, run=run)}\n"
     assert not (run / "episodes").exists()
+
+
+def test_an_interiorgs_scene_s_sage_offset_moves_exported_points_and_the_import_moves_them_back(demo_eval_run,
+                                                                                               run_cli, tmp_path):
+    run = tmp_path / "run"
+    for part in ("scenes", "episodes"):
+        shutil.copytree(demo_eval_run / part, run / part)
+    spec_path = run / "scenes" / SCENE / "scene.json"
+    offset = (-0.004, -0.002)  # what SAGE's format2-rounded map bounds put into its 3D frame (import-interiorgs)
+    spec_path.write_text(json.dumps({**json.loads(spec_path.read_text()), "sage_offset": list(offset)}))
+    code, _, err = run_cli("export-sage", run, "--out", tmp_path / "sage")
+    assert code == 0, err
+    before = read_episodes(run / "episodes" / SCENE).to_pylist()
+    rows = {r["episode_id"]: r for r in before}
+    doc = json.loads((tmp_path / "sage" / SCENE / f"trajectories_{SCENE}.json").read_text())
+    for sample in doc["scenes"][0]["samples"]:
+        row = rows[sample["instructions"][0]["sagebench"]["episode_id"]]
+        for point, world in zip(sample["points"], row["reference_path"]):
+            assert point["position"][:2] == pytest.approx([offset[0] - world[0], offset[1] - world[1]], abs=1e-12)
+    code, _, err = run_cli("import-sage-episodes", tmp_path / "sage" / SCENE / f"trajectories_{SCENE}.json",
+                           "--run", run)
+    assert code == 0, err
+    after = {r["episode_id"]: r for r in read_episodes(run / "episodes" / SCENE).to_pylist()}
+    for eid, row in rows.items():
+        if row["instruction_text"] is not None:
+            assert np.allclose(after[eid]["reference_path"], row["reference_path"], atol=1e-9)

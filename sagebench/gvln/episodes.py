@@ -79,14 +79,16 @@ def item_names(spec: SceneSpec) -> dict[int, str]:
     return out
 
 
-def gvln_document(scene_id: str, rows: Sequence[dict[str, Any]], spec: SceneSpec) -> dict[str, Any]:
-    """The GVLN file of one scene's episode rows (in their order; a trajectory's rows grouped into one sample)."""
-    names = item_names(spec)
+def gvln_document(scene_id: str, rows: Sequence[dict[str, Any]], spec: SceneSpec,
+                  ends: dict[str, int] | None = None) -> dict[str, Any]:
+    """The GVLN file of one scene's episode rows (in their order; a trajectory's rows grouped into one sample);
+    `ends`: the object to name as the end of a trajectory whose goal is a room (sagebench.gvln.room_goals)."""
+    names, ends = item_names(spec), ends or {}
     samples: dict[str, dict[str, Any]] = {}
     for row in rows:
         tid = row["trajectory_id"]
         if tid not in samples:
-            samples[tid] = _sample(row, names, spec.floor_height)
+            samples[tid] = _sample(row, spec)
         if row["instruction_text"] is None:
             if row_task(row) != VLN:  # a goal task's episode without an instruction: its id kept on the sample
                 samples[tid]["sagebench"]["episode_id"] = row["episode_id"]
@@ -95,7 +97,7 @@ def gvln_document(scene_id: str, rows: Sequence[dict[str, Any]], spec: SceneSpec
         samples[tid]["instructions"].append({
             "instruction_type": GOAL_LESS if row_task(row) == "nogoal" else TO_SAGE_TYPE.get(kind, kind) or "",
             "start": names.get(row["start_instance_id"], row["start_room"] or ""),
-            "end": names.get(row["goal_instance_id"], row["goal_room"] or ""),
+            "end": names.get(row["goal_instance_id"] or ends.get(tid), row["goal_room"] or ""),
             "generated_instruction": row["instruction_text"],
             "scene_id": scene_id,
             "sagebench": {"episode_id": row["episode_id"], "instruction_level": row["instruction_level"],
@@ -105,9 +107,10 @@ def gvln_document(scene_id: str, rows: Sequence[dict[str, Any]], spec: SceneSpec
             "scenes": [{"scene_id": 0, "scene_name": scene_name(scene_id), "samples": list(samples.values())}]}
 
 
-def _sample(row: dict[str, Any], names: dict[int, str], floor: float) -> dict[str, Any]:
+def _sample(row: dict[str, Any], spec: SceneSpec) -> dict[str, Any]:
+    floor = spec.floor_height
     path = np.asarray(row["reference_path"], dtype=np.float64).reshape(-1, 4)
-    xy = to_sage_xy(path[:, :2])
+    xy = to_sage_xy(path[:, :2], spec.sage_offset)
     points = []
     for j, (p, yaw) in enumerate(zip(xy, path[:, 3])):
         last = j == len(path) - 1
@@ -122,7 +125,7 @@ def _sample(row: dict[str, Any], names: dict[int, str], floor: float) -> dict[st
         sample["sagebench"].update({k: row.get(k) for k in TASK_KEYS})
         if row_task(row) == "nogoal":
             sample["sagebench"]["goal_radius"] = None  # no goal: no radius
-        sample.update(sage_task_fields(row, floor))
+        sample.update(sage_task_fields(row, floor, spec.sage_offset))
     return sample
 
 
@@ -501,7 +504,7 @@ def _reference_path(sample: _Sample, spec: SceneSpec, navmap: NavigableMap, path
     the one before), and [M] how far each point was moved onto the map (m, 0 where it was on it); a point farther
     off is a DataError."""
     pts = sample.points
-    given = to_sage_xy(np.array([p.position[:2] for p in pts], dtype=np.float64))
+    given = to_sage_xy(np.array([p.position[:2] for p in pts], dtype=np.float64), spec.sage_offset)
     xy, moved = navmap.place(given)
     off = np.flatnonzero(np.isnan(xy[:, 0]))
     if len(off):

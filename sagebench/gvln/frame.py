@@ -4,7 +4,9 @@ SAGE-3D plans on a 2D semantic map that is the world turned by 180 degrees (sema
 cell (i, j) at (H-1-i, W-1-j)), then moves each point into its 3D frame by mirroring x and y about the map's
 bounds and negating both (trajectory_2d_to_3d.py): a translation, so the 3D frame is the world turned by 180
 degrees about Z, where Data/template.usda also places the collision payload (orient (0, 0, 0, 1) about Z). So a
-world point (x, y) is (-x, -y) in SAGE's file, and a heading yaw is yaw + pi there.
+world point (x, y) is (-x, -y) in SAGE's file, and a heading yaw is yaw + pi there; on an InteriorGS scene, where
+SAGE's tools mirror about its mask cells' bounds rounded to 2 decimals, (ox - x, oy - y), (ox, oy) the scene's
+`sage_offset` (sagebench.importers.sage_frame; within 1 cm of 0).
 
 Its rotation is stored as [qx, qy, qz, qw] = [-sin(psi / 2), 0, 0, cos(psi / 2)] with psi = the 3D heading + pi
 (the 2D heading plus pi, "put qz to qx and negate"); simple_env.py reads the heading back as
@@ -29,9 +31,10 @@ def wrap(angle: float) -> float:
     return math.pi if a == -math.pi else a
 
 
-def to_sage_xy(xy: np.ndarray) -> np.ndarray:
-    """[..., 2] world xy -> SAGE-3D's 3D-frame xy (turned by 180 degrees about Z); the map is its own inverse."""
-    return -np.asarray(xy, dtype=np.float64)
+def to_sage_xy(xy: np.ndarray, offset: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+    """[..., 2] world xy -> SAGE-3D's 3D-frame xy (turned by 180 degrees about Z, then moved by the scene's
+    `offset`); the map is its own inverse."""
+    return np.asarray(offset, dtype=np.float64) - np.asarray(xy, dtype=np.float64)
 
 
 def sage_rotation(yaw: float) -> list[float]:

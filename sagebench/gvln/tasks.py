@@ -26,15 +26,16 @@ TASK_KEYS = ("task", "budget_s", "budget_steps", "goal_category", "goal_instance
              "goal_polar", "goal_yaw", "goal_image")
 
 
-def sage_position(position: list[float], floor: float) -> list[float]:
-    """A world point as SAGE-3D writes trajectory points: its 3D frame, SAGE_Z above the floor."""
-    x, y = to_sage_xy(position[:2])
+def sage_position(position: list[float], floor: float, offset: tuple[float, float]) -> list[float]:
+    """A world point as SAGE-3D writes trajectory points: its 3D frame (`offset`: the scene's), SAGE_Z above the
+    floor."""
+    x, y = to_sage_xy(position[:2], offset)
     return [float(x), float(y), floor + SAGE_Z]
 
 
-def sage_task_fields(row: dict[str, Any], floor: float) -> dict[str, Any]:
+def sage_task_fields(row: dict[str, Any], floor: float, offset: tuple[float, float]) -> dict[str, Any]:
     """The sample fields SAGE-Bench's task class of the row's task reads (none for vln)."""
-    task, goal = row.get("task") or "vln", sage_position(row["goal_position"], floor)
+    task, goal = row.get("task") or "vln", sage_position(row["goal_position"], floor, offset)
     if task == "nogoal":
         return {"task_type": NO_GOAL_SAMPLE}
     if task == "objectnav":

@@ -10,6 +10,7 @@
   Gaussians is left out with a warning. With a SAGE-3D collision USD, its meshes replace the surfaces of the
   objects they match.
 - The shipped occupancy.png is compared with the imported geometry's own height-band occupancy.
+- scene.json's `sage_offset` is where SAGE-3D's 3D frame of the scene lies (sagebench.importers.sage_frame).
 
 Instance ids: labelled objects first, in labels.json order (so "<category>_<k>", k counting a category's objects
 in id order, names the same object as SAGE-3D's item ids), then walls, floors and ceilings.
@@ -39,6 +40,7 @@ from sagebench.importers.interiorgs_structure import (
     DEFAULT_CEILING_M, SLAB_M, DoorPose, Opening, box_mesh, door_pose, openings_on, room_polygon, room_type, slab,
     snake, wall_pieces,
 )
+from sagebench.importers.sage_frame import sage_offset
 from sagebench.render.gaussians import Gaussians
 from sagebench.run_layout import SCENE_FILE
 from sagebench.scene.model import Door, Room, SceneObject, SceneSpec
@@ -114,7 +116,7 @@ def import_interiorgs(src: Path, config: InteriorGSConfig = InteriorGSConfig(),
     if collision_usd is not None:
         collision = _use_collision_meshes(Path(collision_usd), [t for t in objects if t.mesh is not None])
     kept = [t for t in things if t.mesh is not None]
-    spec = _spec(scene_id, folder, rooms, kept)
+    spec = _spec(scene_id, folder, rooms, kept, sage_offset(folder.occupancy, folder.labels))
     agreement = compare_occupancy(folder.occupancy, [t.posed if t.posed is not None else t.mesh for t in kept
                                                      if t.kind not in ("floor", "ceiling")], rooms, band)
     if agreement.iou < config.min_occupancy_iou:
@@ -137,6 +139,7 @@ def import_interiorgs(src: Path, config: InteriorGSConfig = InteriorGSConfig(),
         "doors": {t.category + f"_{t.instance_id}": t.door.state for t in kept if t.door is not None},
         "collision_meshes": collision,
         "occupancy_iou": round(agreement.iou, 4),
+        "sage_offset_m": list(spec.sage_offset),  # SAGE-3D's 3D frame: sagebench.importers.sage_frame
         "occupancy_free_cells": {"sagebench": agreement.free_ours, "occupancy.png": agreement.free_theirs},
         "instances": {str(t.instance_id): {"label": None if t.label is None else folder.labels[t.label].ins_id,
                                            "category": t.category} for t in kept},
@@ -386,7 +389,8 @@ def _use_collision_meshes(path: Path, objects: list[_Thing]) -> dict:
 # ---------------------------------------------------------------- scene.json
 
 
-def _spec(scene_id: str, folder: InteriorGSFolder, rooms: list[shapely.Polygon], things: list[_Thing]) -> SceneSpec:
+def _spec(scene_id: str, folder: InteriorGSFolder, rooms: list[shapely.Polygon], things: list[_Thing],
+          offset: tuple[float, float]) -> SceneSpec:
     room_models = [Room(id=f"room_{k}", type=room_type(r.room_type),
                         polygon=[(float(x), float(y)) for x, y in np.asarray(poly.exterior.coords)[:-1]])
                    for k, (r, poly) in enumerate(zip(folder.rooms, rooms))]
@@ -394,7 +398,7 @@ def _spec(scene_id: str, folder: InteriorGSFolder, rooms: list[shapely.Polygon],
                            mesh=f"meshes/{t.instance_id:05d}-{t.category}.ply", room_id=t.room_id, door=t.door)
                for t in things]
     try:
-        return SceneSpec(scene_id=scene_id, rooms=room_models, objects=objects)
+        return SceneSpec(scene_id=scene_id, rooms=room_models, objects=objects, sage_offset=offset)
     except ValidationError as err:
         loc, msg, _ = first_error(err)
         if loc == "scene_id":

@@ -155,6 +155,10 @@ class SceneSpec(_Model):
     floor_height: FiniteFloat = Field(default=0.0, description="Height of the walkable floor along up_axis, scene units.")
     rooms: list[Room] = Field(default_factory=list)
     objects: Annotated[list[SceneObject], Field(min_length=1)]
+    sage_offset: tuple[FiniteFloat, FiniteFloat] = Field(
+        default=(0.0, 0.0), description="m: a world point (x, y) is (sage_offset - (x, y)) in SAGE-3D's 3D frame "
+                                        "(its tools mirror about map bounds rounded to 2 decimals); import-interiorgs "
+                                        "writes it, 0 elsewhere.")
     license: Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9.+-]*$", max_length=64)] | None = Field(
         default=None, description="The licence of the scene's content as a Hugging Face license id (cc0-1.0, "
                                   "cc-by-4.0, apache-2.0, other, ...): what a run's dataset card declares.")
