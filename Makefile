@@ -24,7 +24,7 @@ demo: $(STAMP)
 	$(BIN)/sagebench demo --seed $(SEED) --out $(DEMO_OUT)
 
 # CI's profile: the same hypothesis examples on every run (tests/profiles.py). The few end-to-end tests on full demo
-# apartments (marked slow) are left to test-slow; CI (.ci/run) runs both
+# apartments and the two-node Ray cluster (marked slow) are left to test-slow; CI (.ci/run) runs both
 test: $(STAMP)
 	$(BIN)/python -m pytest -n 2 --hypothesis-profile=ci -m "not slow"
 

@@ -6,6 +6,7 @@ the CPUs it asks for, and idle threads sleep (sagebench.threads)."""
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import Any, Protocol, TypeVar
@@ -18,6 +19,7 @@ T = TypeVar("T")
 
 class Executor(Protocol):
     capacity: int  # tasks it runs at once: what a run keeps in flight to start the biggest pieces first
+    nodes: Counter[str]  # tasks ended per Ray node (its id); empty for the local executors
 
     def submit(self, fn: Callable[[Any], T], arg: Any, *, cpus: int = 1) -> Any: ...
 
@@ -37,6 +39,9 @@ class InlineExecutor:
     """Runs each task when submitted, in this process (one worker: simplest to debug, no pickling)."""
 
     capacity = 1
+
+    def __init__(self) -> None:
+        self.nodes: Counter[str] = Counter()
 
     def submit(self, fn: Callable[[Any], T], arg: Any, *, cpus: int = 1) -> _Ran:
         return _Ran(fn(arg))
@@ -59,6 +64,7 @@ class PoolExecutor:
         self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                                          initializer=_pool_worker_init, initargs=(self.threads,))
         self.capacity = workers
+        self.nodes: Counter[str] = Counter()
 
     def submit(self, fn: Callable[[Any], T], arg: Any, *, cpus: int = 1) -> Future:
         return self._pool.submit(fn, arg)
@@ -83,8 +89,9 @@ def _pool_worker_init(threads: int) -> None:
 
 
 class RayExecutor:
-    """One Ray task per submitted task, asking for the CPUs it uses; with no address a local Ray starts and
-    stops with the run. Worker logs stay on the workers: warnings come back in the outcomes."""
+    """One Ray task per submitted task, asking for the CPUs it uses (at most the CPUs of the cluster's biggest
+    node: Ray would wait for ever for a bigger one); with no address a local Ray starts and stops with the
+    run. Worker logs stay on the workers: warnings come back in the outcomes, and each task the node it ran on."""
 
     def __init__(self, address: str | None):
         try:
@@ -97,27 +104,35 @@ class RayExecutor:
             ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False)
         self._remote: Any = None
         self.capacity = max(1, int(ray.cluster_resources().get("CPU", 1)))
+        self._biggest = max([int(n["Resources"].get("CPU", 0)) for n in ray.nodes() if n["Alive"]] + [1])
+        self.nodes: Counter[str] = Counter()
 
     def submit(self, fn: Callable[[Any], T], arg: Any, *, cpus: int = 1) -> Any:
         # a worker process started for this many threads (its pools read the environment when they start)
         if self._remote is None:
             self._remote = self._ray.remote(_with_threads)
+        cpus = min(cpus, self._biggest)
         env = {"env_vars": thread_env(cpus)}
         return self._remote.options(num_cpus=cpus, runtime_env=env).remote(fn, arg, cpus)
 
     def wait_any(self, pending: list[Any]) -> list[tuple[Any, Any]]:
         done, _ = self._ray.wait(pending, num_returns=1)
-        return [(ref, self._ray.get(ref)) for ref in done]
+        got = [(ref, *self._ray.get(ref)) for ref in done]
+        self.nodes.update(node for _, node, _ in got)
+        return [(ref, result) for ref, _, result in got]
 
     def close(self) -> None:
         if self._started:
             self._ray.shutdown()
 
 
-def _with_threads(fn: Callable[[Any], T], arg: Any, threads: int) -> T:
-    """A Ray task: `fn(arg)` on `threads` threads (a reused worker may have run a task of another size)."""
+def _with_threads(fn: Callable[[Any], T], arg: Any, threads: int) -> tuple[str, T]:
+    """A Ray task: (the id of the node it ran on, `fn(arg)` on `threads` threads; a reused worker may have run a
+    task of another size)."""
+    import ray
+
     worker_init(threads)
-    return fn(arg)
+    return ray.get_runtime_context().get_node_id(), fn(arg)
 
 
 def make_executor(kind: str, workers: int, ray_address: str | None) -> Executor:

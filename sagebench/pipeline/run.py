@@ -34,6 +34,7 @@ class RunSummary:
     scenes: list[str]
     outcomes: list[Outcome] = field(default_factory=list)
     pieces: list[PieceOutcome] = field(default_factory=list)  # collider pieces run as tasks of their own
+    nodes: dict[str, int] = field(default_factory=dict)  # Ray node id -> tasks it ran (empty: local)
     episodes: int = 0
     wall_seconds: float = 0.0
 
@@ -65,6 +66,9 @@ class RunSummary:
         if self.pieces:
             lines.append(f"  {'collider pieces':<17} ran {len(self.pieces):>3}  (a task each)"
                          f"{sum(p.seconds for p in self.pieces):19.1f} s")
+        if self.nodes:
+            tasks = ", ".join(f"{node[:8]} {n}" for node, n in sorted(self.nodes.items(), key=lambda kv: -kv[1]))
+            lines.append(f"  {'ray nodes':<17} {len(self.nodes):>3}  tasks per node: {tasks}")
         for sid, o in sorted(self.failed.items()):
             lines.append(f"  FAILED {sid} at {o.stage}: {o.message}")
         return lines
@@ -103,7 +107,7 @@ def _run_locked(config: RunConfig, config_path: Path, sources: dict[str, Path], 
             ui.info(f"{outcome.status:>7} {outcome.stage} {outcome.scene_id}: {outcome.message}")
             for message in outcome.warnings:
                 ui.warn(f"{outcome.scene_id} {outcome.stage}: {message}")
-        summary.pieces = scheduler.pieces
+        summary.pieces, summary.nodes = scheduler.pieces, dict(executor.nodes)
     finally:
         executor.close()
     for sid, o in sorted(summary.failed.items()):
