@@ -125,7 +125,7 @@ def test_shell_completion_completes_command_names():
     env = {**os.environ, "_SAGEBENCH_COMPLETE": "complete_bash", "COMP_WORDS": "sagebench export-", "COMP_CWORD": "1"}
     done = subprocess.run([sys.executable, "-m", "sagebench"], env=env, capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
-    assert done.stdout.split() == ["export-usd", "export-vlnce", "export-training", "export-sage"]
+    assert done.stdout.split() == ["export-usd", "export-vlnce", "export-habitat", "export-training", "export-sage"]
 
 
 INPUT_OPTIONS = {"--run", "--config", "--predictions", "--furniture", "--collision-usd"}  # options naming a file a command reads
@@ -181,7 +181,7 @@ def test_a_path_that_does_not_exist_is_the_one_error_and_nothing_is_written(run_
     ("sagebench export-usd run --gaussians ", ["particlefield", "nurec"]),
     ("sagebench gen-trajectories run --instructions ", ["template", "llm", "none"]),
     ("sagebench export-vlnce run --split val_", ["val_seen", "val_unseen"]),
-    ("sagebench baseline --agent ", ["oracle", "straight", "random"]),
+    ("sagebench baseline --agent ", ["oracle", "straight", "random", "stationary", "explorer"]),
 ])
 def test_shell_completion_completes_option_values(words, want):
     """The values come from the settings models' Literal fields (and the splits), read when the shell asks."""

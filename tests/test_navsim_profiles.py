@@ -68,7 +68,7 @@ def test_the_vlnce_profile_is_vlnces_observations(demo_eval_run):
                      hfov_deg=90.0, width=256, height=256)["depth"][0]
     assert env.config.camera.height == 1.2  # the profile alone keeps the run's camera; --preset vlnce moves it
     env = NavEnv(demo_eval_run, {"profile": "vlnce", "max_steps": 2, "camera": {"height": 1.25}})
-    obs, _ = env.reset(options={"episode_id": info["episode_id"]})
+    obs, _ = env.reset(options={"episode_id": s.episode.episode_id})  # info's id is opaque
     expected = np.clip(metres, 0, VLNCE_MAX_DEPTH) / VLNCE_MAX_DEPTH
     assert obs["depth"][..., 0].tobytes() == expected.astype(np.float32).tobytes()
 

@@ -8,7 +8,6 @@ import io
 from pathlib import Path
 
 import numpy as np
-from PIL import Image
 
 from sagebench.episodes.episode import Episode
 from sagebench.errors import DataError
@@ -30,6 +29,8 @@ def goal_image_file(run_dir: Path, episode: Episode) -> Path | None:
 def read_goal_image(path: Path, size: tuple[int, int], episode_id: str) -> np.ndarray:
     """[H, W, 3] uint8: the PNG at `path`; a DataError naming the file and the episode's goal_image unless it is a
     readable PNG of `size` (width, height: the rgb observation's)."""
+    from PIL import Image  # only a file goal needs it (a GPU image has no Pillow; rendered goals do not)
+
     field = f"goal_image of episode {episode_id}"
     try:
         data = read_input(path)
