@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 import threading
 
 import numpy as np
@@ -13,6 +14,7 @@ import pytest
 
 from vlnce_agents import HabitatSimActions
 
+from sagebench.cli import main
 from sagebench.adapters.vlnce import serve, vlnce_action, vlnce_observations
 from sagebench.navsim.actions import Action
 from sagebench.navsim.http_policy import RequestFailed, post
@@ -67,6 +69,37 @@ def test_an_agent_runs_unchanged_in_process_and_over_http_with_identical_results
     # what the agent saw: VLN-CE's shapes and dtypes
     assert set(vlnce_agents.ONE_AGENT.checked) == {((224, 224, 3), np.dtype(np.uint8), (256, 256, 1), np.dtype(np.float32), 200)}
 
+
+
+@pytest.fixture(scope="module")
+def imagenav_run(tiny_run, tmp_path_factory):
+    """tiny_run with 2 imagenav episodes (goal images rendered). Read-only."""
+    run = tmp_path_factory.mktemp("vlnce_imagenav") / "run"
+    shutil.copytree(tiny_run, run)
+    with pytest.raises(SystemExit) as done:
+        main(["-q", "gen-trajectories", str(run), "--per-scene", "4", "--min-geodesic", "1", "--tasks", "vln,imagenav",
+              "--task-episodes", "2"])
+    assert done.value.code in (0, None)
+    return run
+
+
+def test_an_imagenav_agent_sees_the_same_goal_image_in_process_and_behind_serve(imagenav_run, tmp_path, run_cli,
+                                                                              agent_server):
+    """habitat's `imagegoal`, [224, 224, 3] uint8, reaches the agent in place of the instruction, byte for byte the
+    same in-process and through the policy protocol in each encoding."""
+    import vlnce_agents
+
+    seen = {}
+    for how, policy, encoding in [("in-process", "vlnce:vlnce_agents:GoalAgent", "raw"),
+                                  *((e, agent_server(vlnce_agents.GoalAgent), e) for e in ("raw", "png", "json"))]:
+        vlnce_agents.GoalAgent.seen = []
+        code, stdout, err = run_cli("rollout", "--run", imagenav_run, "--out", tmp_path / "p.jsonl", "--policy", policy,
+                                    "--preset", "vlnce", "--task", "imagenav", "--policy-encoding", encoding)
+        assert code == 0 and "FAILED" not in stdout, (how, err, stdout)
+        seen[how] = sorted(g.tobytes() for g in vlnce_agents.GoalAgent.seen)
+        assert {(g.shape, g.dtype) for g in vlnce_agents.GoalAgent.seen} == {((224, 224, 3), np.dtype(np.uint8))}
+    assert len(seen["in-process"]) == 2 and len(set(seen["in-process"])) == 2
+    assert seen["raw"] == seen["png"] == seen["json"] == seen["in-process"]
 
 class _FirstStepAgent:
     """Turns left on its episode's first step and moves forward after: each answer tells whether the server kept

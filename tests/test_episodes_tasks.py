@@ -145,6 +145,19 @@ def test_the_card_lists_the_task_columns_only_for_a_run_with_tasks(all_tasks, ti
     assert "goal_polar" not in card_text(tiny_built)
 
 
+
+def test_the_goal_image_column_says_what_the_rollout_shows(all_tasks):
+    """The card and the shards' schema tell both forms of goal_image, and that the rollout's own renderer draws a
+    rendered one (gsplat under --renderer auto where it can run), not the CPU renderer alone."""
+    from sagebench.episodes.card import card_text
+
+    shard = sorted((all_tasks / "episodes" / "tiny").glob("part-*.parquet"))[0]
+    schema = pq.read_schema(shard).field("goal_image").metadata[b"description"].decode()
+    card = next(line for line in card_text(all_tasks).splitlines() if line.startswith("| `goal_image` |"))
+    for text in (schema, card):
+        assert "'render:'" in text and "PNG file relative to the run" in text, text
+        assert "rollout's own renderer" in text and "--renderer" in text and "CPU renderer" not in text, text
+
 def test_a_category_with_no_instance_is_refused_and_nothing_is_written(tiny_built, tmp_path, run_cli):
     run = _copy(tiny_built, tmp_path / "run")
     before = snapshot(run)

@@ -64,6 +64,25 @@ def test_png_frames_carry_rgb_as_png_and_the_rest_raw():
     assert cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)[:, :, ::-1].tobytes() == obs["rgb"].tobytes()
 
 
+
+@pytest.mark.parametrize("encoding, how", [("raw", "raw"), ("png", "png"), ("json", "png")])
+def test_imagenavs_goal_image_travels_as_rgb_does_not_as_a_json_list(encoding, how):
+    """imagegoal is an image: an array of the frame (PNG where rgb is PNG), never [H][W][3] in the JSON fields, and
+    it decodes to the same uint8 array."""
+    rng = np.random.default_rng(2)
+    obs = {"rgb": rng.integers(0, 256, (6, 8, 3), dtype=np.uint8), "imagegoal": rng.integers(0, 256, (6, 8, 3),
+                                                                                              dtype=np.uint8)}
+    fields = request_fields(obs, episode_id="e", step=0, action_space="discrete", profile="custom")
+    content_type, body = encode_request(obs, fields, encoding)
+    if encoding == "json":
+        specs = json.loads(body)["observations"]
+    else:
+        (n,) = struct.unpack("<I", body[:4])
+        specs = json.loads(body[4: 4 + n])["arrays"]
+    assert "imagegoal" not in fields and specs["imagegoal"]["encoding"] == specs["rgb"]["encoding"] == how
+    _, images = decode_request(content_type, body)
+    assert images["imagegoal"].dtype == np.uint8 and images["imagegoal"].tobytes() == obs["imagegoal"].tobytes()
+
 def test_the_json_body_of_sagebench_0x_still_decodes():
     rgb = np.arange(24, dtype=np.uint8).reshape(2, 4, 3)
     raw = io.BytesIO()

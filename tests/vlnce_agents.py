@@ -42,3 +42,17 @@ class DepthAgent:
 
 
 ONE_AGENT = DepthAgent()  # a single agent object: it runs one episode at a time
+
+
+class GoalAgent:
+    """An ImageNav agent of habitat's kind: keeps the `imagegoal` it is shown (in `seen`, shared by every instance),
+    then stops."""
+
+    seen: list[np.ndarray] = []
+
+    def reset(self):
+        pass
+
+    def act(self, observations):
+        GoalAgent.seen.append(np.array(observations["imagegoal"]))
+        return {"action": HabitatSimActions.STOP}

@@ -6,7 +6,9 @@ the policy protocol (`serve`), with the same observations either way.
 The agent sees VLN-CE's observation dict: `rgb` [224, 224, 3] uint8, `depth` [256, 256, 1] float32 in [0, 1], and
 `instruction` {"text", "tokens" (200 word ids, the run's vocabulary or --vocab's), "trajectory_id"} (the vlnce
 profile; its trajectory_id is opaque, like the episode ids a policy server gets), plus `gps` and `compass` when the
-rollout gives them. Its action is VLN-CE's: 0 STOP, 1 MOVE_FORWARD, 2 TURN_LEFT, 3 TURN_RIGHT (sagebench's own ids), as an
+rollout gives them. On imagenav (`--task imagenav`) the goal is a picture instead of the instruction: `imagegoal`
+[224, 224, 3] uint8 (habitat's ImageGoalSensor's key), the same array in-process and behind the protocol (sent as
+rgb is). Its action is VLN-CE's: 0 STOP, 1 MOVE_FORWARD, 2 TURN_LEFT, 3 TURN_RIGHT (sagebench's own ids), as an
 int, a name, or {"action": ...} around either, as habitat's Env.step takes it. One agent per running episode:
 `make_agent` (a class or a callable) makes it and `reset()` starts its episode; a single agent object runs one
 episode at a time.
@@ -87,7 +89,7 @@ def body_note(bodies: Sequence[AgentConfig]) -> str:
             f"{VLNCE_BODY.height:g} builds a run for it)")
 
 
-NEEDED = ("rgb", "depth", "instruction", "instruction_tokens")  # the vlnce profile's keys
+NEEDED = ("rgb", "depth", "instruction", "instruction_tokens")  # the vlnce profile's keys (imagenav: the images)
 LIVE_EPISODES = 1024  # episodes a server keeps, those asked last (one cut by the step limit never says STOP)
 MAX_REQUEST_BYTES = 1 << 28  # a request's body: a frame of 4096 x 4096 RGB, depth and instance images fits
 MAX_SAID = 300  # characters of an agent's exception message passed on
@@ -96,15 +98,18 @@ _SHOWN.maxlevel, _SHOWN.maxstring, _SHOWN.maxother = 3, 60, 60
 
 
 def vlnce_observations(obs: Mapping[str, Any], trajectory_id: int) -> dict:
-    """A vlnce-profile observation (sagebench's keys) as the dict a VLN-CE agent reads."""
-    missing = [k for k in NEEDED if k not in obs]
+    """A vlnce-profile observation (sagebench's keys) as the dict a VLN-CE agent reads: the instruction, or on
+    imagenav the goal image in its place."""
+    pictured = "imagegoal" in obs
+    missing = [k for k in (NEEDED[:2] if pictured else NEEDED) if k not in obs]
     if missing:
         raise ValueError(f"a VLN-CE agent needs the vlnce profile's observations (--profile vlnce or --preset "
                          f"vlnce); {missing[0]} is missing")
-    out = {"rgb": obs["rgb"], "depth": obs["depth"],
-           "instruction": {"text": obs["instruction"], "tokens": [int(t) for t in obs["instruction_tokens"]],
-                           "trajectory_id": trajectory_id}}
-    return out | {k: obs[k] for k in ("gps", "compass") if k in obs}
+    out = {"rgb": obs["rgb"], "depth": obs["depth"]}
+    if not pictured:
+        out["instruction"] = {"text": obs["instruction"], "tokens": [int(t) for t in obs["instruction_tokens"]],
+                              "trajectory_id": trajectory_id}
+    return out | {k: obs[k] for k in ("imagegoal", "gps", "compass") if k in obs}
 
 
 def vlnce_action(reply: Any) -> Action:

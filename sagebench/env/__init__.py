@@ -10,7 +10,7 @@ import gymnasium
 from sagebench.env.gym_env import NavEnv, VectorNavEnv, action_space, observation_space
 
 ENV_ID = "sagebench/Nav-v0"
-if ENV_ID not in gymnasium.registry:  # the step limit is the env's own (EnvConfig.max_steps): no TimeLimit wrapper
+if ENV_ID not in gymnasium.registry:  # the step limit and nogoal's budget are the env's own: no TimeLimit wrapper
     gymnasium.register(id=ENV_ID, entry_point="sagebench.env.gym_env:NavEnv")
 
 __all__ = ["ENV_ID", "NavEnv", "VectorNavEnv", "action_space", "observation_space"]

@@ -8,7 +8,7 @@ instance ids only when asked for (EnvConfig.privileged) or in the `full` profile
 own (a new one each step: editing it changes no later observation). info: episode_id (opaque, as a policy server
 gets it: 16 hex digits, stable for the env's lifetime; the run's id when privileged observations were asked for or
 in the `full` profile), distance_to_goal (on foot, m), success (SR so far), collision_intensity (c of this step),
-steps, outcome.
+steps, outcome. truncated: the step limit, or a nogoal episode's budget (outcome `budget`).
 """
 
 from __future__ import annotations

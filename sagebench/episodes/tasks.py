@@ -44,8 +44,9 @@ TASK_FIELDS: list[tuple[pa.Field, str]] = [
      "rho metres in the floor plane, phi radians counter-clockwise from the start heading."),
     (pa.field("goal_yaw", _F64), "imagenav: heading of the goal camera, radians CCW from +X."),
     (pa.field("goal_image", pa.string()),
-     "imagenav: how the goal image is made: 'render:' + the goal pose x,y,yaw, rendered on demand from the scene's "
-     "Gaussians by the CPU renderer with the rollout's camera (docs/tasks.md)."),
+     "imagenav: the goal image: 'render:' + the goal pose x,y,yaw, rendered on demand from the scene's Gaussians by "
+     "the rollout's own renderer and camera (--renderer; auto picks gsplat where it can run), or the path of a PNG "
+     "file relative to the run, which is the image shown (docs/tasks/imagenav.md)."),
 ]
 
 TASK_SCHEMA = pa.schema([f.with_metadata({"description": doc}) for f, doc in EPISODE_FIELDS + TASK_FIELDS],

@@ -5,8 +5,8 @@ It keeps the floor its body has swept (`metrics/coverage.py`, the agent's radius
 graph, to the main-region cell not yet swept (at least a forward step away) that is cheapest to reach in actions:
 forward steps along the path plus the turns to face it, so it sweeps lanes straight ahead rather than zigzag to the
 nearest scrap. It turns towards the path's next cell and moves forward as the oracle does, plans again at the
-route's end or after a move more than half blocked, and stops when nothing reachable is left or after the
-episode's step budget (budget_steps).
+route's end or after a move more than half blocked, and stops when nothing reachable is left; the simulator ends
+its episode at the episode's budget, as any agent's (sagebench/tasks/budget.py).
 """
 
 from __future__ import annotations
@@ -32,8 +32,6 @@ class Explorer:
     def begin(self, episodes: Sequence[Episode]) -> None:
         self.navmaps = [self.maps(e.scene_id) for e in episodes]
         self.swept = [np.zeros(m.navigable.shape, dtype=bool) for m in self.navmaps]
-        self.budget = [e.budget_steps if e.budget_steps is not None else math.inf for e in episodes]
-        self.taken = [0] * len(episodes)
         self.route: list[list[np.ndarray]] = [[] for _ in episodes]
         self.last: list[np.ndarray | None] = [None] * len(episodes)
 
@@ -42,9 +40,6 @@ class Explorer:
         for i, obs, info in zip(slots, observations, infos):
             pose = np.asarray(obs["pose"], dtype=np.float64)
             self._sweep(i, pose)
-            if self.taken[i] >= self.budget[i]:
-                out.append(Action.STOP)
-                continue
             stuck = info.get("collision_intensity", 0.0) > 0.5
             if stuck:
                 self._plan(i, pose)
@@ -55,7 +50,6 @@ class Explorer:
             if not self.route[i]:
                 out.append(Action.STOP)
                 continue
-            self.taken[i] += 1
             out.append(heading_action(pose, self.route[i][0], math.radians(self.actions.turn_deg)))
         return out
 

@@ -2,14 +2,15 @@
 
 Every request carries the same fields: `episode_id` (opaque: a different id per rollout, so a policy cannot look
 the episode up in the run's files), `step`, `action_space`, `profile`, `instruction` and, as the profile says,
-`instruction_tokens`, `pose`, `gps`, `compass`, `collided` (JSON values), and the profile's images.
+`instruction_tokens`, `pose`, `gps`, `compass`, `collided`, the task's `pointgoal` or `objectgoal` (JSON
+values), and the images: the profile's and imagenav's `imagegoal` ([H, W, 3] uint8, encoded as rgb is).
 Encodings of the images:
 - `raw` (the default), Content-Type application/x-sagebench-frame: a 4-byte little-endian length N, N bytes of
   UTF-8 JSON (the fields above plus `arrays`: name -> {"dtype", "shape", "encoding": "raw", "offset",
   "length"}), then the arrays' bytes, little-endian, C order, at those offsets after the header;
-- `png`: the same frame with the RGB image as PNG bytes (`"encoding": "png"`), the rest raw;
+- `png`: the same frame with the colour images (rgb, imagegoal) as PNG bytes (`"encoding": "png"`), the rest raw;
 - `json` (sagebench 0.x's), Content-Type application/json: the fields plus `observations`: name ->
-  {"encoding": "png" (RGB) | "npy", "data": base64}.
+  {"encoding": "png" (rgb, imagegoal) | "npy", "data": base64}.
 A reply is JSON {"action": "STOP" | "MOVE_FORWARD" | "TURN_LEFT" | "TURN_RIGHT" | 0..3} (discrete) or
 {"action": [v, omega, stop]} (continuous). `decode_request` reads all three, for policy servers in Python.
 """
@@ -33,13 +34,15 @@ ENCODINGS: tuple[str, ...] = ("raw", "png", "json")
 FRAME_TYPE = "application/x-sagebench-frame"
 JSON_TYPE = "application/json"
 _LENGTH = struct.Struct("<I")
+IMAGES = ("rgb", "depth", "instance", "imagegoal")  # sent as arrays, never as JSON lists
+COLOUR = ("rgb", "imagegoal")  # [H, W, 3] uint8: PNG in the png and json encodings
 
 
 def request_fields(obs: Mapping, *, episode_id: str, step: int, action_space: str, profile: str) -> dict:
     """The JSON fields of a request: everything of `obs` but its images, as JSON values."""
     fields = {"episode_id": episode_id, "step": int(step), "action_space": action_space, "profile": profile}
     for key, value in obs.items():
-        if key in ("rgb", "depth", "instance"):
+        if key in IMAGES:
             continue
         if isinstance(value, np.ndarray):
             fields[key] = value.tolist()
@@ -52,11 +55,11 @@ def request_fields(obs: Mapping, *, episode_id: str, step: int, action_space: st
 
 def encode_request(obs: Mapping, fields: dict, encoding: Encoding = "raw") -> tuple[str, bytes]:
     """(Content-Type, body) of one request: `fields` (request_fields) and the images of `obs`."""
-    images = {k: np.asarray(obs[k]) for k in ("rgb", "depth", "instance") if k in obs}
+    images = {k: np.asarray(obs[k]) for k in IMAGES if k in obs}
     if encoding == "json":
         encoded = {}
         for key, a in images.items():
-            if key == "rgb":
+            if key in COLOUR:
                 encoded[key] = {"encoding": "png", "data": base64.b64encode(_png(a)).decode("ascii")}
             else:
                 raw = io.BytesIO()
@@ -65,7 +68,7 @@ def encode_request(obs: Mapping, fields: dict, encoding: Encoding = "raw") -> tu
         return JSON_TYPE, json.dumps({**fields, "observations": encoded}).encode("utf-8")
     arrays, chunks, offset = {}, [], 0
     for key, a in images.items():
-        if key == "rgb" and encoding == "png":
+        if key in COLOUR and encoding == "png":
             data, how = _png(a), "png"
         else:
             data, how = np.ascontiguousarray(a, a.dtype.newbyteorder("<")).tobytes(), "raw"

@@ -1,8 +1,9 @@
 """Episodes run closed-loop: B episode slots of one run stepped together, one action each per step.
 
 A step turns each running slot's action into a command (actions.py), moves the agents of each scene in one
-MuJoCo call (motion.py), ends slots on STOP, on the step limit or on leaving the map, and renders every
-running slot's view in one renderer call per scene (observe.py). Slots never influence each other: stepping
+MuJoCo call (motion.py), ends slots on STOP, on leaving the map, at a nogoal episode's budget (its actions,
+sagebench/tasks/budget.py: `budget`, whatever the agent) or on the step limit, and renders every running slot's
+view in one renderer call per scene (observe.py). Slots never influence each other: stepping
 episodes together gives byte for byte what stepping them one at a time gives (tests/test_env.py).
 Running metrics per slot: the distance on foot to the goal and success, both the task's (sagebench/tasks/goals.py;
 NaN and never for nogoal, whose success is its coverage, scored by evaluate)
@@ -32,11 +33,13 @@ from sagebench.navsim.profiles import Sensors, env_sensors, gps_compass, pointgo
 from sagebench.navsim.world import World, open_world, run_episodes, run_vocabulary
 from sagebench.replay.contact import ContactProbe
 from sagebench.settings.rollout import EnvConfig
+from sagebench.tasks.budget import step_budget
 from sagebench.tasks.goal_image import goal_image_file, read_goal_image
 from sagebench.tasks.goals import goal_field, success_distance
 from sagebench.vlnce.vocab import Vocabulary, read_vocabulary
 
 POSE_DECIMALS = 6  # predictions are written to the micrometre / microradian
+TRUNCATED = ("budget", "step_limit")  # outcomes that end an episode from outside (gymnasium's truncated)
 
 
 @dataclass
@@ -51,9 +54,10 @@ class Slot:
     poses: list[tuple[float, float, float, float]]
     intensity: list[float]
     distance: float  # on foot to the goal now, m (NaN without a goal)
+    budget: int | None = None  # nogoal: the actions it may take (sagebench/tasks/budget.py); None: no budget
     steps: int = 0
     stopped: bool = False
-    outcome: str = ""  # "" while running, else stop / step_limit / left_map / policy_failed
+    outcome: str = ""  # "" while running, else stop / left_map / budget / step_limit / policy_failed
     collided: bool = False
     # the images of the slot's last view: rows of that step's render arrays (one array per image for all the
     # slots rendered together) while the slot runs, its own copies once it has ended (`detach`)
@@ -84,7 +88,7 @@ class StepResult:
     observation: dict
     reward: float
     terminated: bool  # STOP or left the map
-    truncated: bool  # step limit
+    truncated: bool  # a nogoal episode's budget or the step limit
     info: dict
 
 
@@ -132,7 +136,8 @@ class Simulator:
             goal = goal_field(w.navmap, e)
             self.slots.append(Slot(episode=e, instruction=text, world=w, goal=goal, row=len(rows),
                                    poses=[_rounded(pose)], intensity=[0.0], distance=_distance(goal, e.start),
-                                   tokens=tokens, goal_image=self._goal_image(w, e)))
+                                   budget=step_budget(e, self.config.actions.control_interval), tokens=tokens,
+                                   goal_image=self._goal_image(w, e)))
             rows.append(i)
         for sid, rows in by_scene.items():
             starts = np.array([[self.slots[i].episode.start[0], self.slots[i].episode.start[1],
@@ -197,6 +202,8 @@ class Simulator:
             s.distance = distance[k]
             if not inside[k]:
                 s.outcome = "left_map"
+            elif s.budget is not None and s.steps >= s.budget:
+                s.outcome = "budget"
             elif s.steps >= c.max_steps:
                 s.outcome = "step_limit"
         return rows
@@ -253,7 +260,7 @@ class Simulator:
         obs = observation(self.sensors, s)
         info = {"episode_id": s.episode.episode_id, "distance_to_goal": s.distance, "success": s.success,
                 "collision_intensity": float(c_t), "steps": s.steps, "outcome": s.outcome or "running"}
-        return StepResult(obs, float(reward), s.outcome in ("stop", "left_map"), s.outcome == "step_limit", info)
+        return StepResult(obs, float(reward), s.outcome in ("stop", "left_map"), s.outcome in TRUNCATED, info)
 
 
 def vocabulary(run_dir: Path, config: EnvConfig) -> Vocabulary:
