@@ -355,3 +355,54 @@ def test_a_request_past_the_servers_bounds_is_refused_with_why(agent_server):
     assert reply.status == 413 and json.loads(reply.read()) == {
         "error": f"a request's body must have a Content-Length of at most {MAX_REQUEST_BYTES:,} bytes"}
     conn.close()
+
+
+@pytest.fixture(scope="module")
+def goal_run(tiny_run, tmp_path_factory):
+    """tiny_run with 2 pointnav and 2 objectnav episodes. Read-only."""
+    run = tmp_path_factory.mktemp("vlnce_goals") / "run"
+    shutil.copytree(tiny_run, run)
+    with pytest.raises(SystemExit) as done:
+        main(["-q", "gen-trajectories", str(run), "--per-scene", "4", "--min-geodesic", "1", "--tasks",
+              "vln,pointnav,objectnav", "--task-episodes", "2"])
+    assert done.value.code in (0, None)
+    return run
+
+
+def test_pointnav_and_objectnav_agents_get_habitats_goal_sensors_in_process_and_behind_serve(goal_run, tmp_path,
+                                                                                           run_cli, agent_server):
+    """A VLN-CE agent on pointnav gets habitat's pointgoal_with_gps_compass ([2] float32 [rho, phi], at the start
+    the episode's goal_polar), on objectnav habitat's objectgoal ([1] int64, the category's id in the agent's
+    category_to_task_category_id), never an instruction; the same in-process and behind serve()."""
+    import vlnce_agents
+    from sagebench.episodes.load import load_episodes
+
+    agent = vlnce_agents.SensorAgent
+    episodes = load_episodes(goal_run)
+    polar = sorted(tuple(e.goal_polar) for e in episodes if e.task == "pointnav")
+    ids = sorted((agent.category_to_task_category_id[e.goal_category],) for e in episodes if e.task == "objectnav")
+    assert len(polar) == len(ids) == 2
+    got = {}
+    for how, policy, encoding in [("in-process", "vlnce:vlnce_agents:SensorAgent", "raw"),
+                                  *((e, agent_server(agent), e) for e in ("raw", "json"))]:
+        for task, key, dtype, expect in (("pointnav", "pointgoal_with_gps_compass", np.float32, polar),
+                                         ("objectnav", "objectgoal", np.int64, ids)):
+            agent.seen = []
+            code, stdout, err = run_cli("rollout", "--run", goal_run, "--out", tmp_path / "p.jsonl", "--policy", policy,
+                                        "--preset", "vlnce", "--task", task, "--policy-encoding", encoding)
+            assert code == 0 and "FAILED" not in stdout, (how, task, err, stdout)
+            assert all(set(o) == {key} for o in agent.seen), (how, task, agent.seen)
+            assert {(o[key].shape, o[key].dtype) for o in agent.seen} == {((2,) if key != "objectgoal" else (1,),
+                                                                           np.dtype(dtype))}
+            got[how, task] = sorted(tuple(o[key].tolist()) for o in agent.seen)
+            assert np.allclose(got[how, task], expect, atol=1e-5), (how, task)
+    assert got["raw", "pointnav"] == got["json", "pointnav"] == got["in-process", "pointnav"]
+    assert got["raw", "objectnav"] == got["json", "objectnav"] == got["in-process", "objectnav"]
+
+
+def test_an_objectnav_agent_without_habitats_category_map_fails_its_episodes_saying_why(goal_run, tmp_path, run_cli):
+    """An agent that knows no category ids cannot be told an ObjectNav goal: each episode fails by the policy, saying
+    why (never a made-up id)."""
+    code, stdout, _ = run_cli("rollout", "--run", goal_run, "--out", tmp_path / "p.jsonl", "--policy",
+                              "vlnce:vlnce_agents:MaplessAgent", "--preset", "vlnce", "--task", "objectnav")
+    assert code == 1 and stdout.count("category_to_task_category_id, and the agent (or its class) has none") == 2

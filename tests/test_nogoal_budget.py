@@ -8,6 +8,7 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
@@ -89,3 +90,59 @@ def test_baseline_and_rollout_end_nogoal_episodes_at_their_budget_and_evaluate_s
     times = {r["episode_id"]: r["time"] for r in doc["per_episode"]}
     assert times == {eid: steps * 0.5 for eid, steps in budgets.items()}
     assert doc["by_task"]["nogoal"]["time"] == pytest.approx(sum(budgets.values()) * 0.5 / len(budgets))
+
+
+def _walk_past(row: dict, extra: list[list[float]], budget: int) -> dict:
+    """An external agent's prediction for a nogoal episode: its first budget + 1 poses, then as many more as
+    `extra` gives (twice the budget's poses in all), self-reported c(t), stopped at the end."""
+    poses = row["poses"][: budget + 1] + extra
+    c = row["collision_intensity"][: budget + 1] + [0.0] * len(extra)
+    return {"episode_id": row["episode_id"], "poses": poses, "stopped": True, "collision_intensity": c}
+
+
+def test_evaluate_scores_a_nogoal_prediction_only_up_to_its_budget(nogoal_run, run_cli, tmp_path):
+    """Predictions made outside sagebench's simulator that run past a nogoal episode's budget (twice its poses,
+    walking on over floor it has not covered) score the coverage and time of the budget's poses alone, and evaluate
+    says how many episodes it cut; vln predictions (no budget) are scored whole, as before."""
+    from sagebench.episodes.load import load_episodes
+    from sagebench.metrics.exploration import score_exploration
+    from sagebench.stages.evaluate import read_navigable_map
+
+    budgets = _budgets(nogoal_run)
+    for task, agent in (("nogoal", "random"), ("vln", "oracle")):
+        code, _, err = run_cli("-q", "baseline", "--agent", agent, "--run", nogoal_run, "--task", task,
+                               "--out", tmp_path / f"{task}.jsonl")
+        assert code == 0, err
+    nogoal = [json.loads(line) for line in (tmp_path / "nogoal.jsonl").read_text().splitlines()]
+    vln = (tmp_path / "vln.jsonl").read_text()
+    assert max(len(json.loads(line)["poses"]) for line in vln.splitlines()) > max(budgets.values()) + 1
+    far = [[*p[:3], 0.0] for e in load_episodes(nogoal_run) if e.task == "vln" for p in e.reference_path.tolist()]
+    files = {}
+    for name, extra in (("within", 0), ("past", 1)):
+        rows = [_walk_past(r, (far * 20)[: extra * budgets[r["episode_id"]]], budgets[r["episode_id"]])
+                for r in nogoal]
+        assert all(len(r["poses"]) == (1 + extra) * budgets[r["episode_id"]] + 1 for r in rows)
+        files[name] = tmp_path / f"{name}.jsonl"
+        files[name].write_text(vln + "".join(json.dumps(r) + "\n" for r in rows))
+    navmap = read_navigable_map(nogoal_run, "tiny")
+    whole = [score_exploration(np.asarray(r["poses"]), navmap.main_region, navmap.resolution, navmap.origin,
+                               radius=navmap.snap_radius, min_coverage=0.1, step_seconds=0.5)
+             for r in map(json.loads, files["past"].read_text().splitlines()[-len(nogoal):])]
+    docs, said = {}, {}
+    for name, path in files.items():
+        code, said[name], err = run_cli("evaluate", "--run", nogoal_run, "--predictions", path,
+                                        "--out", tmp_path / f"{name}.json")
+        assert code == 0, err
+        docs[name] = json.loads((tmp_path / f"{name}.json").read_text())
+    rows = {n: {r["episode_id"]: r for r in d["per_episode"]} for n, d in docs.items()}
+    for eid, budget in budgets.items():
+        past, within = rows["past"][eid], rows["within"][eid]
+        assert {**past, "cut_at_budget": 0} == {**within, "cut_at_budget": 0} and past["time"] == budget * 0.5
+        assert (past["cut_at_budget"], within["cut_at_budget"]) == (True, False)
+    assert max(w.coverage for w in whole) > max(r["coverage"] for r in rows["past"].values() if r["task"] == "nogoal")
+    assert docs["past"]["by_task"] == docs["within"]["by_task"]
+    assert {k: v for k, v in rows["past"].items() if k not in budgets} == \
+        {k: v for k, v in rows["within"].items() if k not in budgets}
+    assert "nogoal: 2 of 2 episodes ran past their budget and were scored up to it" in said["past"]
+    assert "nogoal: 0 of 2 episodes ran past their budget" in said["within"]
+    assert (docs["past"]["cut_at_budget"], docs["within"]["cut_at_budget"]) == (2, 0)

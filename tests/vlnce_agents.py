@@ -56,3 +56,24 @@ class GoalAgent:
     def act(self, observations):
         GoalAgent.seen.append(np.array(observations["imagegoal"]))
         return {"action": HabitatSimActions.STOP}
+
+
+class SensorAgent:
+    """A PointNav / ObjectNav agent of habitat's kind: keeps the observation dict it is shown first (in `seen`,
+    shared by every instance), then stops. Its ObjectNav category ids are habitat's dataset map."""
+
+    category_to_task_category_id = {"bed": 3, "cabinet": 0, "door": 4, "sofa": 1, "table": 2}
+    seen: list[dict] = []
+
+    def reset(self):
+        pass
+
+    def act(self, observations):
+        SensorAgent.seen.append({k: np.array(v) for k, v in observations.items() if k not in ("rgb", "depth")})
+        return {"action": HabitatSimActions.STOP}
+
+
+class MaplessAgent(SensorAgent):
+    """A SensorAgent without habitat's category map: it cannot be told an ObjectNav goal."""
+
+    category_to_task_category_id = None

@@ -6,9 +6,12 @@ the policy protocol (`serve`), with the same observations either way.
 The agent sees VLN-CE's observation dict: `rgb` [224, 224, 3] uint8, `depth` [256, 256, 1] float32 in [0, 1], and
 `instruction` {"text", "tokens" (200 word ids, the run's vocabulary or --vocab's), "trajectory_id"} (the vlnce
 profile; its trajectory_id is opaque, like the episode ids a policy server gets), plus `gps` and `compass` when the
-rollout gives them. On imagenav (`--task imagenav`) the goal is a picture instead of the instruction: `imagegoal`
-[224, 224, 3] uint8 (habitat's ImageGoalSensor's key), the same array in-process and behind the protocol (sent as
-rgb is). Its action is VLN-CE's: 0 STOP, 1 MOVE_FORWARD, 2 TURN_LEFT, 3 TURN_RIGHT (sagebench's own ids), as an
+rollout gives them. The goal tasks give what habitat-lab's sensors of those tasks give instead of the instruction:
+imagenav `imagegoal` [224, 224, 3] uint8 (ImageGoalSensor; sent as rgb is over the protocol), pointnav
+`pointgoal_with_gps_compass` [2] float32 [rho, phi] (PointGoalWithGPSCompassSensor, POLAR, 2-D), objectnav
+`objectgoal` [1] int64, the category's id in the agent's `category_to_task_category_id` (ObjectGoalSensor's
+TASK_CATEGORY_ID: the map of the habitat dataset it was trained on, which export-habitat writes; an agent, or its
+class, without one cannot run objectnav). The same arrays in-process and behind the protocol. Its action is VLN-CE's: 0 STOP, 1 MOVE_FORWARD, 2 TURN_LEFT, 3 TURN_RIGHT (sagebench's own ids), as an
 int, a name, or {"action": ...} around either, as habitat's Env.step takes it. One agent per running episode:
 `make_agent` (a class or a callable) makes it and `reset()` starts its episode; a single agent object runs one
 episode at a time.
@@ -89,7 +92,7 @@ def body_note(bodies: Sequence[AgentConfig]) -> str:
             f"{VLNCE_BODY.height:g} builds a run for it)")
 
 
-NEEDED = ("rgb", "depth", "instruction", "instruction_tokens")  # the vlnce profile's keys (imagenav: the images)
+NEEDED = ("rgb", "depth", "instruction", "instruction_tokens")  # the vlnce profile's keys (a goal task: the images)
 LIVE_EPISODES = 1024  # episodes a server keeps, those asked last (one cut by the step limit never says STOP)
 MAX_REQUEST_BYTES = 1 << 28  # a request's body: a frame of 4096 x 4096 RGB, depth and instance images fits
 MAX_SAID = 300  # characters of an agent's exception message passed on
@@ -97,19 +100,46 @@ _SHOWN = reprlib.Repr()  # an agent's reply in a message: a bounded repr that ne
 _SHOWN.maxlevel, _SHOWN.maxstring, _SHOWN.maxother = 3, 60, 60
 
 
-def vlnce_observations(obs: Mapping[str, Any], trajectory_id: int) -> dict:
-    """A vlnce-profile observation (sagebench's keys) as the dict a VLN-CE agent reads: the instruction, or on
-    imagenav the goal image in its place."""
-    pictured = "imagegoal" in obs
-    missing = [k for k in (NEEDED[:2] if pictured else NEEDED) if k not in obs]
+GOALS = ("imagegoal", "pointgoal", "objectgoal")  # the goal tasks' keys (sagebench's), given in place of the instruction
+
+
+def vlnce_observations(obs: Mapping[str, Any], trajectory_id: int,
+                       categories: Mapping[str, int] | None = None) -> dict:
+    """A vlnce-profile observation (sagebench's keys) as the dict a VLN-CE agent reads: the instruction, or on a
+    goal task habitat's goal sensor in its place (module docstring; `categories`: the agent's
+    category_to_task_category_id)."""
+    goal = next((k for k in GOALS if k in obs), None)
+    missing = [k for k in (NEEDED[:2] if goal else NEEDED) if k not in obs]
     if missing:
         raise ValueError(f"a VLN-CE agent needs the vlnce profile's observations (--profile vlnce or --preset "
                          f"vlnce); {missing[0]} is missing")
     out = {"rgb": obs["rgb"], "depth": obs["depth"]}
-    if not pictured:
+    if goal is None:
         out["instruction"] = {"text": obs["instruction"], "tokens": [int(t) for t in obs["instruction_tokens"]],
                               "trajectory_id": trajectory_id}
+    elif goal == "pointgoal":
+        out["pointgoal_with_gps_compass"] = np.asarray(obs["pointgoal"], dtype=np.float32).reshape(2)
+    elif goal == "objectgoal":
+        out["objectgoal"] = np.array([category_id(obs["objectgoal"], categories)], dtype=np.int64)
     return out | {k: obs[k] for k in ("imagegoal", "gps", "compass") if k in obs}
+
+
+def category_id(category: str, categories: Mapping[str, int] | None) -> int:
+    """habitat's ObjectGoalSensor value of a category: its id in the agent's category_to_task_category_id; a
+    ValueError saying why there is none."""
+    if categories is None:
+        raise ValueError("objectnav gives a VLN-CE agent habitat's objectgoal, the category's id in the agent's "
+                         "category_to_task_category_id, and the agent (or its class) has none (export-habitat "
+                         "writes the map of a run's categories)")
+    if category not in categories:
+        raise ValueError(f"the goal category {category!r} is not in the agent's category_to_task_category_id "
+                         f"({len(categories)} categories)")
+    return int(categories[category])
+
+
+def agent_categories(agent: Any) -> Mapping[str, int] | None:
+    """The agent's (or its class's) category_to_task_category_id: habitat's ObjectNav dataset map it knows."""
+    return getattr(agent, "category_to_task_category_id", None)
 
 
 def vlnce_action(reply: Any) -> Action:
@@ -165,6 +195,7 @@ class VlnceAgents:
 
     def __init__(self, agent: Any):
         self.make, self.fresh = agent_maker(agent)
+        self.categories = agent_categories(agent)
         self.opaque_id = OpaqueIds()
 
     def begin(self, episodes: Sequence[Episode]) -> None:
@@ -182,8 +213,9 @@ class VlnceAgents:
         """The slot's agent's action (reset first on its first step), or the PolicyFailure ending its episode."""
         reset, self.started[slot] = not self.started[slot], True
         try:
-            return agent_answer(self.agents[slot], vlnce_observations(obs, self.trajectories[slot]), reset=reset)
-        except AgentFailed as err:
+            seen = vlnce_observations(obs, self.trajectories[slot], self.categories)
+            return agent_answer(self.agents[slot], seen, reset=reset)
+        except (AgentFailed, ValueError) as err:
             return PolicyFailure(str(err))
 
 
@@ -211,6 +243,7 @@ class Episodes:
 
     def __init__(self, agent: Any):
         self.make, self.fresh = agent_maker(agent)
+        self.categories = agent_categories(agent)
         self.table: OrderedDict[str, _Episode] = OrderedDict()
         self.lock = threading.Lock()
         self.latest: str | None = None  # the episode a single agent object started last
@@ -233,7 +266,7 @@ class Episodes:
                 raise Refused(f"episode {eid}: a single agent object runs one episode at a time and episode "
                               f"{self.latest} started after it (run the rollout with --batch 1, or serve the agent's "
                               "class)")
-            episode.reply = _act(episode, eid, step, fields, images)
+            episode.reply = _act(episode, eid, step, fields, images, self.categories)
             episode.step = step
             return episode.reply
 
@@ -251,11 +284,12 @@ class Episodes:
             return self.table[eid]
 
 
-def _act(episode: _Episode, eid: str, step: int, fields: dict, images: dict) -> tuple[int, bytes]:
+def _act(episode: _Episode, eid: str, step: int, fields: dict, images: dict,
+         categories: Mapping[str, int] | None) -> tuple[int, bytes]:
     """The agent's answer to one step (resetting it first at step 0); a failed one (AgentFailed) ends the episode:
     HTTP 500 saying why."""
     obs = {**images, **fields, "instruction_tokens": np.asarray(fields.get("instruction_tokens", []), np.int64)}
-    seen = vlnce_observations(obs, trajectory_number(eid))
+    seen = vlnce_observations(obs, trajectory_number(eid), categories)
     try:
         action = agent_answer(episode.agent, seen, reset=step == 0)
     except AgentFailed as err:

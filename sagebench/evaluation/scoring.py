@@ -9,6 +9,9 @@ An episode without a prediction (evaluate --allow-missing) counts as a failure a
 SR, OSR, SPL, nDTW, SDTW, CSR and PS 0, ICP 1, path length 0 and NE the largest distance on foot from the goal to
 any navigable cell (NE_STRAIGHT the largest straight distance to one), so a missing prediction can only lower a score;
 a no-goal episode's coverage, collisions and time are 0.
+
+A no-goal prediction is scored only up to its episode's budget (`within_budget`), the one sagebench's simulator
+ends the episode at: an agent run elsewhere cannot cover more, or take longer, by running past it.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from sagebench.metrics.exploration import ExplorationMetrics, score_exploration
 from sagebench.metrics.goal import GoalMetrics, score_goal
 from sagebench.metrics.on_foot import GoalField
 from sagebench.settings.shared import ActionConfig, MetricConfig, TaskMetricConfig
+from sagebench.tasks.budget import step_budget
 from sagebench.tasks.goals import GOAL_TASKS, goal_field, success_distance
 
 METRIC_NAMES = ("sr", "osr", "spl", "ne", "ne_straight", "ndtw", "sdtw", "csr", "icp", "ps", "path_length")
@@ -68,6 +72,17 @@ class TaskScoring:
 
     config: TaskMetricConfig = TaskMetricConfig()
     step_seconds: float = ActionConfig().control_interval
+
+
+def within_budget(episode: Episode, prediction: Prediction, step_seconds: float) -> Prediction:
+    """The prediction as the simulator would have ended it: a nogoal episode's first budget + 1 poses (and their
+    c(t)), not stopped (the budget ended it), when it has more; any other prediction as it is."""
+    budget = step_budget(episode, step_seconds)
+    if budget is None or len(prediction.poses) <= budget + 1:
+        return prediction
+    c = prediction.collision_intensity
+    return prediction.model_copy(update={"poses": prediction.poses[:budget + 1], "stopped": False,
+                                         "collision_intensity": None if c is None else c[:budget + 1]})
 
 
 def score_task(episode: Episode, prediction: Prediction, intensity: np.ndarray, navmap: NavigableMap,

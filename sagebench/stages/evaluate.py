@@ -26,7 +26,7 @@ from sagebench.evaluation.predictions import Prediction, check_on_map, match_epi
 from sagebench.evaluation.record import RolloutRecord, read_record, record_path
 from sagebench.evaluation.scoring import (
     DISTANCE_USED, ICP_SOURCES, METRIC_NAMES, TASK_METRICS, EpisodeScore, Summary, TaskScoring, score_episodes,
-    summarise_scores,
+    summarise_scores, within_budget,
 )
 from sagebench.fileio import write_json
 from sagebench.input_files import read_regular
@@ -82,6 +82,7 @@ class Evaluation:
     record: RolloutRecord | None = None  # the rollout's record beside the predictions, when there is one
     asked_only: bool = False  # only the episodes the rollout was asked to run were scored
     tasks: TaskScoring = TaskScoring()  # how the episodes of tasks other than VLN were scored
+    cut_at_budget: tuple[str, ...] = ()  # nogoal episodes whose prediction ran past the budget, scored up to it
 
     def to_json(self) -> dict:
         def rounded(d: dict[str, float]) -> dict[str, float]:
@@ -108,11 +109,14 @@ class Evaluation:
             "config": self.config.model_dump(mode="json"),
             **({} if self.summary.tasks_only_vln else {
                 "by_task": {k: rounded(v) for k, v in self.summary.by_task.items()},
-                "task_metrics": asdict(self.tasks.config) | {"step_seconds": self.tasks.step_seconds}}),
+                "task_metrics": asdict(self.tasks.config) | {"step_seconds": self.tasks.step_seconds},
+                **({"cut_at_budget": len(self.cut_at_budget)} if "nogoal" in self.summary.by_task else {})}),
         }
 
     def _episode_json(self, s: EpisodeScore) -> dict:
         task = {} if self.summary.tasks_only_vln else {"task": s.episode.task}
+        if s.episode.task == "nogoal":
+            task["cut_at_budget"] = s.episode.episode_id in self.cut_at_budget
         return {"episode_id": s.episode.episode_id, "scene_id": s.episode.scene_id, **task,
                 "instruction_level": s.episode.level, "instruction_type": s.episode.type, "split": s.episode.split,
                 "missing": s.missing, "icp_source": s.icp_source,
@@ -151,6 +155,9 @@ class Evaluation:
             names = TASK_METRICS[task]
             lines.append(f"{'task ' + task:<32}{'episodes':>9}" + "".join(f"{label.get(m, m.upper()):>9}" for m in names))
             lines.append(f"{'':<32}{d['episodes']:>9d}" + "".join(f"{d[m]:>9.3f}" for m in names))
+            if task == "nogoal":
+                lines.append(f"nogoal: {len(self.cut_at_budget)} of {d['episodes']} episodes ran past their budget "
+                             "and were scored up to it (the simulator ends them there)")
         c = self.tasks.config
         lines.append(f"objectnav succeeds within {c.viewpoint_tolerance:g} m of a goal viewpoint on foot; nogoal when "
                      f"coverage >= {c.coverage_success:g} with no collision (COVERAGE: the main region's navigable "
@@ -264,11 +271,13 @@ def _scored(run_dir: Path, predictions: Path, config: EvaluateConfig, scene_id: 
     check_on_map(rows, lambda eid: maps[by_id[eid].scene_id].bounds, predictions)
     models = _replay_models(run_dir, need_replay, config)
     tasks = task_scoring(record)
-    scores = score_episodes(episodes, matched, _derived(models, episodes, matched, config.workers), maps, config.metrics,
+    scored = {i: within_budget(by_id[i], p, tasks.step_seconds) for i, p in matched.items()}
+    scores = score_episodes(episodes, scored, _derived(models, episodes, scored, config.workers), maps, config.metrics,
                             tasks)
     return Evaluation(scores=scores, summary=summarise_scores(scores), missing=missing, predictions=predictions,
                       predictions_sha256=hashlib.sha256(predictions.read_bytes()).hexdigest(), config=config,
-                      split=split, record=record, asked_only=asked_only, tasks=tasks)
+                      split=split, record=record, asked_only=asked_only, tasks=tasks,
+                      cut_at_budget=tuple(sorted(i for i in scored if scored[i] is not matched[i])))
 
 
 def task_scoring(record: RolloutRecord | None) -> TaskScoring:
