@@ -6,12 +6,13 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import shutil
 
 import numpy as np
 import pytest
 
-from sagebench.episodes.shards import read_episodes
-from sagebench.episodes.tasks import row_task
+from sagebench.episodes.shards import read_episodes, write_shards
+from sagebench.episodes.tasks import TASK_SCHEMA, row_task
 from sagebench.vlnce.frame import from_habitat, rotation_to_yaw
 from tests.habitat_datasets import objectnav_dataset, pointnav_episodes
 from tests.test_cli_sage_tasks import SCENE, task_run  # noqa: F401 (the run with rows of every task)
@@ -97,3 +98,23 @@ def test_a_run_without_goal_task_episodes_gets_one_line_and_nothing_is_written(d
     assert err == f"error: {demo_eval_run}: no objectnav, pointnav or imagenav episodes in the run\n"
     assert not (tmp_path / "h").exists()
     assert {str(p): hashlib.sha256(p.read_bytes()).hexdigest() for p in demo_eval_run.rglob("*") if p.is_file()} == before
+
+
+def test_every_split_s_objectnav_file_numbers_the_categories_alike(task_run, run_cli, tmp_path):  # noqa: F811
+    """A model trained on one split's ObjectGoalSensor ids is evaluated on another's: the ids must agree, also for an
+    export of one split alone (each split's own categories numbered from 0 gave 'bed' two ids)."""
+    run = tmp_path / "run"
+    shutil.copytree(task_run / "scenes", run / "scenes")
+    rows = read_episodes(task_run / "episodes" / SCENE).to_pylist()
+    objectnav = [r for r in rows if row_task(r) == "objectnav"][:2]
+    assert len(objectnav) == 2
+    moved = [dict(objectnav[0], split="train"), dict(objectnav[1], split="test", goal_category="aaa_first")]
+    (run / "episodes" / SCENE).mkdir(parents=True)
+    write_shards(moved, run / "episodes" / SCENE, 2**27, TASK_SCHEMA)
+    assert run_cli("export-habitat", run, "--out", tmp_path / "all")[0] == 0
+    assert run_cli("export-habitat", run, "--out", tmp_path / "train", "--split", "train")[0] == 0
+    maps = [objectnav_dataset(tmp_path / out / "objectnav" / s / f"{s}.json.gz",
+                              scenes_dir=str(tmp_path / out / "scenes"))["category_to_task_category_id"]
+            for out, s in (("all", "train"), ("all", "test"), ("train", "train"))]
+    want = {c: i for i, c in enumerate(sorted({"aaa_first", objectnav[0]["goal_category"]}))}
+    assert maps == [want, want, want]

@@ -62,7 +62,7 @@ def export_habitat(run_dir: Path, out_dir: Path, *, split: str | None = None) ->
     """Write the dataset of every goal task and split of the run (or of `split`) into `out_dir`."""
     if split is not None and split not in SPLITS:
         raise ConfigError(f"{split!r} is not a split (one of {', '.join(SPLITS)})", field="--split")
-    rows, skipped = _task_rows(Path(run_dir), split)
+    rows, skipped, categories = _task_rows(Path(run_dir), split)
     groups = {(t, s): [r for r in rows if row_task(r) == t and r["split"] == s] for t in HABITAT_TASKS for s in SPLITS}
     groups = {k: v for k, v in groups.items() if v}
     if not groups:
@@ -71,7 +71,7 @@ def export_habitat(run_dir: Path, out_dir: Path, *, split: str | None = None) ->
     scenes = {sid: load_scene(run_scene_dir(run_dir, sid)) for sid in sorted({r["scene_id"] for r in rows})}
     centres = {sid: {iid: mesh.bounds.mean(axis=0).tolist() for iid, mesh in s.meshes.items()}
                for sid, s in scenes.items()}
-    files = {task_file(t, s): task_dataset_bytes(t, v, centres) for (t, s), v in groups.items()}
+    files = {task_file(t, s): task_dataset_bytes(t, v, centres, categories) for (t, s), v in groups.items()}
     files.update({f"{SCENES_DIR}/{scene_glb_path(sid)}": scene_glb(s) for sid, s in scenes.items()})
     for rel, data in files.items():
         write_bytes(Path(out_dir) / rel, data)
@@ -82,10 +82,13 @@ def export_habitat(run_dir: Path, out_dir: Path, *, split: str | None = None) ->
     return HabitatExport(Path(out_dir), {k: len(v) for k, v in groups.items()}, list(scenes), skipped)
 
 
-def _task_rows(run_dir: Path, split: str | None) -> tuple[list[dict], Counter]:
-    """The rows of the goal tasks habitat-lab has datasets for (of `split`, when given), and the others counted."""
+def _task_rows(run_dir: Path, split: str | None) -> tuple[list[dict], Counter, list[str]]:
+    """The rows of the goal tasks habitat-lab has datasets for (of `split`, when given), the others counted, and the
+    goal categories of the run's objectnav rows in every split: one category numbering for all of the run's files,
+    as a model trained on one split and evaluated on another needs."""
     rows: list[dict] = []
     skipped: Counter = Counter()
+    categories: set[str] = set()
     for sid in run_scenes(run_dir, having="episodes"):
         require(CONTRACT["export_habitat"].reads, run_dir, sid)
         try:
@@ -93,10 +96,12 @@ def _task_rows(run_dir: Path, split: str | None) -> tuple[list[dict], Counter]:
         except (OSError, pa.ArrowException) as err:
             raise DataError(f"cannot read episode shards: {err}", path=run_episodes_dir(run_dir, sid)) from None
         for row in table.to_pylist():
+            if row_task(row) == "objectnav":
+                categories.add(row["goal_category"])
             if split is not None and row["split"] != split:
                 continue
             if row_task(row) in HABITAT_TASKS:
                 rows.append(row)
             else:
                 skipped[row_task(row)] += 1
-    return rows, skipped
+    return rows, skipped, sorted(categories)

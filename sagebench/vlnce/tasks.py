@@ -76,11 +76,11 @@ def object_goals(row: Mapping[str, Any], centres: Mapping[int, Sequence[float]])
             for k, iid in enumerate(ids)]
 
 
-def object_dataset(rows: Sequence[Mapping[str, Any]], centres: Mapping[str, Mapping[int, Sequence[float]]]
-                   ) -> dict[str, Any]:
-    """The ObjectNav-v1 dataset of objectnav rows (`centres`: scene id -> instance id -> world mesh centre); a
+def object_dataset(rows: Sequence[Mapping[str, Any]], centres: Mapping[str, Mapping[int, Sequence[float]]],
+                   categories: Sequence[str]) -> dict[str, Any]:
+    """The ObjectNav-v1 dataset of objectnav rows (`centres`: scene id -> instance id -> world mesh centre), the
+    categories numbered in the order of `categories` (the run's, so every split's file numbers them alike); a
     scene's category has one set of goals: its rows' instances and viewpoints (each once)."""
-    categories = sorted({r["goal_category"] for r in rows})
     ids = {c: i for i, c in enumerate(categories)}
     merged: dict[str, dict] = {}
     for row in rows:
@@ -95,7 +95,9 @@ def object_dataset(rows: Sequence[Mapping[str, Any]], centres: Mapping[str, Mapp
 
 
 def task_dataset_bytes(task: str, rows: Sequence[Mapping[str, Any]],
-                       centres: Mapping[str, Mapping[int, Sequence[float]]]) -> bytes:
-    """The gzipped habitat dataset file of one task's rows (in their order); byte-identical for the same rows."""
-    data = object_dataset(rows, centres) if task == "objectnav" else {"episodes": [point_episode(r) for r in rows]}
+                       centres: Mapping[str, Mapping[int, Sequence[float]]], categories: Sequence[str]) -> bytes:
+    """The gzipped habitat dataset file of one task's rows (in their order; `categories`: objectnav's numbering);
+    byte-identical for the same rows."""
+    data = (object_dataset(rows, centres, categories) if task == "objectnav"
+            else {"episodes": [point_episode(r) for r in rows]})
     return gzip.compress(json.dumps(data, sort_keys=True, separators=(",", ":")).encode(), mtime=0)
