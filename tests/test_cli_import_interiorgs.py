@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from interiorgs_fixture import (
-    band_footprint_ious, empty_space_filled, in_box_share, iou, on_grid, write_interiorgs_folder,
+    band_footprint_ious, empty_space_filled, in_box_share, iou, on_grid, write_interiorgs_folder, write_messy_folder,
 )
 from sagebench.scene.assets import CATALOGUE, table
 from sagebench.scene.loader import load_scene
@@ -204,6 +204,41 @@ def test_labels_holding_no_gaussians_and_a_disagreeing_occupancy_map_are_warning
             f"(IoU, under 80%); see occupancy_check.png\n") in err
     picture = cv2.imread(str(tmp_path / "out" / "occupancy_check.png"))
     assert (picture == (60, 90, 220)[::-1]).all(axis=2).any()  # blue: free only in occupancy.png
+
+
+def test_a_messy_folder_keeps_an_unlabelled_bed_blocked_and_says_what_it_found(interiorgs_demo, interiorgs_imported,
+                                                                              run_cli, tmp_path):
+    """5 % floaters, 1 cm jitter and the bed's label removed (issue 38's fourth mess, a duplicated id, is left to
+    the duplicated-id refusal): the bed still blocks the floor, the navigable map stays that of the clean import,
+    and the output names the floaters and the unlabelled obstacle, with a picture of where."""
+    from sagebench.settings.build_scene import BuildSceneConfig
+    from sagebench.topdown.builder import compute_topdown
+
+    folder, truth = interiorgs_demo
+    messy = tmp_path / "0001_messy"
+    mess = write_messy_folder(folder, messy, truth)
+    code, out, err = run_cli("import-interiorgs", messy, "--out", tmp_path / "scene")
+    assert code == 0, err
+    report = json.loads((tmp_path / "scene" / "interiorgs_import.json").read_text())
+    assert report["floaters_dropped"] >= 0.7 * mess.floaters
+    (name, found), = report["unlabelled"].items()
+    assert 3.0 <= found["area_m2"] <= 3.8  # the bed is 1.6 x 2.05 m
+    assert f" Gaussians ({report['floaters_dropped']:,} floaters dropped; " in out
+    assert f"unlabelled obstacles: 1 ({found['area_m2']:.2f} m^2)" in out
+    assert err.count("warning: ") == 1 and (
+        f"warning: 0001_messy: {found['area_m2']:.2f} m^2 of floor that no label explains (over 0.25 m^2) is blocked "
+        f"as unlabelled obstacles: {name}; see occupancy_check.png (orange)\n") in err
+    picture = cv2.imread(str(tmp_path / "scene" / "occupancy_check.png"))
+    assert (picture == (240, 150, 30)[::-1]).all(axis=2).sum() > 1000
+    maps = {}
+    for key, scene_dir in (("clean", interiorgs_imported), ("messy", tmp_path / "scene")):
+        td = compute_topdown(load_scene(scene_dir), BuildSceneConfig())
+        maps[key] = on_grid(td.navigable != 0, td.grid, truth.topdown.grid)
+    bed = truth.topdown.instance == mess.removed
+    assert bed.sum() > 1000 and 1 - maps["messy"][bed].mean() >= 0.95  # 16 % stay blocked without the evidence
+    assert iou(maps["clean"], maps["messy"]) >= 0.97  # 0.88 without dropping the floaters
+    assert report["unlabelled"] and not json.loads((interiorgs_imported / "interiorgs_import.json").read_text())[
+        "unlabelled"]
 
 
 def test_out_holding_other_files_is_refused(interiorgs_demo, run_cli, tmp_path):
