@@ -414,3 +414,18 @@ def write_messy_folder(clean: Path, out: Path, truth: Truth, *, removed: str = "
     k = next(i for i, lab in enumerate(labels) if lab["label"] == removed.replace("_", " "))
     (out / "labels.json").write_text(json.dumps(labels[:k] + labels[k + 1:], indent=1))
     return Mess(truth.label_ids[k], n)
+
+
+def volume_iou(truth_mesh: trimesh.Trimesh, mesh: trimesh.Trimesh, *, step: float = 0.02) -> float:
+    """The IoU of the volume inside the mesh scene's object (each closed piece as it is, concave or not) and that
+    inside the imported one's connected parts (each taken as its convex hull, as the colliders take them), judged
+    on a `step` grid over both meshes' bounds."""
+    lo = np.minimum(truth_mesh.bounds[0], mesh.bounds[0])
+    hi = np.maximum(truth_mesh.bounds[1], mesh.bounds[1])
+    axes = [np.arange(a + step / 2, b, step) for a, b in zip(lo, hi)]
+    points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    a = np.zeros(len(points), dtype=bool)
+    for piece in truth_mesh.split(only_watertight=False):
+        a |= piece.contains(points) if piece.is_watertight else _in_parts(piece, points)
+    b = _in_parts(mesh, points)
+    return float((a & b).sum()) / max(int((a | b).sum()), 1)

@@ -95,7 +95,10 @@ def object_surface(points: np.ndarray, weights: np.ndarray, centre: np.ndarray, 
     occupied = (weight >= settings.min_weight).reshape(shape)
     if not occupied.any():
         return None
-    solid = ndimage.binary_fill_holes(ndimage.binary_closing(occupied, structure=np.ones((3, 3, 3), bool)) | occupied)
+    closed = ndimage.binary_closing(occupied, structure=np.ones((3, 3, 3), bool)) | occupied
+    in_layer = np.zeros((3, 3, 3), dtype=bool)
+    in_layer[:, :, 1] = ndimage.generate_binary_structure(2, 1)  # what an outline encloses in its own layer
+    solid = ndimage.binary_fill_holes(closed) | ndimage.binary_fill_holes(closed, structure=in_layer)
     z_layers = centre[2] + (lo[2] + (np.arange(shape[2]) + 0.5) * pitch) * axes[2, 2]
     wz = layer_weights(z_layers, settings.band)
     boxes = greedy_boxes(solid)
@@ -113,6 +116,7 @@ def object_surface(points: np.ndarray, weights: np.ndarray, centre: np.ndarray, 
     corners = lo + (enclosed[:, None, :] + unit[None]) * pitch  # [E, 8, 3]
     pts = np.concatenate([local[kept], corners.reshape(-1, 3)])
     owner = np.concatenate([label.reshape(-1)[flat[kept]], np.repeat(label[tuple(enclosed.T)], 8)])
+    inner = np.repeat((solid & ~closed)[tuple(enclosed.T)], 8)  # corners of the filled inside, not of a closed gap
     npts = int(kept.sum())
     everywhere = (local[kept].min(axis=0), local[kept].max(axis=0))
     parts = []
@@ -120,7 +124,10 @@ def object_surface(points: np.ndarray, weights: np.ndarray, centre: np.ndarray, 
         mine = owner == b
         points_in_box = pts[:npts][mine[:npts]]
         lo_b, hi_b = (points_in_box.min(axis=0), points_in_box.max(axis=0)) if len(points_in_box) else everywhere
-        group = np.concatenate([points_in_box, np.clip(pts[npts:][mine[npts:]], lo_b, hi_b)])
+        corners_b = pts[npts:][mine[npts:]]
+        inside_b = inner[mine[npts:]][:, None]
+        group = np.concatenate([points_in_box, np.where(inside_b, np.clip(corners_b, *everywhere),
+                                                        np.clip(corners_b, lo_b, hi_b))])
         if len(group):
             part = hull_part(group)
             parts.append(trimesh.Trimesh(part.vertices @ axes + centre, part.faces, process=False))
