@@ -49,7 +49,9 @@ from sagebench.run_layout import SCENE_FILE
 from sagebench.scene.model import Door, Room, SceneObject, SceneSpec
 from sagebench.settings.build_scene import BuildSceneConfig
 from sagebench.settings.import_interiorgs import InteriorGSConfig
-from sagebench.splat_geometry.surface import SurfaceSettings, gaussian_points, object_surface
+from sagebench.splat_geometry.surface import (
+    SurfaceSettings, gaussian_covariances, gaussian_points, object_surface,
+)
 from sagebench.splats.ply import read_ply, write_ply
 from sagebench.splats.scene import TRAINED_FILES
 
@@ -315,14 +317,17 @@ def _assign(means: np.ndarray, stray: np.ndarray, objects: list[_Thing], structu
 def _surfaces(g: Gaussians, ids: np.ndarray, objects: list[_Thing], settings: SurfaceSettings) -> list[int]:
     """Give each object its surface from its own Gaussians; returns the labels.json indices left without one."""
     sel = np.flatnonzero(np.isin(ids, [t.instance_id for t in objects]))
-    points, weights, source = gaussian_points(g.take(sel), settings.voxel)
+    chosen = g.take(sel)
+    points, weights, source = gaussian_points(chosen, settings.voxel)
+    cov = gaussian_covariances(chosen)[source]
     owner = ids[sel][source]
     order = np.argsort(owner, kind="stable")
     bounds = np.searchsorted(owner[order], [[t.instance_id, t.instance_id + 1] for t in objects]) if objects else []
     empty = []
     for t, (a, b) in ui.track(list(zip(objects, bounds)), "object surfaces"):
         rows = order[a:b]
-        mesh = object_surface(points[rows], weights[rows], t.box.centre, t.box.axes, t.box.half, settings) if len(rows) else None
+        mesh = object_surface(points[rows], weights[rows], t.box.centre, t.box.axes, t.box.half, settings,
+                              cov[rows]) if len(rows) else None
         if mesh is None:
             empty.append(t.label)
             continue
