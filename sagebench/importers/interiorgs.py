@@ -302,6 +302,7 @@ def _assign(means: np.ndarray, stray: np.ndarray, objects: list[_Thing], structu
     ids[stray] = -1
     free = np.flatnonzero(ids == 0)
     owner = box_owner(pts[free], [t.box for t in objects], config.box_margin)
+    _on_tops(pts[free], owner, objects, config.box_margin)
     in_box = owner >= 0
     if objects:
         ids[free[in_box]] = np.array([t.instance_id for t in objects], dtype=np.int64)[owner[in_box]]
@@ -312,6 +313,19 @@ def _assign(means: np.ndarray, stray: np.ndarray, objects: list[_Thing], structu
     background = float((ids == 0).sum()) / n
     return ids, {"object_boxes": round(objects_share, 4), "structure": round(1 - objects_share - background, 4),
                  "background": round(background, 4)}
+
+
+def _on_tops(pts: np.ndarray, owner: np.ndarray, objects: list[_Thing], margin: float) -> None:
+    """Gaussians on the bottom face of their box that lie on the top face of a box under it go to that one: a TV's
+    box starts where its stand's top is, and the Gaussians of that top are the stand's (`owner` is updated)."""
+    for k, t in enumerate(objects):
+        mine = np.flatnonzero(owner == k)
+        bottom = t.box.centre[2] - t.box.half[2]
+        low = mine[(pts[mine] - t.box.centre) @ t.box.axes[2] <= -t.box.half[2] + margin]
+        under = [j for j, o in enumerate(objects) if j != k and abs(o.box.centre[2] + o.box.half[2] - bottom) <= margin]
+        if len(low) and under:
+            got = box_owner(pts[low], [objects[j].box for j in under], margin)
+            owner[low[got >= 0]] = np.array(under)[got[got >= 0]]
 
 
 def _surfaces(g: Gaussians, ids: np.ndarray, objects: list[_Thing], settings: SurfaceSettings) -> list[int]:
