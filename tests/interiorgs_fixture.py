@@ -399,3 +399,60 @@ def _in_parts(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
         if len(verts) >= 4 and np.linalg.matrix_rank(verts[1:] - verts[0]) == 3:
             inside |= Delaunay(verts).find_simplex(points) >= 0
     return inside
+
+
+# ---------------------------------------------------------------- messy data
+
+
+@dataclass(frozen=True)
+class Mess:
+    """What `write_messy_folder` did: the instance id (mesh scene) of the removed label and the floaters added."""
+
+    removed: int
+    floaters: int
+
+
+def write_messy_folder(clean: Path, out: Path, truth: Truth, *, removed: str = "bed", floaters: float = 0.05,
+                       jitter: float = 0.01, seed: int = 0) -> Mess:
+    """A copy of the InteriorGS folder `clean` as real captures come: every Gaussian moved by `jitter` (m, normal
+    per axis), a `floaters` share more Gaussians scattered over the scene's bounds (small, of any opacity: the
+    stray splats training leaves in the air), and the first label of category `removed` taken out of labels.json.
+    Written in the INRIA layout (3dgs.ply)."""
+    from sagebench.splats.ply import read_ply
+
+    rng = np.random.default_rng(seed)
+    out.mkdir(parents=True, exist_ok=True)
+    for name in ("structure.json", "occupancy.png", "occupancy.json"):
+        (out / name).write_bytes((clean / name).read_bytes())
+    g = read_ply(next(clean / n for n in ("3dgs_compressed.ply", "3dgs.ply") if (clean / n).exists()))
+    meta = json.loads((clean / "occupancy.json").read_text())
+    n = int(round(g.count * floaters))
+    means = np.concatenate([g.means + rng.normal(0, jitter, g.means.shape),
+                            rng.uniform(meta["min"], meta["max"], (n, 3))]).astype(np.float32)
+    quats = rng.normal(size=(n, 4))
+    f32 = np.float32
+    stray = Gaussians(means, np.concatenate([g.quats_wxyz, quats / np.linalg.norm(quats, axis=1, keepdims=True)]).astype(f32),
+                      np.concatenate([g.log_scales, np.log(rng.uniform(0.005, 0.03, (n, 3)))]).astype(f32),
+                      np.concatenate([g.opacity_logits, rng.uniform(-3.0, 3.0, n)]).astype(f32),
+                      np.concatenate([g.sh, np.repeat(g.sh[:1] * 0, n, axis=0)]), np.zeros(g.count + n, np.int32))
+    (out / "3dgs.ply").write_bytes(inria_ply(stray))
+    labels = json.loads((clean / "labels.json").read_text())
+    k = next(i for i, lab in enumerate(labels) if lab["label"] == removed.replace("_", " "))
+    (out / "labels.json").write_text(json.dumps(labels[:k] + labels[k + 1:], indent=1))
+    return Mess(truth.label_ids[k], n)
+
+
+def volume_iou(truth_mesh: trimesh.Trimesh, mesh: trimesh.Trimesh, *, step: float = 0.02) -> float:
+    """The IoU of the volume inside the mesh scene's object (each closed piece as it is, concave or not) and that
+    inside the imported one's connected parts (each taken as its convex hull, as the colliders take them), judged
+    on a `step` grid over both meshes' bounds (set off by an odd fraction of a step, so that no row of it lies on
+    a voxel face both meshes end a hair short of)."""
+    lo = np.minimum(truth_mesh.bounds[0], mesh.bounds[0])
+    hi = np.maximum(truth_mesh.bounds[1], mesh.bounds[1])
+    axes = [np.arange(a + step * 0.37, b, step) for a, b in zip(lo, hi)]
+    points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    a = np.zeros(len(points), dtype=bool)
+    for piece in truth_mesh.split(only_watertight=False):
+        a |= piece.contains(points) if piece.is_watertight else _in_parts(piece, points)
+    b = _in_parts(mesh, points)
+    return float((a & b).sum()) / max(int((a | b).sum()), 1)

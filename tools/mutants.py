@@ -106,7 +106,7 @@ MUTANTS = (
            "        lo[2] -= (centre[2] + lo[2] - settings.band[0]) % pitch", "        lo[2] -= 0.0",
            ("tests/test_splat_geometry_surface.py",)),
     Mutant("filled voxels' corners past the box's own points", "sagebench/splat_geometry/surface.py",
-           "np.clip(pts[npts:][mine[npts:]], lo_b, hi_b)", "pts[npts:][mine[npts:]]",
+           "np.clip(corners_b, lo_b, hi_b))])", "corners_b)])",
            ("tests/test_splat_geometry_surface.py",)),
     Mutant("one hull over an object's Gaussians", "sagebench/splat_geometry/surface.py",
            "    if len(boxes) > settings.max_parts:\n", "    if len(boxes) > 1:\n        settings = SurfaceSettings(max_parts=1)\n",

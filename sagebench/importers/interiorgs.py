@@ -1,6 +1,8 @@
 """An InteriorGS scene folder -> a sagebench scene (scene.json, meshes, gaussians.ply with instance ids).
 
 - Gaussians are read from the PLY (compressed or INRIA layout); the dataset's frame is already metres, Z up.
+  Floaters (importers/interiorgs_evidence.py) take no part in the geometry; gaussians.ply keeps every Gaussian
+  of the source, in its order, floaters with id 0 (background).
 - Each Gaussian gets the instance of the tightest object box that holds it, unless it lies on a wall, floor
   or ceiling (within `structure_margin`): a floor's Gaussians under a sofa belong to the floor. Gaussians in
   no box go to the structure within `structure_reach`, else stay background (id 0).
@@ -9,6 +11,9 @@
 - Every object's surface is made from its own Gaussians (splat_geometry.surface); a label whose box holds no
   Gaussians is left out with a warning. With a SAGE-3D collision USD, its meshes replace the surfaces of the
   objects they match.
+- What no label explains, background Gaussians dense enough in the agent's band and cells occupancy.png marks
+  occupied that nothing imported covers, becomes "unlabelled" obstacles (importers/interiorgs_evidence.py),
+  numbered after the ceilings; more of their floor than `max_unlabelled_area` is a warning.
 - The shipped occupancy.png is compared with the imported geometry's own height-band occupancy.
 - scene.json's `sage_offset` is where SAGE-3D's 3D frame of the scene lies (sagebench.importers.sage_frame).
 
@@ -35,7 +40,8 @@ from sagebench.importers.config import OCCUPANCY_PICTURE, REPORT_FILE
 from sagebench.importers.interiorgs_files import (
     LABELS, STRUCTURE, InteriorGSFolder, WallSegment, read_folder,
 )
-from sagebench.importers.interiorgs_occupancy import compare_occupancy
+from sagebench.importers.interiorgs_evidence import Unlabelled, floaters, unlabelled_obstacles
+from sagebench.importers.interiorgs_occupancy import band_blocked, compare_occupancy
 from sagebench.importers.interiorgs_structure import (
     DEFAULT_CEILING_M, SLAB_M, DoorPose, Opening, box_mesh, door_pose, openings_on, room_polygon, room_type, slab,
     snake, wall_pieces,
@@ -47,7 +53,7 @@ from sagebench.scene.model import Door, Room, SceneObject, SceneSpec
 from sagebench.settings.build_scene import BuildSceneConfig
 from sagebench.settings.import_interiorgs import InteriorGSConfig
 from sagebench.splat_geometry.surface import (
-    MAX_VOXELS, SurfaceSettings, gaussian_points, grid_voxels, object_surface,
+    MAX_VOXELS, SurfaceSettings, gaussian_covariances, gaussian_points, grid_voxels, object_surface,
 )
 from sagebench.splats.ply import read_ply, write_ply
 from sagebench.splats.scene import TRAINED_FILES
@@ -99,13 +105,14 @@ def import_interiorgs(src: Path, config: InteriorGSConfig = InteriorGSConfig(),
     gaussians = read_ply(folder.ply)
     if gaussians.count == 0:
         raise DataError("holds no Gaussians", path=folder.ply, field="vertex")
+    stray = floaters(gaussians.means, config.floater_cell, config.floater_neighbours)
     _match_doors(objects, walls, folder, rooms)
     things = [*objects, *walls, *slabs]
     for k, t in enumerate(things, start=1):
         t.instance_id = k
     structure = _StructureIndex(pieces, np.array([walls[i].instance_id for i in piece_wall], dtype=np.int64),
                                 rooms, slabs)
-    ids, shares = _assign(gaussians.means, objects, structure, config)
+    ids, shares = _assign(gaussians.means, stray, objects, structure, config)
     band = build.agent.band  # the floor is z = 0
     settings = SurfaceSettings(config.voxel, config.min_opacity, config.max_parts, band)
     empty = _surfaces(gaussians, ids, objects, settings)
@@ -116,18 +123,28 @@ def import_interiorgs(src: Path, config: InteriorGSConfig = InteriorGSConfig(),
     if collision_usd is not None:
         collision = _use_collision_meshes(Path(collision_usd), [t for t in objects if t.mesh is not None])
     kept = [t for t in things if t.mesh is not None]
+    blocked = band_blocked(folder.occupancy, [t.posed if t.posed is not None else t.mesh for t in kept
+                                              if t.kind not in ("floor", "ceiling")], band)
+    unlabelled = _unlabelled(folder, rooms, gaussians, ids, blocked, band, config, len(things) + 1)
+    kept += unlabelled.things
     spec = _spec(scene_id, folder, rooms, kept, sage_offset(folder.occupancy, folder.labels))
-    agreement = compare_occupancy(folder.occupancy, [t.posed if t.posed is not None else t.mesh for t in kept
-                                                     if t.kind not in ("floor", "ceiling")], rooms, band)
+    agreement = compare_occupancy(folder.occupancy, blocked, rooms, unlabelled.found.cells > 0)
     if agreement.iou < config.min_occupancy_iou:
         warnings.append(f"{scene_id}: occupancy.png and the imported geometry agree on {agreement.iou:.0%} of the "
                         f"free floor (IoU, under {config.min_occupancy_iou:.0%}); see {OCCUPANCY_PICTURE}")
+    area = sum(unlabelled.found.areas)
+    if area > config.max_unlabelled_area:
+        warnings.append(f"{scene_id}: {area:.2f} m^2 of floor that no label explains (over {config.max_unlabelled_area:g}"
+                        f" m^2) is blocked as unlabelled obstacles: "
+                        f"{', '.join(t.category + f'_{t.instance_id}' for t in unlabelled.things)}; see "
+                        f"{OCCUPANCY_PICTURE} (orange)")
     for w in warnings:
         ui.warn(w)
-    ids[~np.isin(ids, [t.instance_id for t in kept])] = 0  # Gaussians of a left-out label are background
+    ids[~np.isin(ids, [t.instance_id for t in kept])] = 0  # floaters and a left-out label's Gaussians: background
     report = {
         "scene_id": scene_id,
         "gaussians": gaussians.count,
+        "floaters_dropped": int(stray.sum()),
         "shares": shares,
         "labels": len(folder.labels),
         "objects": sum(t.label is not None for t in kept),  # labelled objects (walls, floors, ceilings aside)
@@ -138,6 +155,8 @@ def import_interiorgs(src: Path, config: InteriorGSConfig = InteriorGSConfig(),
         "openings_on_no_wall": sorted(set(range(len(folder.holes))) - matched_holes),
         "doors": {t.category + f"_{t.instance_id}": t.door.state for t in kept if t.door is not None},
         "collision_meshes": collision,
+        "unlabelled": {f"unlabelled_{t.instance_id}": {"area_m2": round(a, 3), "top_m": round(top, 3)}
+                       for t, a, top in zip(unlabelled.things, unlabelled.found.areas, unlabelled.found.tops)},
         "occupancy_iou": round(agreement.iou, 4),
         "sage_offset_m": list(spec.sage_offset),  # SAGE-3D's 3D frame: sagebench.importers.sage_frame
         "occupancy_free_cells": {"sagebench": agreement.free_ours, "occupancy.png": agreement.free_theirs},
@@ -329,36 +348,55 @@ def _room_of(point: np.ndarray, rooms: list[shapely.Polygon]) -> str | None:
 # ---------------------------------------------------------------- Gaussians
 
 
-def _assign(means: np.ndarray, objects: list[_Thing], structure: _StructureIndex,
+def _assign(means: np.ndarray, stray: np.ndarray, objects: list[_Thing], structure: _StructureIndex,
             config: InteriorGSConfig) -> tuple[np.ndarray, dict[str, float]]:
-    """[N] instance id per Gaussian (module docstring), and the shares of the three outcomes."""
+    """[N] instance id per Gaussian (module docstring), -1 for the floaters (`stray` [N]), and the shares of the
+    three outcomes among the rest."""
     pts = means.astype(np.float64)
     ids = structure.ids(pts, config.structure_margin, across_only=True)
+    ids[stray] = -1
     free = np.flatnonzero(ids == 0)
     owner = box_owner(pts[free], [t.box for t in objects], config.box_margin)
+    _on_tops(pts[free], owner, objects, config.box_margin)
     in_box = owner >= 0
     if objects:
         ids[free[in_box]] = np.array([t.instance_id for t in objects], dtype=np.int64)[owner[in_box]]
     rest = np.flatnonzero(ids == 0)
     ids[rest] = structure.ids(pts[rest], config.structure_reach)
-    n = max(len(pts), 1)
+    n = max(len(pts) - int(stray.sum()), 1)
     objects_share = float(in_box.sum()) / n
     background = float((ids == 0).sum()) / n
     return ids, {"object_boxes": round(objects_share, 4), "structure": round(1 - objects_share - background, 4),
                  "background": round(background, 4)}
 
 
+def _on_tops(pts: np.ndarray, owner: np.ndarray, objects: list[_Thing], margin: float) -> None:
+    """Gaussians on the bottom face of their box that lie on the top face of a box under it go to that one: a TV's
+    box starts where its stand's top is, and the Gaussians of that top are the stand's (`owner` is updated)."""
+    for k, t in enumerate(objects):
+        mine = np.flatnonzero(owner == k)
+        bottom = t.box.centre[2] - t.box.half[2]
+        low = mine[(pts[mine] - t.box.centre) @ t.box.axes[2] <= -t.box.half[2] + margin]
+        under = [j for j, o in enumerate(objects) if j != k and abs(o.box.centre[2] + o.box.half[2] - bottom) <= margin]
+        if len(low) and under:
+            got = box_owner(pts[low], [objects[j].box for j in under], margin)
+            owner[low[got >= 0]] = np.array(under)[got[got >= 0]]
+
+
 def _surfaces(g: Gaussians, ids: np.ndarray, objects: list[_Thing], settings: SurfaceSettings) -> list[int]:
     """Give each object its surface from its own Gaussians; returns the labels.json indices left without one."""
     sel = np.flatnonzero(np.isin(ids, [t.instance_id for t in objects]))
-    points, weights, source = gaussian_points(g.take(sel), settings.voxel)
+    chosen = g.take(sel)
+    points, weights, source = gaussian_points(chosen, settings.voxel)
+    cov = gaussian_covariances(chosen)[source]
     owner = ids[sel][source]
     order = np.argsort(owner, kind="stable")
     bounds = np.searchsorted(owner[order], [[t.instance_id, t.instance_id + 1] for t in objects]) if objects else []
     empty = []
     for t, (a, b) in ui.track(list(zip(objects, bounds)), "object surfaces"):
         rows = order[a:b]
-        mesh = object_surface(points[rows], weights[rows], t.box.centre, t.box.axes, t.box.half, settings) if len(rows) else None
+        mesh = object_surface(points[rows], weights[rows], t.box.centre, t.box.axes, t.box.half, settings,
+                              cov[rows]) if len(rows) else None
         if mesh is None:
             empty.append(t.label)
             continue
@@ -368,6 +406,33 @@ def _surfaces(g: Gaussians, ids: np.ndarray, objects: list[_Thing], settings: Su
             mesh.apply_transform(t.pose.closing())
         t.mesh = mesh
     return empty
+
+
+@dataclass(frozen=True)
+class _Evidence:
+    things: list[_Thing]
+    found: Unlabelled
+
+
+def _unlabelled(folder: InteriorGSFolder, rooms: list[shapely.Polygon], g: Gaussians, ids: np.ndarray,
+                blocked: np.ndarray, band: tuple[float, float], config: InteriorGSConfig, first_id: int) -> _Evidence:
+    """The obstacles no label explains (importers/interiorgs_evidence.py), as things numbered from `first_id`; the
+    background Gaussians over each, up to its top, become its own (`ids` is updated)."""
+    background = np.flatnonzero(ids == 0)
+    means = g.means[background].astype(np.float64)
+    alpha = 1.0 / (1.0 + np.exp(-g.opacity_logits[background].astype(np.float64)))
+    found = unlabelled_obstacles(folder.occupancy, blocked, rooms, means, alpha, band, config.min_opacity,
+                                 config.unlabelled_min_area)
+    things = [_Thing(first_id + k, "unlabelled", "object", mesh=mesh,
+                     room_id=_room_of(mesh.bounds.mean(axis=0), rooms)) for k, mesh in enumerate(found.meshes)]
+    res = folder.occupancy.scale
+    j = np.clip(np.floor((means[:, 0] - folder.occupancy.origin[0]) / res).astype(np.int64), 0, found.cells.shape[1] - 1)
+    i = np.clip(np.floor((means[:, 1] - folder.occupancy.origin[1]) / res).astype(np.int64), 0, found.cells.shape[0] - 1)
+    over = found.cells[i, j]
+    tops = np.array([0.0, *found.tops])
+    mine = (over > 0) & (means[:, 2] <= tops[over] + config.box_margin)
+    ids[background[mine]] = first_id + over[mine] - 1
+    return _Evidence(things, found)
 
 
 def _use_collision_meshes(path: Path, objects: list[_Thing]) -> dict:

@@ -33,3 +33,15 @@ class InteriorGSConfig(BaseModel):
     min_occupancy_iou: float = Field(
         default=0.8, ge=0, le=1,
         description="Warn when the free cells of occupancy.png and of the imported geometry agree less (IoU).")
+    floater_cell: float = Field(
+        default=0.05, gt=0,
+        description="A Gaussian is a floater, dropped, when the 3 x 3 x 3 block of cells of this side around its own "
+                    "holds at most floater_neighbours other Gaussians, m.")
+    floater_neighbours: int = Field(default=2, ge=0, description="See floater_cell.")
+    unlabelled_min_area: float = Field(
+        default=0.04, ge=0,
+        description="Geometry no label explains (background Gaussians in the agent's band, cells occupancy.png marks "
+                    "occupied) becomes an unlabelled obstacle in pieces of this much floor or more, m^2.")
+    max_unlabelled_area: float = Field(
+        default=0.25, ge=0,
+        description="Warn when the unlabelled obstacles cover more floor than this (labels and evidence disagree), m^2.")

@@ -84,12 +84,23 @@ def grid_voxels(half: np.ndarray, pitch: float) -> float:
     return math.prod(float(np.floor(2 * h / pitch)) + 4 for h in np.asarray(half, dtype=np.float64))
 
 
+def gaussian_covariances(g: Gaussians) -> np.ndarray:
+    """[N, 3, 3] each Gaussian's covariance (world m^2): R diag(sigma^2) R^T."""
+    rot = quat_matrices(g.quats_wxyz)
+    var = np.exp(2 * g.log_scales.astype(np.float64))
+    return np.einsum("nij,nj,nkj->nik", rot, var, rot)
+
+
 def object_surface(points: np.ndarray, weights: np.ndarray, centre: np.ndarray, axes: np.ndarray,
-                   half: np.ndarray, settings: SurfaceSettings = SurfaceSettings()) -> trimesh.Trimesh | None:
+                   half: np.ndarray, settings: SurfaceSettings = SurfaceSettings(),
+                   cov: np.ndarray | None = None) -> trimesh.Trimesh | None:
     """The surface (world m) of the object whose Gaussian points [N, 3] and weights [N] lie in the box
     (centre [3], axes [3, 3] rows, the most vertical last, half extents [3]); None when no voxel is occupied.
 
-    Points outside the box are pulled onto it first, so the surface never reaches past the annotated box.
+    Points outside the box are pulled onto it first, so the surface never reaches past the annotated box. With
+    `cov` [N, 3, 3], the covariance of each point's Gaussian, a part narrower across than its Gaussians (a pole
+    of splats centred on its axis) is widened, across each horizontal axis of the box, to one standard deviation
+    of its Gaussians (their median) either side of its middle: a pole as thick as its splats, not a sliver.
     """
     pitch = settings.voxel
     local = np.clip((np.asarray(points, dtype=np.float64) - centre) @ axes.T, -half, half)
@@ -103,7 +114,10 @@ def object_surface(points: np.ndarray, weights: np.ndarray, centre: np.ndarray, 
     occupied = (weight >= settings.min_weight).reshape(shape)
     if not occupied.any():
         return None
-    solid = ndimage.binary_fill_holes(ndimage.binary_closing(occupied, structure=np.ones((3, 3, 3), bool)) | occupied)
+    closed = ndimage.binary_closing(occupied, structure=np.ones((3, 3, 3), bool)) | occupied
+    in_layer = np.zeros((3, 3, 3), dtype=bool)
+    in_layer[:, :, 1] = ndimage.generate_binary_structure(2, 1)  # what an outline encloses in its own layer
+    solid = ndimage.binary_fill_holes(closed) | ndimage.binary_fill_holes(closed, structure=in_layer)
     z_layers = centre[2] + (lo[2] + (np.arange(shape[2]) + 0.5) * pitch) * axes[2, 2]
     wz = layer_weights(z_layers, settings.band)
     boxes = greedy_boxes(solid)
@@ -119,19 +133,67 @@ def object_surface(points: np.ndarray, weights: np.ndarray, centre: np.ndarray, 
     enclosed = np.argwhere(solid & ~has_point.reshape(shape))  # [E, 3] solid voxels no point is in
     unit = np.argwhere(np.ones((2, 2, 2), dtype=bool)) * (1 - 2 * _CORNER_INSET) + _CORNER_INSET  # [8, 3]
     corners = lo + (enclosed[:, None, :] + unit[None]) * pitch  # [E, 8, 3]
-    pts = np.concatenate([local[kept], corners.reshape(-1, 3)])
-    owner = np.concatenate([label.reshape(-1)[flat[kept]], np.repeat(label[tuple(enclosed.T)], 8)])
     npts = int(kept.sum())
+    onto, onto_owner = _onto_shared_faces(local[kept], cell[kept], solid, label, lo, pitch)
+    pts = np.concatenate([local[kept], corners.reshape(-1, 3), onto])
+    owner = np.concatenate([label.reshape(-1)[flat[kept]], np.repeat(label[tuple(enclosed.T)], 8), onto_owner])
+    inner = np.concatenate([np.repeat((solid & ~closed)[tuple(enclosed.T)], 8),  # the filled inside's corners,
+                            np.ones(len(onto), dtype=bool)])  # not a closed gap's; the points on shared faces
+    sigma = None if cov is None else np.sqrt(np.einsum("dj,njk,dk->nd", axes[:2], cov[kept], axes[:2]))  # [n, 2]
     everywhere = (local[kept].min(axis=0), local[kept].max(axis=0))
     parts = []
     for b in range(len(boxes)):
         mine = owner == b
         points_in_box = pts[:npts][mine[:npts]]
         lo_b, hi_b = (points_in_box.min(axis=0), points_in_box.max(axis=0)) if len(points_in_box) else everywhere
-        group = np.concatenate([points_in_box, np.clip(pts[npts:][mine[npts:]], lo_b, hi_b)])
+        corners_b = pts[npts:][mine[npts:]]
+        inside_b = inner[mine[npts:]][:, None]
+        group = np.concatenate([points_in_box, np.where(inside_b, np.clip(corners_b, *everywhere),
+                                                        np.clip(corners_b, lo_b, hi_b))])
+        if sigma is not None and len(points_in_box):
+            group = _as_wide_as_gaussians(group, np.median(sigma[mine[:npts]], axis=0), half)
         if len(group):
             part = hull_part(group)
             parts.append(trimesh.Trimesh(part.vertices @ axes + centre, part.faces, process=False))
     if not parts:
         return None
     return trimesh.util.concatenate(parts)
+
+
+def _as_wide_as_gaussians(group: np.ndarray, sigma: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """`group` (box frame) with, across each horizontal axis where it spans less than 2 `sigma`, copies of its
+    points at its middle +- sigma (kept within the box's `half` extents). A post, narrower than its widest
+    Gaussians both ways, is made that wide both ways: its splats may all face one way."""
+    span = group[:, :2].max(axis=0) - group[:, :2].min(axis=0)
+    if (span < 2 * sigma.max()).all():
+        sigma = np.full(2, sigma.max())
+    out = [group]
+    for d in range(2):
+        lo_d, hi_d = group[:, d].min(), group[:, d].max()
+        if hi_d - lo_d < 2 * sigma[d]:
+            for side in (-1.0, 1.0):
+                copy = group.copy()
+                copy[:, d] = np.clip((lo_d + hi_d) / 2 + side * sigma[d], -half[d], half[d])
+                out.append(copy)
+    return np.concatenate(out)
+
+
+def _onto_shared_faces(local: np.ndarray, cells: np.ndarray, solid: np.ndarray, label: np.ndarray, lo: np.ndarray,
+                       pitch: float) -> tuple[np.ndarray, np.ndarray]:
+    """Copies of the points (box frame, their voxels `cells`) next to a face their box shares with another
+    box's solid voxel, moved onto that face (a hair short of it), and their box: where a voxel boundary cuts
+    through the material (a table top's two faces in two layers, a leg under the top, a pole's Gaussians in two
+    columns) each side's hull then reaches the boundary, so the parts together are as thick as the Gaussians."""
+    own = label[tuple(cells.T)]
+    out, owner = [], []
+    for d in range(3):
+        for step in (-1, 1):
+            nb = cells.copy()
+            nb[:, d] += step
+            ok = (nb[:, d] >= 0) & (nb[:, d] < solid.shape[d])
+            ok[ok] = solid[tuple(nb[ok].T)] & (label[tuple(nb[ok].T)] != own[ok])
+            moved = local[ok].copy()
+            moved[:, d] = lo[d] + (cells[ok, d] + (step > 0)) * pitch - step * _CORNER_INSET * pitch
+            out.append(moved)
+            owner.append(own[ok])
+    return np.concatenate(out), np.concatenate(owner)

@@ -32,8 +32,10 @@ class ImportResult:
         s = r["shares"]
         return (f"import-interiorgs {r['scene_id']}: {r['objects']} objects from {r['labels']} labels, {r['rooms']} "
                 f"rooms, {r['walls']} walls, {len(r['doors'])} doors, {r['gaussians']:,} Gaussians "
-                f"({s['object_boxes']:.1%} in object boxes, {s['structure']:.1%} on walls, floors and ceilings, "
-                f"{s['background']:.1%} background), occupancy.png agreement {r['occupancy_iou']:.3f} IoU -> {self.out_dir}")
+                f"({r['floaters_dropped']:,} floaters dropped; "
+                f"{s['object_boxes']:.1%} in object boxes, {s['structure']:.1%} on walls, floors and ceilings, "
+                f"{s['background']:.1%} background), unlabelled obstacles: "
+                f"{len(r['unlabelled'])} ({sum(u['area_m2'] for u in r['unlabelled'].values()):.2f} m^2), occupancy.png agreement {r['occupancy_iou']:.3f} IoU -> {self.out_dir}")
 
 
 def import_interiorgs_scene(src: Path, out: Path, config: InteriorGSConfig = InteriorGSConfig(), *,

@@ -1,0 +1,108 @@
+"""What the Gaussians and occupancy.png show beyond the labels: stray Gaussians dropped, geometry no label explains
+made an obstacle.
+
+- Floaters: a Gaussian is a floater when the 3 x 3 x 3 block of `floater_cell` cells around its own holds at most
+  `floater_neighbours` other Gaussians. On the synth apartments (0.05 m, 2) this drops 3 in 4 of Gaussians
+  scattered at random over the scene and under 1 in 1,000 of those on its surfaces; a floater within a cell of a
+  surface cannot be told from it and stays. Floaters are dropped from the geometry (gaussians.ply keeps them,
+  as background).
+- Unlabelled obstacles, on occupancy.png's grid over the rooms: a cell is evidence when occupancy.png marks it
+  occupied by an object (0) or when the background Gaussians (in no label's box, on no structure) over it in the
+  agent's band sum to `min_opacity`. Evidence that the imported geometry does not block, opened by one cell (a rim
+  left by rasterising a little differently goes), in pieces of `unlabelled_min_area` or more, becomes an obstacle:
+  a box per rectangle of its cells, from the floor to the top of the background Gaussians over it (to the band's
+  top where it has none).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+import trimesh
+from scipy import ndimage
+
+from sagebench.collider_export.voxel import greedy_boxes
+from sagebench.importers.interiorgs_files import OccupancyMap
+from sagebench.topdown.raster import Grid, polygon_mask
+
+OBJECT = 0  # occupancy.png's value for a cell an object stands on
+_INSET = 1e-3  # each box is pulled in by this (m), so that boxes sharing an edge stay separate convex parts
+
+
+def floaters(means: np.ndarray, cell: float, neighbours: int) -> np.ndarray:
+    """[N] whether each Gaussian is a floater (module docstring). Only Gaussians whose own cell holds no more than
+    `neighbours` + 1 are looked at further: any other has that many neighbours in its own cell."""
+    c = np.floor(np.asarray(means, dtype=np.float64) / cell).astype(np.int64)
+    c -= c.min(axis=0) - 1  # one empty cell of margin below, so every neighbour index is >= 0
+    dims = c.max(axis=0) + 2
+    key = np.ravel_multi_index(c.T, dims)
+    cells, inverse, count = np.unique(key, return_inverse=True, return_counts=True)
+    suspect = np.flatnonzero(count[inverse] <= neighbours + 1)
+    near = np.zeros(len(suspect), dtype=np.int64)
+    for offset in np.argwhere(np.ones((3, 3, 3), dtype=bool)) - 1:
+        k = np.ravel_multi_index((c[suspect] + offset).T, dims)
+        at = np.minimum(np.searchsorted(cells, k), len(cells) - 1)
+        near += np.where(cells[at] == k, count[at], 0)
+    out = np.zeros(len(c), dtype=bool)
+    out[suspect[near - 1 <= neighbours]] = True
+    return out
+
+
+@dataclass(frozen=True)
+class Unlabelled:
+    """The obstacles no label explains: one mesh (world m) and area (m^2) each, and which of them covers each cell
+    of occupancy.png's grid (0 none, k the k-th)."""
+
+    meshes: list[trimesh.Trimesh]
+    areas: list[float]
+    cells: np.ndarray  # [H, W] int
+    tops: list[float]  # m, each obstacle's top
+
+
+def unlabelled_obstacles(shipped: OccupancyMap, blocked: np.ndarray, rooms: list[shapely.Polygon],
+                         background: np.ndarray, alpha: np.ndarray, band: tuple[float, float], min_opacity: float,
+                         min_area: float) -> Unlabelled:
+    """The obstacles (module docstring) given the cells the imported geometry blocks [H, W] and the background
+    Gaussians' centres [N, 3] and opacities [N]."""
+    grid = Grid(shipped.origin, shipped.scale, shipped.values.shape)
+    inside = polygon_mask(shapely.union_all(rooms), grid)
+    i, j, ok = _cells(grid, background)
+    in_band = ok & (background[:, 2] >= band[0]) & (background[:, 2] <= band[1])
+    weight = np.zeros(grid.shape)
+    np.add.at(weight, (i[in_band], j[in_band]), alpha[in_band])
+    evidence = ((shipped.values == OBJECT) | (weight >= min_opacity)) & inside & ~blocked
+    evidence = ndimage.binary_opening(evidence, structure=np.ones((3, 3), dtype=bool))
+    pieces, n = ndimage.label(evidence)
+    area = np.bincount(pieces.ravel(), minlength=n + 1) * grid.cell_area()
+    keep = np.flatnonzero(area[1:] >= min_area - 1e-9) + 1
+    cells = np.zeros(grid.shape, dtype=np.int64)
+    meshes, tops = [], []
+    for k, piece in enumerate(keep, start=1):
+        mine = pieces == piece
+        cells[mine] = k
+        over = ok & (background[:, 2] >= band[0])
+        over[over] = mine[i[over], j[over]]
+        top = float(np.percentile(background[over, 2], 95)) if over.any() else band[1]
+        tops.append(max(top, band[0] + grid.resolution))
+        meshes.append(_prism(mine, grid, tops[-1]))
+    return Unlabelled(meshes, [float(area[p]) for p in keep], cells, tops)
+
+
+def _cells(grid: Grid, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Row, column and whether on the grid, of each point."""
+    j = np.floor((points[:, 0] - grid.origin[0]) / grid.resolution).astype(np.int64)
+    i = np.floor((points[:, 1] - grid.origin[1]) / grid.resolution).astype(np.int64)
+    ok = (i >= 0) & (i < grid.shape[0]) & (j >= 0) & (j < grid.shape[1])
+    return np.where(ok, i, 0), np.where(ok, j, 0), ok
+
+
+def _prism(cells: np.ndarray, grid: Grid, top: float) -> trimesh.Trimesh:
+    """A box over each rectangle of `cells` [H, W], from the floor to `top`."""
+    boxes = []
+    for i0, j0, _, i1, j1, _ in greedy_boxes(cells[:, :, None]):
+        lo = np.array([grid.origin[0] + j0 * grid.resolution, grid.origin[1] + i0 * grid.resolution, 0.0]) + _INSET
+        hi = np.array([grid.origin[0] + j1 * grid.resolution, grid.origin[1] + i1 * grid.resolution, top]) - _INSET
+        boxes.append(trimesh.creation.box(bounds=np.stack([lo, hi])))
+    return trimesh.util.concatenate(boxes)
