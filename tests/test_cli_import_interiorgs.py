@@ -392,6 +392,7 @@ def test_a_messy_folder_keeps_an_unlabelled_bed_blocked_and_says_what_it_found(i
     """5 % floaters, 1 cm jitter and the bed's label removed (issue 38's fourth mess, a duplicated id, is left to
     the duplicated-id refusal): the bed still blocks the floor, the navigable map stays that of the clean import,
     and the output names the floaters and the unlabelled obstacle, with a picture of where."""
+    from sagebench.episodes.targets import scene_targets
     from sagebench.settings.build_scene import BuildSceneConfig
     from sagebench.topdown.builder import compute_topdown
 
@@ -415,6 +416,10 @@ def test_a_messy_folder_keeps_an_unlabelled_bed_blocked_and_says_what_it_found(i
     for key, scene_dir in (("clean", interiorgs_imported), ("messy", tmp_path / "scene")):
         td = compute_topdown(load_scene(scene_dir), BuildSceneConfig())
         maps[key] = on_grid(td.navigable != 0, td.grid, truth.topdown.grid)
+    unnamed = {i.instance_id for i in td.semantic.instances if i.category == "unlabelled"}
+    targets, names = scene_targets(load_scene(tmp_path / "scene").spec, td.semantic)
+    assert unnamed and not unnamed & {t.instance_id for t in targets}  # no trajectory starts or ends at it
+    assert not any("unlabelled" in n for n in names.values())
     bed = truth.topdown.instance == mess.removed
     assert bed.sum() > 1000 and 1 - maps["messy"][bed].mean() >= 0.95  # 16 % stay blocked without the evidence
     assert iou(maps["clean"], maps["messy"]) >= 0.97  # 0.88 without dropping the floaters

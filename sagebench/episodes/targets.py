@@ -10,7 +10,7 @@ from sagebench.astar.sampling import GridMap, TargetSpec
 from sagebench.instructions.base import SceneContext, make_context
 from sagebench.instructions.naming import ObjectInfo, RoomInfo
 from sagebench.instructions.sight import SightMap, sight_map
-from sagebench.scene.model import SceneSpec
+from sagebench.scene.model import UNLABELLED, SceneSpec
 from sagebench.topdown.semantic_map import SemanticMap
 
 TARGET_KINDS = ("object", "door")  # what a trajectory may start or end at, besides rooms
@@ -31,10 +31,11 @@ def scene_context(spec: SceneSpec, smap: SemanticMap, type_mix: dict[str, float]
         return ObjectInfo(i.instance_id, i.category, i.room,
                           {**attrs.get(i.instance_id, {}), **({"state": i.door_state} if i.door_state else {})})
 
-    objects = [info(i) for i in smap.instances if i.kind in TARGET_KINDS]
-    fixtures = [info(i) for i in smap.instances if i.kind in FIXTURE_KINDS]
+    named = [i for i in smap.instances if i.category != UNLABELLED]  # an unlabelled obstacle has no name to give
+    objects = [info(i) for i in named if i.kind in TARGET_KINDS]
+    fixtures = [info(i) for i in named if i.kind in FIXTURE_KINDS]
     footprints = {i.instance_id: [np.asarray(p[0], dtype=np.float64) for p in i.polygon.coordinates]
-                  for i in smap.instances if i.kind in TARGET_KINDS and i.min_z <= top and i.polygon.coordinates}
+                  for i in named if i.kind in TARGET_KINDS and i.min_z <= top and i.polygon.coordinates}
     return make_context(objects, [RoomInfo(r.id, r.type) for r in spec.rooms],
                         {r.id: np.asarray(r.polygon, dtype=np.float64) for r in spec.rooms}, footprints,
                         fixtures=fixtures, doors={i.instance_id for i in smap.instances if i.kind == "door"},

@@ -31,6 +31,7 @@ from sagebench.episodes.ids import episode_id
 from sagebench.episodes.splits import assign_splits
 from sagebench.episodes.tasks import NOGOAL_INSTRUCTION, VLN, goal_image_recipe, pointgoal_polar
 from sagebench.errors import DataError
+from sagebench.scene.model import UNLABELLED
 from sagebench.settings.gen_trajectories import GenTrajectoriesConfig
 from sagebench.topdown.raster import Grid, polygon_mask
 from sagebench.topdown.regions import label_regions
@@ -113,10 +114,13 @@ def _objectnav(task, scene_id, smap, m, config, rng, where) -> list[dict]:
 def _category_goals(smap: SemanticMap, m: SceneMap, config: GenTrajectoriesConfig,
                     where: Path) -> dict[str, tuple[list[int], np.ndarray]]:
     """category -> (its instance ids, its viewpoint cells [K, 2]): the asked categories (each must have an instance
-    with a viewpoint), else every object category that has one."""
+    with a viewpoint), else every object category that has one; never the unlabelled obstacles (nothing to look for)."""
     asked = config.task.objectnav_categories
+    if UNLABELLED in (asked or ()):
+        raise DataError(f"objectnav category {UNLABELLED!r}: geometry no label explains has no name to look for; "
+                        f"nothing written", path=where, field="--objectnav-categories")
     out = {}
-    for category in asked or sorted({i.category for i in smap.instances if i.kind == "object"}):
+    for category in asked or sorted({i.category for i in smap.instances if i.kind == "object"} - {UNLABELLED}):
         ids, viewpoints = category_viewpoints(smap, m, category, config.task.objectnav_success_m)
         if len(viewpoints):
             out[category] = (ids, viewpoints)

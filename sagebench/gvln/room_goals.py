@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from sagebench.episodes.tasks import row_task
+from sagebench.scene.model import UNLABELLED
 from sagebench.topdown.semantic_map import SemanticMap
 
 SAGE_REACH_M = 1.0  # the evaluator's expansion_radius
@@ -25,7 +26,8 @@ BOX_SLACK_M = 0.1
 def object_boxes(smap: SemanticMap, names: dict[int, str]) -> tuple[list[int], np.ndarray]:
     """The instance ids of the objects SAGE names (`names`: sagebench.gvln.episodes.item_names) and their [K, 2, 2]
     world boxes [[x, y] min, [x, y] max]."""
-    found = [(i.instance_id, i.bbox_m) for i in smap.instances if i.kind == "object" and i.instance_id in names]
+    found = [(i.instance_id, i.bbox_m) for i in smap.instances
+             if i.kind == "object" and i.category != UNLABELLED and i.instance_id in names]  # SAGE's map has none
     boxes = np.array([[lo[:2], hi[:2]] for _, (lo, hi) in found], dtype=np.float64).reshape(-1, 2, 2)
     return [iid for iid, _ in found], boxes
 

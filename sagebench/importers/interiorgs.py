@@ -49,7 +49,7 @@ from sagebench.importers.interiorgs_structure import (
 from sagebench.importers.sage_frame import sage_offset
 from sagebench.render.gaussians import Gaussians
 from sagebench.run_layout import SCENE_FILE
-from sagebench.scene.model import Door, Room, SceneObject, SceneSpec
+from sagebench.scene.model import UNLABELLED, Door, Room, SceneObject, SceneSpec
 from sagebench.settings.build_scene import BuildSceneConfig
 from sagebench.settings.import_interiorgs import InteriorGSConfig
 from sagebench.splat_geometry.surface import (
@@ -423,7 +423,7 @@ def _unlabelled(folder: InteriorGSFolder, rooms: list[shapely.Polygon], g: Gauss
     alpha = 1.0 / (1.0 + np.exp(-g.opacity_logits[background].astype(np.float64)))
     found = unlabelled_obstacles(folder.occupancy, blocked, rooms, means, alpha, band, config.min_opacity,
                                  config.unlabelled_min_area)
-    things = [_Thing(first_id + k, "unlabelled", "object", mesh=mesh,
+    things = [_Thing(first_id + k, UNLABELLED, "object", mesh=mesh,
                      room_id=_room_of(mesh.bounds.mean(axis=0), rooms)) for k, mesh in enumerate(found.meshes)]
     res = folder.occupancy.scale
     j = np.clip(np.floor((means[:, 0] - folder.occupancy.origin[0]) / res).astype(np.int64), 0, found.cells.shape[1] - 1)

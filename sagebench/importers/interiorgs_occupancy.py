@@ -22,7 +22,7 @@ from sagebench.topdown.occupancy import band_occupancy
 from sagebench.topdown.raster import Grid, polygon_mask
 
 BOTH, OURS_ONLY, THEIRS_ONLY, NEITHER = (235, 235, 235), (220, 60, 60), (60, 90, 220), (70, 70, 70)
-UNLABELLED = (240, 150, 30)
+UNLABELLED_RGB = (240, 150, 30)
 
 
 @dataclass(frozen=True)
@@ -61,7 +61,7 @@ def compare_occupancy(shipped: OccupancyMap, blocked: np.ndarray, rooms: list[sh
     rgb[ours & theirs] = BOTH
     rgb[ours & ~theirs] = OURS_ONLY
     rgb[~ours & theirs] = THEIRS_ONLY
-    rgb[unlabelled] = UNLABELLED
+    rgb[unlabelled] = UNLABELLED_RGB
     scale = max(1, 800 // max(h, w))
     big = np.repeat(np.repeat(rgb[::-1], scale, axis=0), scale, axis=1)  # row 0 is the lowest y: flip to north up
     ok, png = cv2.imencode(".png", cv2.cvtColor(np.ascontiguousarray(big), cv2.COLOR_RGB2BGR))

@@ -23,6 +23,9 @@ Text = Annotated[str, Field(pattern=r"^[^\x00-\x1f\x7f]*$")]
 Name = Annotated[str, Field(min_length=1, pattern=r"^[^\x00-\x1f\x7f]+$")]
 INT32_MAX = 2**31 - 1  # instance ids are stored as int32 in maps, PLYs and episode rows
 SCENE_ID_MAX = 128  # scene ids name directories and files
+# the category of geometry no label explains (import-interiorgs' evidence): an obstacle that no instruction, goal,
+# landmark or SAGE item may name, since nobody said what it is
+UNLABELLED = "unlabelled"
 
 
 class _Model(BaseModel):
