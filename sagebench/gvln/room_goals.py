@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from sagebench.episodes.tasks import row_task
+from sagebench.episodes.tasks import VLN, row_task
 from sagebench.scene.model import UNLABELLED
 from sagebench.topdown.semantic_map import SemanticMap
 
@@ -45,14 +45,15 @@ def goal_object(goal_xy: Sequence[float], ids: list[int], boxes: np.ndarray) -> 
 
 def room_goal_ends(rows: Sequence[dict[str, Any]], smap: SemanticMap, names: dict[int, str]
                    ) -> tuple[dict[str, int], set[str]]:
-    """For the trajectories of `rows` whose goal is a room (no goal instance; a no-goal episode has no goal): the
-    object to name as their end, by trajectory id, and the ids of those with none near."""
+    """For the vln trajectories of `rows` whose goal is a room (no goal instance; the other tasks' goals are a
+    category, a point or none, and SAGE's task files carry them as such): the object to name as their end, by
+    trajectory id, and the ids of those with none near."""
     ids, boxes = object_boxes(smap, names)
     ends: dict[str, int] = {}
     none: set[str] = set()
     for row in rows:
         tid = row["trajectory_id"]
-        if row["goal_instance_id"] is not None or row_task(row) == "nogoal" or tid in ends or tid in none:
+        if row["goal_instance_id"] is not None or row_task(row) != VLN or tid in ends or tid in none:
             continue
         found = goal_object(row["goal_position"], ids, boxes)
         if found is None:
