@@ -328,7 +328,8 @@ def _rasterise(offsets, pairs, rec, inst, width, height, bg,
                         bid[i, j] = inst[g]
                     trans[i, j] = t_next
                     wsum += w
-            pair_weight[k] = wsum
+            if pair_weight.size:  # contributions only
+                pair_weight[k] = wsum
             if active == 0:
                 break
         for i in range(th):
@@ -342,8 +343,9 @@ def _rasterise(offsets, pairs, rec, inst, width, height, bg,
 
 
 def _run(g: Gaussians, cam: Camera, background: tuple[float, float, float], index: np.ndarray | None = None,
-         real: type = np.float32) -> tuple[Frame, np.ndarray, np.ndarray]:
-    """Render the Gaussians at `index` [M] (all when None) in precision `real`; pairs index rows of `index`."""
+         real: type = np.float32, weights: bool = False) -> tuple[Frame, np.ndarray | None, np.ndarray | None]:
+    """Render the Gaussians at `index` [M] (all when None) in precision `real`; with `weights`, also each
+    (tile, Gaussian) pair's Gaussian (a row of g) and its blending weight summed over the tile."""
     index = np.arange(g.count, dtype=np.int64) if index is None else np.asarray(index, dtype=np.int64)
     rec = np.empty((len(index), RECORD), real)
     rect = _project(index, g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh,
@@ -360,10 +362,11 @@ def _run(g: Gaussians, cam: Camera, background: tuple[float, float, float], inde
     out_depth = np.empty((h, w), np.float32)
     out_alpha = np.empty((h, w), np.float32)
     out_inst = np.empty((h, w), np.int32)
-    pair_weight = np.zeros(len(pairs))
+    pair_weight = np.zeros(len(pairs) if weights else 0)
     _rasterise(offsets, pairs, rec, g.instance_id[index], w, h, np.asarray(background, real),
                out_rgb, out_depth, out_alpha, out_inst, pair_weight)
-    return Frame(rgb=out_rgb, depth=out_depth, alpha=out_alpha, instance=out_inst), index[pairs], pair_weight
+    frame = Frame(rgb=out_rgb, depth=out_depth, alpha=out_alpha, instance=out_inst)
+    return (frame, index[pairs], pair_weight) if weights else (frame, None, None)
 
 
 def render(g: Gaussians, cam: Camera, *, background: tuple[float, float, float] = (0.0, 0.0, 0.0),
@@ -406,5 +409,5 @@ def _pool(threads: int) -> ThreadPoolExecutor:
 def contributions(g: Gaussians, cam: Camera) -> np.ndarray:
     """[N] float64: each Gaussian's blending weight alpha * T summed over the pixels of this view, rendered in the
     reference precision (build-scene prunes by it: its outputs do not depend on the frames' precision)."""
-    _, pairs, pair_weight = _run(g, cam, (0.0, 0.0, 0.0), real=REFERENCE)
+    _, pairs, pair_weight = _run(g, cam, (0.0, 0.0, 0.0), real=REFERENCE, weights=True)
     return np.bincount(pairs, weights=pair_weight, minlength=g.count)
