@@ -43,6 +43,7 @@ REFERENCE = np.float64  # the precision of the reference frames (and of build-sc
 # columns of the projected record [n, RECORD] of each Gaussian, in the frame's precision
 U, V, CA, CB, CC, DEPTH, OPAC, REACH2, RED = range(9)
 RECORD = 12  # RED, RED + 1, RED + 2: colour; padded to 48 bytes in float32
+_FULL_REACH = math.exp(CUTOFF) * (1.0 + 1e-12)  # above it, log() >= CUTOFF whatever the rounding
 EXP_STEPS = 64  # table points per unit of the float32 exp
 _EXP_TABLE = np.exp(-np.arange(int(CUTOFF * EXP_STEPS) + 2) / EXP_STEPS).astype(np.float32)
 
@@ -72,6 +73,8 @@ def _exp_typed(x):
 def _reach2(o: float) -> float:
     """Squared Mahalanobis radius beyond which a Gaussian of opacity `o` adds nothing: there power < -CUTOFF or
     o exp(power) < MIN_ALPHA (the 3-sigma ellipse, shrunk for faint Gaussians), widened by SLACK."""
+    if o / MIN_ALPHA >= _FULL_REACH:  # log(o / MIN_ALPHA) >= CUTOFF: no log needed (most Gaussians)
+        return 2.0 * CUTOFF * (1.0 + SLACK) + SLACK
     return 2.0 * min(CUTOFF, math.log(o / MIN_ALPHA)) * (1.0 + SLACK) + SLACK
 
 
