@@ -71,7 +71,7 @@ def test_the_reference_keeps_math_exp():
     assert _exps(xs).tolist() == [math.exp(x) for x in xs]
 
 
-@numba.njit(cache=True)
+@numba.njit  # not cached: numba's cache would not see a change to splat_render's _exp
 def _exps(xs):  # pragma: no cover - jit
     out = np.empty_like(xs)
     for k in range(xs.shape[0]):
