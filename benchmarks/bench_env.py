@@ -11,6 +11,7 @@ import os
 import shutil
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +22,8 @@ from sagebench.navsim.observe import observe
 from sagebench.navsim.policies import RandomWalk
 from sagebench.navsim.rollout import rollout
 from sagebench.navsim.simulator import Simulator
+from sagebench.render.backends import CpuRenderer
+from sagebench.render.splat_render import REFERENCE
 from sagebench.settings.rollout import EnvConfig
 
 STEPS = 40  # actions per episode
@@ -49,6 +52,29 @@ def _steps_per_s(run: Path, config: EnvConfig, episodes: list[str], batch: int, 
     return result.steps / (time.perf_counter() - start), (time.process_time() - cpu) / result.steps
 
 
+def _step_cpu(run: Path, config: EnvConfig, episodes: list[str], real: type) -> float:
+    """CPU seconds per env step (one env, one thread) with the scene's frames rendered in precision `real`."""
+    sim = Simulator(run, config, threads=1)
+    for sid in {sim.episodes[e].scene_id for e in episodes}:
+        w = sim.world(sid)
+        sim._worlds[sid] = replace(w, renderer=CpuRenderer(w.gaussians, real=real))
+    cpu = time.process_time()
+    result = rollout(sim, RandomWalk(seed=0), episodes, batch=1, sheet=0)
+    return (time.process_time() - cpu) / result.steps
+
+
+def _precision_row(run: Path, config: EnvConfig, episodes: list[str]) -> dict:
+    """The env step with float32 frames against the float64 reference renderer (the renderer before float32),
+    alternating, median of ROUNDS each."""
+    pairs = [(_step_cpu(run, config, episodes, np.float32), _step_cpu(run, config, episodes, REFERENCE))
+             for _ in range(ROUNDS)]
+    new, ref = np.median(pairs, axis=0)
+    return {"name": "env step CPU, 224x224 RGB + depth, float32 frames", "reference": "float64 reference frames",
+            "seconds": new, "speed-up": ref / new, "cpu-s": new,
+            "notes": f"{new * 1e3:.1f} against {ref * 1e3:.1f} CPU-ms per step (target: 41 -> 29, 1.4x); one env, "
+                     f"one thread, median of {ROUNDS} alternated; frames within PSNR 50 dB, depth 1 mm median"}
+
+
 def _timed(fn, repeats: int) -> tuple[float, float]:
     """(wall s, CPU s) per call of fn, over `repeats` calls."""
     start, cpu = time.perf_counter(), time.process_time()
@@ -68,7 +94,7 @@ def run() -> list[dict]:
         sim.start(ids)  # load the scene and compiled kernels
         w = sim.world(sim.slots[0].episode.scene_id)
         poses = np.array([[s.episode.start[0], s.episode.start[1], s.episode.start_yaw] for s in sim.slots])
-        width, height = cfg.sensors().images["rgb"]
+        width, height = sim.sensors.images["rgb"]
         kw = dict(floor_z=w.model.floor_z, camera_height=cfg.camera.height, hfov_deg=cfg.camera.hfov_deg,
                   width=width, height=height)
         views = [poses + [0, 0, 0.3 * k] for k in range(10)]
@@ -86,6 +112,7 @@ def run() -> list[dict]:
                                                                                     threads=2))
                   for _ in range(ROUNDS)]
         (one, one_cpu), (four, four_cpu) = (np.median([r[k] for r in rounds], axis=0) for k in (0, 1))
+        precision = _precision_row(run_dir, cfg, ids)
         blind, blind_cpu = _steps_per_s(run_dir, cfg.model_copy(update={"observations": ()}), ids, batch=1, threads=1)
         load_end = os.getloadavg()[0]
         fair = wait_rows(run_dir) + transport_rows(run_dir)
@@ -101,6 +128,7 @@ def run() -> list[dict]:
         {"name": "env step, 224x224 RGB + depth, 4 episodes together", "reference": "one env",
          "seconds": 1.0 / four, "speed-up": four / one, "cpu-s": four_cpu,
          "notes": f"{four:.1f} steps/s, median of {ROUNDS} (alternating with one env)"},
+        precision,
         {"name": "env step without images", "reference": "one env", "seconds": 1.0 / blind,
          "speed-up": blind / one, "cpu-s": blind_cpu, "notes": f"{blind:.0f} steps/s: physics and bookkeeping only"},
         {"name": "render one 224x224 view (RGB + depth)", "reference": "-", "seconds": render_s, "speed-up": 1.0,

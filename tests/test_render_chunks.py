@@ -11,7 +11,16 @@ from sagebench.render.camera import agent_camera
 from sagebench.render.chunks import pack, visible_chunks, visible_index
 from sagebench.render.gaussians import Gaussians, logit, rgb_to_sh_dc
 from sagebench.render.splat_reference import render_reference
-from sagebench.render.splat_render import _bin, _concurrent_launches, _depth_order, _project, render, render_packed
+from sagebench.render.splat_render import (
+    RECORD,
+    REFERENCE,
+    _bin,
+    _concurrent_launches,
+    _depth_order,
+    _project,
+    render,
+    render_packed,
+)
 from sagebench.splats.prune import psnr
 
 
@@ -58,7 +67,7 @@ def test_culled_chunks_hold_no_gaussian_the_renderer_draws():
         rows = np.arange(g.count)
         rect = _project(rows, g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh,
                         np.ascontiguousarray(cam.world_to_camera), float(cam.fx), float(cam.fy), float(cam.cx),
-                        float(cam.cy), cam.width, cam.height)[5]
+                        float(cam.cy), cam.width, cam.height, np.empty((g.count, RECORD)))
         drawn_chunk = np.searchsorted(p.starts, np.flatnonzero(rect[:, 0] >= 0), side="right") - 1
         assert keep[drawn_chunk].all()
     assert culled_any > 0.2 * p.chunks * len(_cams())  # the cull does cut (measured: 28 % of chunk-views)
@@ -79,20 +88,22 @@ def test_culled_frames_equal_plain_frames_byte_for_byte():
 def test_culled_frame_matches_the_reference_renderer():
     p = pack(_room(1500, seed=3), cell=1.0)
     cam = _cams(40, 30)[1]
-    fast, ref = render_packed(p, [cam])[0], render_reference(p.gaussians, cam)
+    fast, ref = render_packed(p, [cam], real=REFERENCE)[0], render_reference(p.gaussians, cam)
     assert psnr(fast.rgb, ref.rgb) >= 140.0
     assert (fast.instance == ref.instance).all()
 
 
 def test_depth_order_is_numpys_stable_argsort():
-    """The radix depth sort against np.argsort(kind="stable"): ties (rounded depths) keep index order, depths
-    spanning many binades, and the empty and one-element cases; on one thread and in parallel slices."""
+    """The radix depth sort (of float64 and float32 depths' bits) against np.argsort(kind="stable"): ties (rounded
+    depths) keep index order, depths spanning many binades, and the empty and one-element cases; on one thread
+    and in parallel slices."""
     rng = np.random.default_rng(3)
     cases = [np.zeros(0), np.array([2.5]), np.round(rng.uniform(0.01, 20.0, 50000), 2),
              np.exp(rng.uniform(np.log(1e-2), np.log(1e6), 50000)), np.full(20000, 0.75)]
-    for d in cases:
+    for d in cases + [c.astype(np.float32) for c in cases]:
+        bits = d.view(np.uint64 if d.dtype == np.float64 else np.uint32)
         for threads in (1, 3):
-            assert np.array_equal(_depth_order(d, threads), np.argsort(d, kind="stable"))
+            assert np.array_equal(_depth_order(bits, threads), np.argsort(d, kind="stable"))
 
 
 def test_binning_lists_each_tile_in_the_given_order():

@@ -1,9 +1,11 @@
-"""The splat renderers: analytic single Gaussian, occlusion and instance ids, fast == reference (also for faint,
-huge and needle-thin Gaussians, whose reach ellipse decides which pixels the fast one visits), camera pose."""
+"""The splat renderers: analytic single Gaussian, occlusion and instance ids (float32 frames too), the fast
+renderer's float64 reference == the numpy reference (also for faint, huge and needle-thin Gaussians, whose reach
+ellipse decides which pixels the fast one visits), camera pose."""
 
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import numpy as np
 import pytest
@@ -16,7 +18,7 @@ from sagebench.render.camera import Camera, agent_camera
 from sagebench.render.gaussians import Gaussians, logit, rgb_to_sh_dc
 from sagebench.render.sh import sh_basis
 from sagebench.render.splat_reference import MIN_ALPHA, render_reference
-from sagebench.render.splat_render import contributions, render
+from sagebench.render.splat_render import REFERENCE, contributions, render
 from sagebench.splats.prune import psnr
 
 
@@ -35,12 +37,15 @@ def _gaussians(means, scales, rgb, opacity, ids, quats=None, sh_rest=None) -> Ga
     )
 
 
+render64 = partial(render, real=REFERENCE)  # the fast renderer's float64 reference, to the numpy one's precision
+
+
 def _axis_camera(width: int, height: int, f: float) -> Camera:
     """At the origin looking along +z (x right, y down): world = camera frame."""
     return Camera(width, height, f, f, width / 2, height / 2, np.eye(4))
 
 
-@pytest.mark.parametrize("renderer", [render, render_reference])
+@pytest.mark.parametrize("renderer", [render, render64, render_reference])
 def test_single_gaussian_head_on_is_the_expected_ellipse(renderer):
     d, f, sx, sy = 5.0, 100.0, 0.1, 0.05
     cam = _axis_camera(65, 49, f)  # odd sizes: the centre pixel's centre is the image centre
@@ -66,7 +71,7 @@ def test_single_gaussian_head_on_is_the_expected_ellipse(renderer):
     assert (out.instance[out.alpha == 0] == 0).all()
 
 
-@pytest.mark.parametrize("renderer", [render, render_reference])
+@pytest.mark.parametrize("renderer", [render, render64, render_reference])
 def test_near_opaque_gaussian_hides_the_far_one(renderer):
     cam = _axis_camera(33, 33, 40.0)
     near = ([0, 0, 2.0], [0.15, 0.15, 0.01], [1.0, 0.0, 0.0], 0.999, 7)
@@ -92,7 +97,7 @@ def test_fast_renderer_matches_the_reference():
     g = _random_scene(1500, seed=1)
     cam = agent_camera(0.0, 0.0, 0.0, camera_height=0.0, width=80, height=60, hfov_deg=70)
     cam = Camera(80, 60, cam.fx, cam.fy, cam.cx, cam.cy, np.eye(4))
-    fast, ref = render(g, cam), render_reference(g, cam)
+    fast, ref = render64(g, cam), render_reference(g, cam)
     # measured: 147.8 dB, |d alpha| 6e-8, |d depth| 1.2e-7 m (float32 rounding); a degree-3 SH coefficient
     # halved in the fast path drops it far below 140 dB
     assert psnr(fast.rgb, ref.rgb) >= 140.0
@@ -113,7 +118,7 @@ def test_faint_huge_and_thin_gaussians_match_the_reference():
     g = _gaussians(means, scales, rng.uniform(0, 1, (n, 3)), opacity, rng.integers(1, 50, n),
                    quats=rng.normal(size=(n, 4)))
     cam = _axis_camera(48, 36, 30.0)
-    fast, ref = render(g, cam), render_reference(g, cam)
+    fast, ref = render64(g, cam), render_reference(g, cam)
     # measured: 154.8 dB, |d alpha| 6e-8 (float32 rounding); 79 % of these Gaussians reach less than 3 sigma, and a
     # pixel dropped at a faint one's rim costs about 1/255 of alpha there
     assert psnr(fast.rgb, ref.rgb) >= 140.0
@@ -131,7 +136,7 @@ def test_one_gaussian_covers_the_reference_pixels(x, y, z, log_scales, quat, opa
         quat = (1.0, 0.0, 0.0, 0.0)
     g = _gaussians([[x, y, z]], [np.exp(log_scales)], [[0.5, 0.5, 0.5]], [opacity], [1], quats=[quat])
     cam = _axis_camera(32, 24, 20.0)
-    fast, ref = render(g, cam), render_reference(g, cam)
+    fast, ref = render64(g, cam), render_reference(g, cam)
     assert ((fast.alpha > 0) == (ref.alpha > 0)).all()
     assert np.abs(fast.alpha - ref.alpha).max() < 1e-6
 
@@ -153,7 +158,7 @@ def test_contributions_add_up_to_the_alpha_image():
     cam = _axis_camera(48, 40, 30.0)
     w = contributions(g, cam)
     assert w.shape == (g.count,) and (w >= 0).all()
-    assert w.sum() == pytest.approx(float(render(g, cam).alpha.sum()), rel=1e-4)
+    assert w.sum() == pytest.approx(float(render64(g, cam).alpha.sum()), rel=1e-4)
 
 
 def test_agent_camera_looks_along_yaw_with_z_up():

@@ -53,15 +53,17 @@ class CpuRenderer:
     name = "cpu"
     draws = frozenset({"rgb", "depth", "alpha", "instance"})
 
-    def __init__(self, gaussians: Gaussians | PackedGaussians, background: Background = (0.0, 0.0, 0.0)):
-        self.gaussians, self.background = gaussians, background
+    def __init__(self, gaussians: Gaussians | PackedGaussians, background: Background = (0.0, 0.0, 0.0),
+                 real: type = np.float32):
+        """`real`: the frames' precision, float32, or float64 for the reference frames (splat_render.REFERENCE)."""
+        self.gaussians, self.background, self.real = gaussians, background, real
 
     def render(self, cams: Sequence[Camera]) -> list[Frame]:
         from sagebench.render.splat_render import render, render_packed
 
         if isinstance(self.gaussians, PackedGaussians):
-            return render_packed(self.gaussians, cams, background=self.background)
-        return [render(self.gaussians, cam, background=self.background) for cam in cams]
+            return render_packed(self.gaussians, cams, background=self.background, real=self.real)
+        return [render(self.gaussians, cam, background=self.background, real=self.real) for cam in cams]
 
     def observe(self, cams: Sequence[Camera], keys: Collection[str]) -> dict[str, np.ndarray]:
         frames = self.render(_checked(cams, keys, self))

@@ -18,6 +18,8 @@ from functools import cache
 
 import numba
 import numpy as np
+from numba import types
+from numba.extending import overload
 
 from sagebench.render.camera import Camera
 from sagebench.render.chunks import PackedGaussians, visible_index
@@ -36,12 +38,43 @@ from sagebench.render.splat_reference import (
 
 TILE = 16
 SLACK = 1e-6  # relative widening of each Gaussian's reach, so rounding never drops a pixel the per-pixel test keeps
+REFERENCE = np.float64  # the precision of the reference frames (and of build-scene's pruning): bit for bit the
+# float64 renderer of before float32 frames (docs/rendering.md)
+# columns of the projected record [n, RECORD] of each Gaussian, in the frame's precision
+U, V, CA, CB, CC, DEPTH, OPAC, REACH2, RED = range(9)
+RECORD = 12  # RED, RED + 1, RED + 2: colour; padded to 48 bytes in float32
+_FULL_REACH = math.exp(CUTOFF) * (1.0 + 1e-12)  # above it, log() >= CUTOFF whatever the rounding
+EXP_STEPS = 64  # table points per unit of the float32 exp
+_EXP_TABLE = np.exp(-np.arange(int(CUTOFF * EXP_STEPS) + 2) / EXP_STEPS).astype(np.float32)
+
+
+def _exp(x):
+    """exp(x) for -CUTOFF <= x <= 0, in x's precision: math.exp for float64; for float32 a table of
+    exp(-k / 64) times a cubic Taylor polynomial of the remainder r (-1/64 < r <= 0; truncation r^4 / 24 <
+    2.5e-9), within 2.4e-7 of exp (relative; 4 float32 ulps, measured over the whole range in the tests)."""
+    return math.exp(x)
+
+
+@numba.njit(cache=True, inline="always")
+def _exp32(x):
+    k = int(-x * np.float32(EXP_STEPS))
+    r = x + np.float32(k) * np.float32(1.0 / EXP_STEPS)
+    return _EXP_TABLE[k] * (np.float32(1.0) + r * (np.float32(1.0) + r * (np.float32(0.5) + r * np.float32(1.0 / 6.0))))
+
+
+@overload(_exp, inline="always")
+def _exp_typed(x):
+    if x == types.float32:
+        return lambda x: _exp32(x)
+    return lambda x: math.exp(x)
 
 
 @numba.njit(cache=True, inline="always")
 def _reach2(o: float) -> float:
     """Squared Mahalanobis radius beyond which a Gaussian of opacity `o` adds nothing: there power < -CUTOFF or
     o exp(power) < MIN_ALPHA (the 3-sigma ellipse, shrunk for faint Gaussians), widened by SLACK."""
+    if o / MIN_ALPHA >= _FULL_REACH:  # log(o / MIN_ALPHA) >= CUTOFF: no log needed (most Gaussians)
+        return 2.0 * CUTOFF * (1.0 + SLACK) + SLACK
     return 2.0 * min(CUTOFF, math.log(o / MIN_ALPHA)) * (1.0 + SLACK) + SLACK
 
 
@@ -77,17 +110,13 @@ def _sh_colour(sh: np.ndarray, i: int, c: int, k: int, x: float, y: float, z: fl
 
 
 @numba.njit(parallel=True, nogil=True, cache=True)
-def _project(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, width, height):  # pragma: no cover - jit
-    """Per Gaussian of `index` [n]: image centre, conic, depth, colour, opacity and tile rectangle (rows follow
-    `index`); rect[r, 0] = -1 if culled."""
+def _project(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, width, height,
+             rec):  # pragma: no cover - jit
+    """Per Gaussian of `index` [n], computed in float64 and stored in rec [n, RECORD] (rows follow `index`):
+    image centre, conic, depth, opacity, reach and colour; returns the tile rectangles, rect[r, 0] = -1 if
+    culled."""
     n = index.shape[0]
     k = sh.shape[1]
-    xy = np.empty((n, 2))
-    conic = np.empty((n, 3))
-    depth = np.empty(n)
-    rgb = np.empty((n, 3))
-    opac = np.empty(n)
-    reach2 = np.empty(n)
     rect = np.full((n, 4), -1, np.int32)
     limx, limy = FOV_CLAMP * width / (2 * fx), FOV_CLAMP * height / (2 * fy)
     r00, r01, r02, t0 = w2c[0, 0], w2c[0, 1], w2c[0, 2], w2c[0, 3]
@@ -111,7 +140,8 @@ def _project(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, w
         # cheap conservative cull of Gaussians whose 3-sigma extent cannot reach the image: the projected
         # sigma is at most the largest scale times the Frobenius norm of the (clamped) Jacobian
         u, v = fx * px / pz + cx, fy * py / pz + cy
-        smax = math.exp(max(log_scales[i, 0], log_scales[i, 1], log_scales[i, 2]))
+        sx, sy, sz = math.exp(log_scales[i, 0]), math.exp(log_scales[i, 1]), math.exp(log_scales[i, 2])
+        smax = max(sx, sy, sz)
         rx, ry = min(abs(px / pz), limx), min(abs(py / pz), limy)
         jnorm = math.sqrt(fx * fx * (1.0 + rx * rx) + fy * fy * (1.0 + ry * ry)) / pz
         reach = 3.0 * math.sqrt(smax * smax * jnorm * jnorm + DILATION) + 1.0
@@ -121,7 +151,6 @@ def _project(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, w
         qw, qx, qy, qz = float(quats[i, 0]), float(quats[i, 1]), float(quats[i, 2]), float(quats[i, 3])
         qn = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
         qw, qx, qy, qz = qw / qn, qx / qn, qy / qn, qz / qn
-        sx, sy, sz = math.exp(log_scales[i, 0]), math.exp(log_scales[i, 1]), math.exp(log_scales[i, 2])
         m00, m01, m02 = (1 - 2 * (qy * qy + qz * qz)) * sx, 2 * (qx * qy - qw * qz) * sy, 2 * (qx * qz + qw * qy) * sz
         m10, m11, m12 = 2 * (qx * qy + qw * qz) * sx, (1 - 2 * (qx * qx + qz * qz)) * sy, 2 * (qy * qz - qw * qx) * sz
         m20, m21, m22 = 2 * (qx * qz - qw * qy) * sx, 2 * (qy * qz + qw * qx) * sy, (1 - 2 * (qx * qx + qy * qy)) * sz
@@ -153,14 +182,12 @@ def _project(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, w
         dn = max(math.sqrt(dx * dx + dy * dy + dz * dz), 1e-12)
         dx, dy, dz = dx / dn, dy / dn, dz / dn
         for c in range(3):
-            rgb[r, c] = _sh_colour(sh, i, c, k, dx, dy, dz)
-        xy[r, 0], xy[r, 1] = u, v
-        conic[r, 0], conic[r, 1], conic[r, 2] = cc / det, -cb / det, ca / det
-        depth[r] = pz
-        opac[r] = o
-        reach2[r] = r2
+            rec[r, RED + c] = _sh_colour(sh, i, c, k, dx, dy, dz)
+        rec[r, U], rec[r, V] = u, v
+        rec[r, CA], rec[r, CB], rec[r, CC] = cc / det, -cb / det, ca / det
+        rec[r, DEPTH], rec[r, OPAC], rec[r, REACH2] = pz, o, r2
         rect[r, 0], rect[r, 1], rect[r, 2], rect[r, 3] = x0, x1, y0, y1
-    return xy, conic, depth, rgb, opac, rect, reach2
+    return rect
 
 
 @numba.njit(cache=True)
@@ -184,16 +211,16 @@ def _starts(count):  # pragma: no cover - jit
 
 
 @numba.njit(parallel=True, nogil=True, cache=True)
-def _depth_order(depth, threads):  # pragma: no cover - jit
-    """np.argsort(depth, kind="stable") for positive float64 depths: an LSD radix sort (stable) on 11-bit digits of
-    the IEEE bits, whose unsigned order is the value order for positive floats; each pass counts and scatters
-    slices of the array in parallel."""
-    n = depth.shape[0]
-    bits = depth.view(np.uint64)
+def _depth_order(bits, threads):  # pragma: no cover - jit
+    """np.argsort(depth, kind="stable") for positive depths given as their IEEE bits `bits` (depth.view of the
+    unsigned integers of its width), whose unsigned order is the value order for positive floats: an LSD radix
+    sort (stable) on 11-bit digits, 3 passes for float32, 6 for float64; each pass counts and scatters slices of
+    the array in parallel."""
+    n = bits.shape[0]
     bounds = _parts(n, threads)
     idx = np.arange(n)
     tmp = np.empty(n, np.int64)
-    for shift in range(0, 64, 11):
+    for shift in range(0, 8 * bits.itemsize, 11):
         count = np.zeros((len(bounds) - 1, 2048), np.int64)
         for p in numba.prange(len(bounds) - 1):
             for r in range(bounds[p], bounds[p + 1]):
@@ -237,67 +264,75 @@ def _bin(order, rect, gx, n_tiles, threads):  # pragma: no cover - jit
 
 
 @numba.njit(parallel=True, nogil=True, cache=True)
-def _rasterise(offsets, pairs, xy, conic, depth, rgb, opac, reach2, inst, width, height, bg,
+def _rasterise(offsets, pairs, rec, inst, width, height, bg,
                out_rgb, out_depth, out_alpha, out_inst, pair_weight):  # pragma: no cover - jit
+    """Composite each tile's pairs front to back in the precision of `rec` (float32 frames, float64 reference):
+    tile buffers, alpha and blending in that precision; each row's chord of a reach ellipse in float64."""
+    real = rec.dtype.type
+    zero, one, half, cut = real(0.0), real(1.0), real(0.5), real(CUTOFF)
+    max_alpha, min_alpha, min_trans = real(MAX_ALPHA), real(MIN_ALPHA), real(MIN_TRANSMITTANCE)
     gx = (width + TILE - 1) // TILE
     n_tiles = offsets.shape[0] - 1
     for t in numba.prange(n_tiles):
         tx0, ty0 = (t % gx) * TILE, (t // gx) * TILE
         tw, th = min(TILE, width - tx0), min(TILE, height - ty0)
-        trans = np.ones((th, tw))
-        acc = np.zeros((th, tw, 3))
-        dacc = np.zeros((th, tw))
-        best = np.zeros((th, tw))
+        trans = np.ones((th, tw), rec.dtype)
+        acc = np.zeros((th, tw, 3), rec.dtype)
+        dacc = np.zeros((th, tw), rec.dtype)
+        best = np.zeros((th, tw), rec.dtype)
         bid = np.zeros((th, tw), np.int32)
         live = np.full(th, (1 << tw) - 1, np.int64)  # bit j of row i: pixel (i, j) still takes colour
         active = th * tw
         for k in range(offsets[t], offsets[t + 1]):
             g = pairs[k]
-            u, v = xy[g, 0], xy[g, 1]
-            ca, cb, cc = conic[g, 0], conic[g, 1], conic[g, 2]
-            o, r2 = opac[g], reach2[g]
+            u, v = rec[g, U], rec[g, V]
+            ca, cb, cc = rec[g, CA], rec[g, CB], rec[g, CC]
+            o = rec[g, OPAC]
             # only the pixels whose centres lie inside the reach ellipse: rows within its height, and in each
             # row the chord  ca dx^2 + 2 cb dx dy + cc dy^2 <= r2  (dx = u - x, dy = v - y)
-            det = ca * cc - cb * cb
-            hy = math.sqrt(r2 * ca / det)
-            i0, i1 = _pixels(v - hy - ty0, v + hy - ty0, th)
+            fu, fv, fa, fb, fc, r2 = float(u), float(v), float(ca), float(cb), float(cc), float(rec[g, REACH2])
+            det = fa * fc - fb * fb
+            hy = math.sqrt(r2 * fa / det)
+            i0, i1 = _pixels(fv - hy - ty0, fv + hy - ty0, th)
             wsum = 0.0
             for i in range(i0, i1 + 1):
                 if live[i] == 0:
                     continue
-                dy = v - (ty0 + i + 0.5)
-                disc = ca * r2 - det * dy * dy
+                fdy = fv - (ty0 + i + 0.5)
+                disc = fa * r2 - det * fdy * fdy
                 if disc < 0.0:
                     continue
-                half = math.sqrt(disc) / ca
-                mid = u + cb * dy / ca
-                j0, j1 = _pixels(mid - half - tx0, mid + half - tx0, tw)
+                hx = math.sqrt(disc) / fa
+                mid = fu + fb * fdy / fa
+                j0, j1 = _pixels(mid - hx - tx0, mid + hx - tx0, tw)
+                dy = v - (real(ty0 + i) + half)
                 for j in range(j0, j1 + 1):
                     if not (live[i] >> j) & 1:
                         continue
-                    dx = u - (tx0 + j + 0.5)
-                    power = -0.5 * (ca * dx * dx + cc * dy * dy) - cb * dx * dy
-                    if power > 0.0 or power < -CUTOFF:
+                    dx = u - (real(tx0 + j) + half)
+                    power = -half * (ca * dx * dx + cc * dy * dy) - cb * dx * dy
+                    if power > zero or power < -cut:
                         continue
-                    alpha = min(MAX_ALPHA, o * math.exp(power))
-                    if alpha < MIN_ALPHA:
+                    alpha = min(max_alpha, o * _exp(power))
+                    if alpha < min_alpha:
                         continue
-                    t_next = trans[i, j] * (1.0 - alpha)
-                    if t_next < MIN_TRANSMITTANCE:
+                    t_next = trans[i, j] * (one - alpha)
+                    if t_next < min_trans:
                         live[i] &= ~(1 << j)
                         active -= 1
                         continue
                     w = alpha * trans[i, j]
-                    acc[i, j, 0] += w * rgb[g, 0]
-                    acc[i, j, 1] += w * rgb[g, 1]
-                    acc[i, j, 2] += w * rgb[g, 2]
-                    dacc[i, j] += w * depth[g]
+                    acc[i, j, 0] += w * rec[g, RED]
+                    acc[i, j, 1] += w * rec[g, RED + 1]
+                    acc[i, j, 2] += w * rec[g, RED + 2]
+                    dacc[i, j] += w * rec[g, DEPTH]
                     if w > best[i, j]:
                         best[i, j] = w
                         bid[i, j] = inst[g]
                     trans[i, j] = t_next
                     wsum += w
-            pair_weight[k] = wsum
+            if pair_weight.size:  # contributions only
+                pair_weight[k] = wsum
             if active == 0:
                 break
         for i in range(th):
@@ -305,23 +340,24 @@ def _rasterise(offsets, pairs, xy, conic, depth, rgb, opac, reach2, inst, width,
                 tr = trans[i, j]
                 for c in range(3):
                     out_rgb[ty0 + i, tx0 + j, c] = acc[i, j, c] + tr * bg[c]
-                out_alpha[ty0 + i, tx0 + j] = 1.0 - tr
-                out_depth[ty0 + i, tx0 + j] = dacc[i, j] / (1.0 - tr) if tr < 1.0 else 0.0
+                out_alpha[ty0 + i, tx0 + j] = one - tr
+                out_depth[ty0 + i, tx0 + j] = dacc[i, j] / (one - tr) if tr < one else zero
                 out_inst[ty0 + i, tx0 + j] = bid[i, j]
 
 
-def _run(g: Gaussians, cam: Camera, background: tuple[float, float, float], index: np.ndarray | None = None
-         ) -> tuple[Frame, np.ndarray, np.ndarray]:
-    """Render the Gaussians at `index` [M] (all when None); pairs index rows of `index`."""
+def _run(g: Gaussians, cam: Camera, background: tuple[float, float, float], index: np.ndarray | None = None,
+         real: type = np.float32, weights: bool = False) -> tuple[Frame, np.ndarray | None, np.ndarray | None]:
+    """Render the Gaussians at `index` [M] (all when None) in precision `real`; with `weights`, also each
+    (tile, Gaussian) pair's Gaussian (a row of g) and its blending weight summed over the tile."""
     index = np.arange(g.count, dtype=np.int64) if index is None else np.asarray(index, dtype=np.int64)
-    xy, conic, depth, rgb, opac, rect, reach2 = _project(
-        index, g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh,
-        np.ascontiguousarray(cam.world_to_camera, np.float64),
-        float(cam.fx), float(cam.fy), float(cam.cx), float(cam.cy), cam.width, cam.height,
-    )
+    rec = np.empty((len(index), RECORD), real)
+    rect = _project(index, g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh,
+                    np.ascontiguousarray(cam.world_to_camera, np.float64),
+                    float(cam.fx), float(cam.fy), float(cam.cx), float(cam.cy), cam.width, cam.height, rec)
     visible = np.flatnonzero(rect[:, 0] >= 0)
     threads = numba.get_num_threads()  # this thread's: 1 in render_packed's workers
-    order = visible[_depth_order(np.ascontiguousarray(depth[visible]), threads)]  # depths > NEAR > 0
+    depth = np.ascontiguousarray(rec[visible, DEPTH])  # > NEAR > 0
+    order = visible[_depth_order(depth.view(np.uint32 if real == np.float32 else np.uint64), threads)]
     gx, gy = (cam.width + TILE - 1) // TILE, (cam.height + TILE - 1) // TILE
     offsets, pairs = _bin(order, rect, gx, gx * gy, threads)
     h, w = cam.height, cam.width
@@ -329,24 +365,27 @@ def _run(g: Gaussians, cam: Camera, background: tuple[float, float, float], inde
     out_depth = np.empty((h, w), np.float32)
     out_alpha = np.empty((h, w), np.float32)
     out_inst = np.empty((h, w), np.int32)
-    pair_weight = np.zeros(len(pairs))
-    _rasterise(offsets, pairs, xy, conic, depth, rgb, opac, reach2, g.instance_id[index], w, h,
-               np.asarray(background, np.float64), out_rgb, out_depth, out_alpha, out_inst, pair_weight)
-    return Frame(rgb=out_rgb, depth=out_depth, alpha=out_alpha, instance=out_inst), index[pairs], pair_weight
+    pair_weight = np.zeros(len(pairs) if weights else 0)
+    _rasterise(offsets, pairs, rec, g.instance_id[index], w, h, np.asarray(background, real),
+               out_rgb, out_depth, out_alpha, out_inst, pair_weight)
+    frame = Frame(rgb=out_rgb, depth=out_depth, alpha=out_alpha, instance=out_inst)
+    return (frame, index[pairs], pair_weight) if weights else (frame, None, None)
 
 
-def render(g: Gaussians, cam: Camera, *, background: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> Frame:
-    """Render `g` through `cam`: RGB, expected depth, alpha and the instance-id image."""
-    return _run(g, cam, background)[0]
+def render(g: Gaussians, cam: Camera, *, background: tuple[float, float, float] = (0.0, 0.0, 0.0),
+           real: type = np.float32) -> Frame:
+    """Render `g` through `cam`: RGB, expected depth, alpha and the instance-id image; `real=REFERENCE` gives
+    the float64 reference frame."""
+    return _run(g, cam, background, real=real)[0]
 
 
 def render_packed(packed: PackedGaussians, cams: Sequence[Camera], *,
-                  background: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> list[Frame]:
+                  background: tuple[float, float, float] = (0.0, 0.0, 0.0), real: type = np.float32) -> list[Frame]:
     """One frame per camera of packed Gaussians, projecting only the chunks each camera may see; every frame
     equals `render(packed.gaussians, cam)` (chunks.py). Several cameras render concurrently, each frame on one
     thread: no barrier between a frame's passes and no core idling on a frame's serial sort and binning."""
     def one(cam: Camera) -> Frame:
-        return _run(packed.gaussians, cam, background, visible_index(packed, cam))[0]
+        return _run(packed.gaussians, cam, background, visible_index(packed, cam), real)[0]
 
     threads = min(len(cams), numba.get_num_threads())
     if threads < 2 or not _concurrent_launches():
@@ -371,6 +410,7 @@ def _pool(threads: int) -> ThreadPoolExecutor:
 
 
 def contributions(g: Gaussians, cam: Camera) -> np.ndarray:
-    """[N] float64: each Gaussian's blending weight alpha * T summed over the pixels of this view."""
-    _, pairs, pair_weight = _run(g, cam, (0.0, 0.0, 0.0))
+    """[N] float64: each Gaussian's blending weight alpha * T summed over the pixels of this view, rendered in the
+    reference precision (build-scene prunes by it: its outputs do not depend on the frames' precision)."""
+    _, pairs, pair_weight = _run(g, cam, (0.0, 0.0, 0.0), real=REFERENCE, weights=True)
     return np.bincount(pairs, weights=pair_weight, minlength=g.count)

@@ -12,7 +12,7 @@ import numpy as np
 
 from sagebench.render.camera import Camera
 from sagebench.render.gaussians import Gaussians
-from sagebench.render.splat_render import contributions, render
+from sagebench.render.splat_render import REFERENCE, contributions, render
 
 
 @dataclass(frozen=True)
@@ -59,6 +59,6 @@ def psnr_from_mse(value: float) -> float:
 def prune(g: Gaussians, fraction: float, scoring: list[Camera], held_out: list[Camera]) -> tuple[Gaussians, PruneReport]:
     """Prune `fraction` of `g` by contribution over `scoring` views; report PSNR on `held_out` views."""
     pruned = prune_lowest(g, contribution_scores(g, scoring), fraction)
-    errors = [mse(render(pruned, cam).rgb, render(g, cam).rgb) for cam in held_out]
+    errors = [mse(render(pruned, cam, real=REFERENCE).rgb, render(g, cam, real=REFERENCE).rgb) for cam in held_out]
     score = psnr_from_mse(float(np.mean(errors))) if errors else float("nan")
     return pruned, PruneReport(fraction, g.count, pruned.count, score)
