@@ -244,7 +244,7 @@ def _decode_compressed(tables: dict[str, np.ndarray], path: Path) -> Gaussians:
 
 
 def _decode_block(chunk: np.ndarray, vertex: np.ndarray, sh_table: np.ndarray | None, out: Gaussians) -> None:
-    """Decode the Gaussians `vertex` (the first of `chunk`'s first) into `out` (views of the arrays to fill)."""
+    """Decode the Gaussians `vertex` (starting at `chunk`'s first) into `out` (views of the arrays to fill)."""
     n = len(vertex)
     c = {name: np.repeat(chunk[name].astype(np.float64), CHUNK_SIZE)[:n] for name in chunk.dtype.names}
     words = {name: vertex[name].astype(np.uint32) for name in _PACKED}
@@ -273,8 +273,16 @@ def _decode_block(chunk: np.ndarray, vertex: np.ndarray, sh_table: np.ndarray | 
     alpha = np.clip(_unorm(col, 0, 8), 1e-6, 1.0 - 1e-6)
     out.opacity_logits[:] = np.log(alpha / (1.0 - alpha))
     out.sh[:, 0, :] = (rgb - 0.5) / SH_C0
-    if sh_table is not None:
-        n_rest = len(sh_table.dtype.names)
-        q = np.stack([sh_table[f"f_rest_{i}"].astype(np.float64) for i in range(n_rest)], axis=-1)
-        unit = np.where(q == 0, 0.0, np.where(q == 255, 1.0, (q + 0.5) / 256.0))
-        out.sh[:, 1:, :] = ((unit - 0.5) * 8.0).reshape(n, 3, n_rest // 3).transpose(0, 2, 1)
+    k = out.sh.shape[1]
+    for i in range(0 if sh_table is None else 3 * (k - 1)):  # channel-major: every red coefficient, then green...
+        q = sh_table[f"f_rest_{i}"]
+        out.sh[:, 1 + i % (k - 1), i // (k - 1)] = _SH_OF_UCHAR[q] if q.dtype == np.uint8 else _sh_value(q)
+
+
+def _sh_value(q: np.ndarray) -> np.ndarray:
+    """A quantised SH coefficient's value: (n - 0.5) * 8, n = 0, 1 or (q + 0.5) / 256 for q = 0, 255 or between."""
+    q = np.asarray(q, dtype=np.float64)
+    return (np.where(q == 0, 0.0, np.where(q == 255, 1.0, (q + 0.5) / 256.0)) - 0.5) * 8.0
+
+
+_SH_OF_UCHAR = _sh_value(np.arange(256))  # the layout's uchar coefficients, looked up
