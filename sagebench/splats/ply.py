@@ -97,7 +97,7 @@ def write_ply(path: Path | str, gaussians: Gaussians) -> None:
     with staged_file(Path(path)) as fh:
         fh.write(("\n".join(header) + "\n").encode("ascii"))
         for a in range(0, g.count, DECODE_BLOCK):
-            fh.write(_inria_rows(g.take(slice(a, a + DECODE_BLOCK)), dtype).tobytes())
+            fh.write(_inria_rows(g.take(slice(a, a + DECODE_BLOCK)), dtype).view(np.uint8))  # no copy
 
 
 def _inria_rows(g: Gaussians, dtype: np.dtype) -> np.ndarray:
