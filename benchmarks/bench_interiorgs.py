@@ -95,7 +95,8 @@ def _import_cost(folder: Path, out: Path) -> dict:
     millions, gb = g.count / 1e6, hwm_kb / 2**20
     return {"case": f"import {g.count:,} Gaussians, SH degree {g.sh_degree}", "seconds": round(wall, 1),
             "cpu_s": round(cpu, 1), "start_up_cpu_s": round(start_up, 1), "import_system_s": round(system, 1),
-            "peak_rss_gib": round(gb, 2), "per_million": f"{(cpu - start_up) / millions:.1f} CPU-s, {gb / millions:.2f} GiB",
+            "peak_rss_gib": round(gb, 2),
+            "per_million": f"{(cpu - start_up) / millions:.1f} CPU-s, {gb / millions:.2f} GiB",
             "load": _load()}
 
 
