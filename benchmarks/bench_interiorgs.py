@@ -1,8 +1,10 @@
-"""import-interiorgs: the time to import a 1,000,000-Gaussian scene, and how the object geometry method compares.
+"""import-interiorgs: the cost of importing 1 M and 3 M Gaussians, and how the object geometry method compares.
 
 Scenes: synth apartments written as InteriorGS folders by the test fixture writer (tests/interiorgs_fixture.py,
-which follows the dataset card and SAGE-3D's code). Timing rows: the whole import of a folder of about 1 M
-Gaussians (read, assign, surfaces, occupancy check, write), against reading its PLY alone, in the same run.
+which follows the dataset card and SAGE-3D's code). Cost rows: the whole import of a folder of about 1 M and 3 M
+Gaussians (read, assign, surfaces, occupancy check, write), with SH degree 0 and 3 (random higher coefficients
+added, written in the compressed layout's `sh` element), each in a fresh process: its user + system CPU seconds
+and its peak RSS (the interpreter and imports included), per million Gaussians too.
 Method rows (demo apartment, seed 0): the navigable map's IoU with the mesh-built one, the median and mean
 per-object IoU of the cells each object blocks in the agent's band, the IoU of the L-sofa's semantic footprint, and the
 convex parts, and the mean share of the free space under the tops of desks and tables (their knee space: inside
@@ -15,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import subprocess
 import sys
 import tempfile
 import time
@@ -26,7 +29,7 @@ import trimesh
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from interiorgs_fixture import (  # noqa: E402
-    band_footprint_ious, empty_space_filled, iou, on_grid, write_interiorgs_folder,
+    band_footprint_ious, compressed_ply, empty_space_filled, iou, on_grid, write_interiorgs_folder,
 )
 
 from sagebench.collider_export.convex import hull_part  # noqa: E402
@@ -53,21 +56,48 @@ def run() -> list[dict]:
         root = Path(tmp)
         write_synth_scene(root / "scene", seed=0)
         rows = _methods(root)
-        # densities scaled so that the folder holds about TARGET Gaussians (the demo's defaults give ~290 k)
-        factor = TARGET / 290_000 * 1.02
-        big = root / "0009_000001"
-        write_interiorgs_folder(root / "scene", big, splats=SplatConfig(object_density=900 * factor,
-                                                                        structure_density=300 * factor))
-        n = read_ply(big / "3dgs_compressed.ply").count
-        t0 = time.perf_counter()
-        read_ply(big / "3dgs_compressed.ply")
-        read_s = time.perf_counter() - t0
-        t0, c0 = time.perf_counter(), time.process_time()
-        write_imported(import_interiorgs(big), root / "imported_big")
-        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-        rows.append({"case": f"import {n:,} Gaussians", "seconds": round(wall, 1), "cpu_s": round(cpu, 1),
-                     "reference": f"read PLY alone {read_s:.1f} s", "load": _load()})
+        for millions in (1, 3):
+            # densities scaled so that the folder holds about that many Gaussians (the demo's defaults give ~290 k)
+            factor = millions * TARGET / 290_000 * 1.02
+            folder = root / f"0009_00000{millions}"
+            write_interiorgs_folder(root / "scene", folder, splats=SplatConfig(object_density=900 * factor,
+                                                                              structure_density=300 * factor))
+            rows.append(_import_cost(folder, root / f"imported_{millions}"))
+            _with_sh_degree_3(folder)
+            rows.append(_import_cost(folder, root / f"imported_{millions}_sh3"))
     return rows
+
+
+def _with_sh_degree_3(folder: Path) -> None:
+    """Rewrite the folder's PLY with SH degree 3: random higher coefficients (sd 0.3) after each Gaussian's DC."""
+    g = read_ply(folder / "3dgs_compressed.ply")
+    rest = np.random.default_rng(0).normal(0.0, 0.3, (g.count, 15, 3)).astype(np.float32)
+    g = dataclasses.replace(g, sh=np.concatenate([g.sh, rest], axis=1))
+    (folder / "3dgs_compressed.ply").write_bytes(compressed_ply(g))
+
+
+def _import_cost(folder: Path, out: Path) -> dict:
+    """Import `folder` into `out` in a fresh process: its CPU seconds (all, and past the start-up: interpreter and
+    module imports) and its peak RSS (VmHWM: ru_maxrss would carry this process's peak over the exec)."""
+    code = ("import json, re, resource, sys; from pathlib import Path; "
+            "from sagebench.importers.interiorgs import import_interiorgs, write_imported; "
+            "r0 = resource.getrusage(resource.RUSAGE_SELF); "
+            "write_imported(import_interiorgs(Path(sys.argv[1])), Path(sys.argv[2])); "
+            "r = resource.getrusage(resource.RUSAGE_SELF); "
+            "hwm = int(re.search(r'VmHWM:\\s+(\\d+)', Path('/proc/self/status').read_text()).group(1)); "
+            "print(json.dumps([r.ru_utime + r.ru_stime, r0.ru_utime + r0.ru_stime, r.ru_stime - r0.ru_stime, hwm]))")
+    t0 = time.perf_counter()
+    done = subprocess.run([sys.executable, "-c", code, str(folder), str(out)], capture_output=True, text=True,
+                          check=True)
+    wall = time.perf_counter() - t0
+    cpu, start_up, system, hwm_kb = json.loads(done.stdout.strip().splitlines()[-1])
+    g = read_ply(folder / "3dgs_compressed.ply")
+    millions, gb = g.count / 1e6, hwm_kb / 2**20
+    return {"case": f"import {g.count:,} Gaussians, SH degree {g.sh_degree}", "seconds": round(wall, 1),
+            "cpu_s": round(cpu, 1), "start_up_cpu_s": round(start_up, 1), "import_system_s": round(system, 1),
+            "peak_rss_gib": round(gb, 2),
+            "per_million": f"{(cpu - start_up) / millions:.1f} CPU-s, {gb / millions:.2f} GiB",
+            "load": _load()}
 
 
 def _methods(root: Path) -> list[dict]:

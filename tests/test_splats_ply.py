@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import tracemalloc
 
 import numpy as np
 import pytest
@@ -115,3 +116,35 @@ def test_malformed_files_name_the_problem(tmp_path, text, message):
     (tmp_path / "bad.ply").write_bytes(text)
     with pytest.raises(DataError, match=message):
         read_ply(tmp_path / "bad.ply")
+
+
+def test_a_large_compressed_scene_is_read_and_written_without_whole_scene_temporaries(tmp_path):
+    """Millions of Gaussians with SH must fit in memory: reading 300,000 (SH degree 3) holds the file and the
+    decoded arrays plus one block's working set, and writing them back one block's rows, not copies of it all."""
+    n, rng = 300_000, np.random.default_rng(0)
+    bounds = ["min_x", "min_y", "min_z", "max_x", "max_y", "max_z", "min_scale_x", "min_scale_y", "min_scale_z",
+              "max_scale_x", "max_scale_y", "max_scale_z"]
+    chunk = np.zeros(math.ceil(n / 256), dtype=[(b, "<f4") for b in bounds])
+    for b in bounds:
+        chunk[b] = rng.uniform(-1.0, 0.0, len(chunk)) + (1.5 if b.startswith("max") else 0.0)
+    vertex = np.zeros(n, dtype=[(p, "<u4") for p in ("packed_position", "packed_rotation", "packed_scale", "packed_color")])
+    sh = np.zeros(n, dtype=[(f"f_rest_{i}", "u1") for i in range(45)])
+    for table, top in ((vertex, 1 << 32), (sh, 256)):
+        for name in table.dtype.names:
+            table[name] = rng.integers(0, top, n, dtype=np.uint64)
+    path = tmp_path / "3dgs_compressed.ply"
+    path.write_bytes(_ply([("chunk", chunk), ("vertex", vertex), ("sh", sh)]))
+    tracemalloc.start()
+    try:
+        g = read_ply(path)
+        _, read_peak = tracemalloc.get_traced_memory()
+        tracemalloc.reset_peak()
+        held, _ = tracemalloc.get_traced_memory()
+        write_ply(tmp_path / "g.ply", g)
+        _, write_peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    arrays = sum(a.nbytes for a in (g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh, g.instance_id))
+    assert g.sh.shape == (n, 16, 3)
+    assert read_peak - path.stat().st_size - arrays < 32e6
+    assert write_peak - held < 32e6

@@ -24,7 +24,7 @@ in id order, names the same object as SAGE-3D's item ids), then walls, floors an
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -115,7 +115,8 @@ def import_interiorgs(src: Path, config: InteriorGSConfig = InteriorGSConfig(),
     ids, shares = _assign(gaussians.means, stray, objects, structure, config)
     band = build.agent.band  # the floor is z = 0
     settings = SurfaceSettings(config.voxel, config.min_opacity, config.max_parts, band)
-    empty = _surfaces(gaussians, ids, objects, settings)
+    shape_only = replace(gaussians, sh=gaussians.sh[:, :1])  # a view: the surfaces need no SH, take() copies none
+    empty = _surfaces(shape_only, ids, objects, settings)
     if empty:
         warnings.append(f"{len(empty)} labels hold no Gaussians and are left out: labels.json "
                         f"{', '.join(f'[{i}]' for i in empty[:10])}{' ...' if len(empty) > 10 else ''}")
@@ -201,9 +202,10 @@ class _StructureIndex:
         z = points[:, 2]
         for k, poly in enumerate(self.rooms):
             floor, ceiling = self.slabs[2 * k], self.slabs[2 * k + 1]
-            inside = shapely.contains_xy(poly.buffer(margin), points[:, 0], points[:, 1])
-            out[(out == 0) & inside & (np.abs(z) <= margin)] = floor.instance_id
-            out[(out == 0) & inside & (np.abs(z - ceiling.mesh.bounds[0][2]) <= margin)] = ceiling.instance_id
+            grown = poly.buffer(margin)
+            for slab_id, height in ((floor.instance_id, 0.0), (ceiling.instance_id, ceiling.mesh.bounds[0][2])):
+                near = np.flatnonzero((out == 0) & (np.abs(z - height) <= margin))  # only these need the polygon
+                out[near[shapely.contains_xy(grown, points[near, 0], points[near, 1])]] = slab_id
         return out
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from sagebench.errors import DataError
-from sagebench.fileio import write_bytes
+from sagebench.fileio import staged_file
 from sagebench.render.gaussians import SH_C0, Gaussians
 
 _TYPES = {
@@ -26,6 +26,7 @@ _TYPES = {
 }
 MAX_LOG_SCALE = 50.0  # log scale (m) of the largest Gaussian read: e^50 m is past any scene, and exp() stays finite
 CHUNK_SIZE = 256  # Gaussians per chunk in the compressed layout
+DECODE_BLOCK = 256 * CHUNK_SIZE  # Gaussians decoded (read, written) at a time: temporaries of a few MB
 _CHUNK_BOUNDS = ["min_x", "min_y", "min_z", "max_x", "max_y", "max_z",
                  "min_scale_x", "min_scale_y", "min_scale_z", "max_scale_x", "max_scale_y", "max_scale_z"]
 _CHUNK_COLOUR = ["min_r", "min_g", "min_b", "max_r", "max_g", "max_b"]
@@ -83,25 +84,37 @@ def _checked(g: Gaussians, path: Path) -> Gaussians:
 
 
 def write_ply(path: Path | str, gaussians: Gaussians) -> None:
-    """Write the INRIA layout plus `instance_id` (int), atomically; read_ply gives back the same arrays."""
+    """Write the INRIA layout plus `instance_id` (int), atomically; read_ply gives back the same arrays. Written
+    DECODE_BLOCK rows at a time, so that no copy of the whole table is ever held."""
     g = gaussians
+    k = g.sh.shape[1]
+    names = ["x", "y", "z", "nx", "ny", "nz", *[f"f_dc_{c}" for c in range(3)],
+             *[f"f_rest_{i}" for i in range(3 * (k - 1))], "opacity", *[f"scale_{i}" for i in range(3)],
+             *[f"rot_{i}" for i in range(4)]]
+    dtype = np.dtype([(name, "<f4") for name in names] + [("instance_id", "<i4")])
+    header = ["ply", "format binary_little_endian 1.0", "comment written by sagebench", f"element vertex {g.count}"]
+    header += [f"property float {name}" for name in names] + ["property int instance_id", "end_header"]
+    with staged_file(Path(path)) as fh:
+        fh.write(("\n".join(header) + "\n").encode("ascii"))
+        for a in range(0, g.count, DECODE_BLOCK):
+            fh.write(_inria_rows(g.take(slice(a, a + DECODE_BLOCK)), dtype).view(np.uint8))  # no copy
+
+
+def _inria_rows(g: Gaussians, dtype: np.dtype) -> np.ndarray:
+    """The rows of the INRIA table (`dtype`) for the Gaussians `g`; normals zero, f_rest channel-major."""
     n, k = g.count, g.sh.shape[1]
-    rest = g.sh[:, 1:, :].transpose(0, 2, 1).reshape(n, 3 * (k - 1))  # channel-major
-    columns = [("x", g.means[:, 0]), ("y", g.means[:, 1]), ("z", g.means[:, 2])]
-    columns += [(name, np.zeros(n, np.float32)) for name in ("nx", "ny", "nz")]
-    columns += [(f"f_dc_{c}", g.sh[:, 0, c]) for c in range(3)]
-    columns += [(f"f_rest_{i}", rest[:, i]) for i in range(rest.shape[1])]
-    columns += [("opacity", g.opacity_logits)]
-    columns += [(f"scale_{i}", g.log_scales[:, i]) for i in range(3)]
-    columns += [(f"rot_{i}", g.quats_wxyz[:, i]) for i in range(4)]
-    dtype = np.dtype([(name, "<f4") for name, _ in columns] + [("instance_id", "<i4")])
-    table = np.empty(n, dtype=dtype)
-    for name, col in columns:
-        table[name] = col
+    table = np.zeros(n, dtype=dtype)
+    for c in range(3):
+        table[["x", "y", "z"][c]] = g.means[:, c]
+        table[f"f_dc_{c}"] = g.sh[:, 0, c]
+        table[f"scale_{c}"] = g.log_scales[:, c]
+        for i in range(k - 1):
+            table[f"f_rest_{c * (k - 1) + i}"] = g.sh[:, 1 + i, c]
+    for i in range(4):
+        table[f"rot_{i}"] = g.quats_wxyz[:, i]
+    table["opacity"] = g.opacity_logits
     table["instance_id"] = g.instance_id
-    header = ["ply", "format binary_little_endian 1.0", "comment written by sagebench", f"element vertex {n}"]
-    header += [f"property float {name}" for name, _ in columns] + ["property int instance_id", "end_header"]
-    write_bytes(Path(path), ("\n".join(header) + "\n").encode("ascii") + table.tobytes())
+    return table
 
 
 def _parse_header(data: bytes, path: Path) -> tuple[list[_Element], int]:
@@ -199,6 +212,9 @@ def _decode_compressed(tables: dict[str, np.ndarray], path: Path) -> Gaussians:
     scaled by sqrt(2) around 0.5; colour 8-8-8-8 RGBA where RGB is 0.5 + SH_C0 * f_dc (lerped within
     min_r..max_r when the chunk has them) and A the opacity. Optional `sh` element: uchar f_rest_* with
     (n - 0.5) * 8, n = 0, 1 or (v + 0.5) / 256.
+
+    Decoded DECODE_BLOCK Gaussians at a time into the float32 arrays: the float64 temporaries of a whole
+    scene (several GB for millions of Gaussians with SH) would cost more in page faults than the arithmetic.
     """
     if "vertex" not in tables:
         raise DataError("compressed PLY has a 'chunk' element but no 'vertex' element", path=path)
@@ -209,25 +225,44 @@ def _decode_compressed(tables: dict[str, np.ndarray], path: Path) -> Gaussians:
     if len(chunk) != math.ceil(n / CHUNK_SIZE):
         raise DataError(f"{len(chunk)} chunks for {n} Gaussians; expected {math.ceil(n / CHUNK_SIZE)}", path=path,
                         field="chunk")
+    sh_table = tables.get("sh")
+    if sh_table is not None:
+        n_rest = len(sh_table.dtype.names)
+        if len(sh_table) != n or n_rest not in (9, 24, 45):
+            raise DataError(f"'sh' element has {len(sh_table)} rows of {n_rest} coefficients; expected {n} rows of "
+                            f"9, 24 or 45", path=path, field="sh")
+        _require(sh_table, [f"f_rest_{i}" for i in range(n_rest)], "sh", path)
+    k = 1 if sh_table is None else len(sh_table.dtype.names) // 3 + 1
+    g = Gaussians(means=np.empty((n, 3), np.float32), quats_wxyz=np.empty((n, 4), np.float32),
+                  log_scales=np.empty((n, 3), np.float32), opacity_logits=np.empty(n, np.float32),
+                  sh=np.empty((n, k, 3), np.float32), instance_id=np.zeros(n, np.int32))
+    for a in range(0, n, DECODE_BLOCK):
+        b = min(n, a + DECODE_BLOCK)
+        _decode_block(chunk[a // CHUNK_SIZE:math.ceil(b / CHUNK_SIZE)], vertex[a:b],
+                      None if sh_table is None else sh_table[a:b], g.take(slice(a, b)))
+    return g
+
+
+def _decode_block(chunk: np.ndarray, vertex: np.ndarray, sh_table: np.ndarray | None, out: Gaussians) -> None:
+    """Decode the Gaussians `vertex` (starting at `chunk`'s first) into `out` (views of the arrays to fill)."""
+    n = len(vertex)
     c = {name: np.repeat(chunk[name].astype(np.float64), CHUNK_SIZE)[:n] for name in chunk.dtype.names}
     words = {name: vertex[name].astype(np.uint32) for name in _PACKED}
 
     pos, scl = words["packed_position"], words["packed_scale"]
-    means = np.stack([_lerp(c[f"min_{a}"], c[f"max_{a}"], _unorm(pos, s, w))
-                      for a, s, w in (("x", 21, 11), ("y", 11, 10), ("z", 0, 11))], axis=-1)
-    log_scales = np.stack([_lerp(c[f"min_scale_{a}"], c[f"max_scale_{a}"], _unorm(scl, s, w))
-                           for a, s, w in (("x", 21, 11), ("y", 11, 10), ("z", 0, 11))], axis=-1)
+    for j, (a, s, w) in enumerate((("x", 21, 11), ("y", 11, 10), ("z", 0, 11))):
+        out.means[:, j] = _lerp(c[f"min_{a}"], c[f"max_{a}"], _unorm(pos, s, w))
+        out.log_scales[:, j] = _lerp(c[f"min_scale_{a}"], c[f"max_scale_{a}"], _unorm(scl, s, w))
 
     rot = words["packed_rotation"]
     abc = np.stack([(_unorm(rot, s, 10) - 0.5) * math.sqrt(2.0) for s in (20, 10, 0)], axis=-1)
     largest = (rot >> np.uint32(30)).astype(np.int64)
     m = np.sqrt(np.maximum(0.0, 1.0 - (abc**2).sum(axis=1)))
-    quats = np.empty((n, 4))
     rows = np.arange(n)
     others = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])[largest]
-    quats[rows, largest] = m
+    out.quats_wxyz[rows, largest] = m
     for j in range(3):
-        quats[rows, others[:, j]] = abc[:, j]
+        out.quats_wxyz[rows, others[:, j]] = abc[:, j]
 
     col = words["packed_color"]
     rgb = np.stack([_unorm(col, s, 8) for s in (24, 16, 8)], axis=-1)
@@ -236,26 +271,18 @@ def _decode_compressed(tables: dict[str, np.ndarray], path: Path) -> Gaussians:
         hi = np.stack([c["max_r"], c["max_g"], c["max_b"]], axis=-1)
         rgb = _lerp(lo, hi, rgb)
     alpha = np.clip(_unorm(col, 0, 8), 1e-6, 1.0 - 1e-6)
+    out.opacity_logits[:] = np.log(alpha / (1.0 - alpha))
+    out.sh[:, 0, :] = (rgb - 0.5) / SH_C0
+    k = out.sh.shape[1]
+    for i in range(0 if sh_table is None else 3 * (k - 1)):  # channel-major: every red coefficient, then green...
+        q = sh_table[f"f_rest_{i}"]
+        out.sh[:, 1 + i % (k - 1), i // (k - 1)] = _SH_OF_UCHAR[q] if q.dtype == np.uint8 else _sh_value(q)
 
-    k = 1
-    rest = np.zeros((n, 0, 3))
-    if "sh" in tables:
-        sh_table = tables["sh"]
-        n_rest = len(sh_table.dtype.names)
-        if len(sh_table) != n or n_rest not in (9, 24, 45):
-            raise DataError(f"'sh' element has {len(sh_table)} rows of {n_rest} coefficients; expected {n} rows of "
-                            f"9, 24 or 45", path=path, field="sh")
-        _require(sh_table, [f"f_rest_{i}" for i in range(n_rest)], "sh", path)
-        q = np.stack([sh_table[f"f_rest_{i}"].astype(np.float64) for i in range(n_rest)], axis=-1)
-        unit = np.where(q == 0, 0.0, np.where(q == 255, 1.0, (q + 0.5) / 256.0))
-        k = n_rest // 3 + 1
-        rest = ((unit - 0.5) * 8.0).reshape(n, 3, k - 1).transpose(0, 2, 1)
-    sh = np.concatenate([((rgb - 0.5) / SH_C0)[:, None, :], rest], axis=1)
-    return Gaussians(
-        means=means.astype(np.float32),
-        quats_wxyz=quats.astype(np.float32),
-        log_scales=log_scales.astype(np.float32),
-        opacity_logits=np.log(alpha / (1.0 - alpha)).astype(np.float32),
-        sh=sh.astype(np.float32),
-        instance_id=np.zeros(n, np.int32),
-    )
+
+def _sh_value(q: np.ndarray) -> np.ndarray:
+    """A quantised SH coefficient's value: (n - 0.5) * 8, n = 0, 1 or (q + 0.5) / 256 for q = 0, 255 or between."""
+    q = np.asarray(q, dtype=np.float64)
+    return (np.where(q == 0, 0.0, np.where(q == 255, 1.0, (q + 0.5) / 256.0)) - 0.5) * 8.0
+
+
+_SH_OF_UCHAR = _sh_value(np.arange(256))  # the layout's uchar coefficients, looked up
