@@ -29,7 +29,7 @@ def png_bytes(rgb: np.ndarray, level: int | None = None) -> bytes:
     """PNG bytes of an RGB image (the same image, the same bytes); `level` 0-9 the zlib compression (None:
     OpenCV's default, fast but large)."""
     params = [] if level is None else [cv2.IMWRITE_PNG_COMPRESSION, level]
-    ok, png = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), params)
+    ok, png = cv2.imencode(".png", np.ascontiguousarray(rgb[:, :, ::-1]), params)
     if not ok:
         raise RuntimeError("PNG encoding failed")
     return png.tobytes()

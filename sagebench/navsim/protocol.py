@@ -26,6 +26,7 @@ from collections.abc import Mapping
 import cv2
 import numpy as np
 
+from sagebench.episodes.preview import png_bytes
 from sagebench.http_client import parse_json
 from sagebench.navsim.actions import Action
 from sagebench.settings.rollout import Encoding
@@ -60,7 +61,7 @@ def encode_request(obs: Mapping, fields: dict, encoding: Encoding = "raw") -> tu
         encoded = {}
         for key, a in images.items():
             if key in COLOUR:
-                encoded[key] = {"encoding": "png", "data": base64.b64encode(_png(a)).decode("ascii")}
+                encoded[key] = {"encoding": "png", "data": base64.b64encode(png_bytes(a)).decode("ascii")}
             else:
                 raw = io.BytesIO()
                 np.save(raw, a, allow_pickle=False)
@@ -69,7 +70,7 @@ def encode_request(obs: Mapping, fields: dict, encoding: Encoding = "raw") -> tu
     arrays, chunks, offset = {}, [], 0
     for key, a in images.items():
         if key in COLOUR and encoding == "png":
-            data, how = _png(a), "png"
+            data, how = png_bytes(a), "png"
         else:
             data, how = np.ascontiguousarray(a, a.dtype.newbyteorder("<")).tobytes(), "raw"
         arrays[key] = {"dtype": a.dtype.newbyteorder("<").str, "shape": list(a.shape), "encoding": how,
@@ -134,6 +135,3 @@ def parse_action(reply: object, action_space: str):
     raise ValueError(f"action {a!r} is not [v, omega, stop]")
 
 
-def _png(rgb: np.ndarray) -> bytes:
-    ok, buf = cv2.imencode(".png", np.ascontiguousarray(rgb[:, :, ::-1]))
-    return buf.tobytes()

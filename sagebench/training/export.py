@@ -27,6 +27,7 @@ import numpy as np
 
 from sagebench import __version__
 from sagebench.episodes.load import load_episodes
+from sagebench.episodes.preview import png_bytes
 from sagebench.episodes.tasks import VLN
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import dumps_json, remove_temporaries, write_text
@@ -40,7 +41,7 @@ from sagebench.run_folder import claim_export_dir
 from sagebench.settings.export_training import TrainingExportConfig
 from sagebench.training.actions import path_actions
 from sagebench.training.navila import action_words, write_navila
-from sagebench.training.shards import chunks, depth_png, open_shard, rgb_png, sample_json, sample_key, shard_samples
+from sagebench.training.shards import chunks, depth_png, open_shard, sample_json, sample_key, shard_samples
 
 SETTINGS_FILE = "export.json"
 INDEX_FILE = "index.json"
@@ -193,7 +194,7 @@ def _sample(result, action: Action, step: int, sim: Simulator, episode_id: str, 
             "instruction": obs["instruction"], "action": int(action), "action_name": action.name,
             "pose": [float(v) for v in obs["pose"]], "collided": bool(obs["collided"]),
             "collision_intensity": float(info["collision_intensity"])}
-    files = {"rgb.png": rgb_png(obs["rgb"]), "json": sample_json(meta)}
+    files = {"rgb.png": png_bytes(obs["rgb"]), "json": sample_json(meta)}
     if depth:
         files["depth.png"] = depth_png(obs["depth"])
     return files

@@ -23,14 +23,6 @@ def sample_key(episode_id: str, step: int) -> str:
     return f"{episode_id.replace('.', '_')}_{step:05d}"
 
 
-def rgb_png(rgb: np.ndarray) -> bytes:
-    """[H, W, 3] uint8 RGB -> PNG bytes."""
-    ok, buf = cv2.imencode(".png", np.ascontiguousarray(rgb[:, :, ::-1]))
-    if not ok:
-        raise RuntimeError("PNG encoding failed")
-    return buf.tobytes()
-
-
 def depth_png(depth: np.ndarray) -> bytes:
     """[H, W] float32 metres -> 16-bit PNG of millimetres (rounded, clipped to 0..65535)."""
     mm = np.clip(np.rint(np.asarray(depth, np.float64) * DEPTH_SCALE), 0, np.iinfo(np.uint16).max).astype(np.uint16)

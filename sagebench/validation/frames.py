@@ -12,6 +12,7 @@ import numpy as np
 
 from sagebench import ui
 from sagebench.episodes.load import Trajectory
+from sagebench.episodes.preview import png_bytes
 from sagebench.replay.physics import AGENT_BODY, ReplayModel, ReplayRecord
 from sagebench.run_layout import CONTACT_SHEET, FRAMES
 from sagebench.settings.validate import ValidateConfig
@@ -71,14 +72,14 @@ def spot_checks(gaussians: Gaussians, rm: ReplayModel, picks: list[tuple[Traject
                               min_alpha=config.min_alpha)
             rgb, ids = view["rgb"][0], _id_colours(view["instance"][0])
             name = f"{traj.trajectory_id}_{point}"
-            pngs[f"{name}.png"] = _png(rgb)
-            pngs[f"{name}_ids.png"] = _png(ids)
+            pngs[f"{name}.png"] = png_bytes(rgb)
+            pngs[f"{name}_ids.png"] = png_bytes(ids)
             problem = frame_problem(a, tolerance=config.depth_tolerance, min_fraction=config.min_compared_fraction)
             checks.append(FrameCheck(f"{FRAMES}/{name}.png", traj.trajectory_id, point, a.median_abs_diff, a.compared,
                                      a.sampled, problem))
             tiles += [_label(rgb, f"{point}  d={a.median_abs_diff:.3f} m"), _label(ids, traj.trajectory_id)]
         rows.append(np.hstack(tiles))
-    pngs[CONTACT_SHEET] = _png(np.vstack(rows))
+    pngs[CONTACT_SHEET] = png_bytes(np.vstack(rows))
     return checks, pngs
 
 
@@ -97,8 +98,3 @@ def _label(img: np.ndarray, text: str) -> np.ndarray:
     return out
 
 
-def _png(rgb: np.ndarray) -> bytes:
-    ok, buf = cv2.imencode(".png", np.ascontiguousarray(rgb[:, :, ::-1]))
-    if not ok:
-        raise RuntimeError("PNG encoding failed")
-    return buf.tobytes()
