@@ -9,6 +9,7 @@ PROGRESS_EVERY_S seconds, so a stage that runs for a while still says where it i
 from __future__ import annotations
 
 import contextlib
+import importlib.machinery
 import signal
 import sys
 import threading
@@ -57,11 +58,47 @@ def interrupts_noted() -> Iterator[None]:
 
     signal.signal(signal.SIGINT, note)
     sys.unraisablehook = quiet
+    finder = _UsdImportsFinishFirst()
+    sys.meta_path.insert(0, finder)
     try:
         yield
     finally:
         signal.signal(signal.SIGINT, signal.default_int_handler)
         sys.unraisablehook = previous
+        sys.meta_path.remove(finder)
+
+
+class _UsdImportsFinishFirst:
+    """USD loads the Python modules of the libraries a pxr module needs under a catch-all that prints a Ctrl-C
+    landing there as a 'Warning' with its traceback, and goes on half-loaded; while a pxr module imports, Ctrl-C
+    is only noted, and raised when the outermost pxr import ends."""
+
+    def __init__(self) -> None:
+        self.depth = 0
+        self.handler: Callable | None = None  # SIGINT's handler outside the outermost pxr import
+
+    def find_spec(self, name: str, path, target=None):  # noqa: ANN001, ANN201 - importlib's MetaPathFinder hook
+        if name.partition(".")[0] != "pxr" or threading.current_thread() is not threading.main_thread():
+            return None
+        spec = importlib.machinery.PathFinder.find_spec(name, path, target)
+        if spec is not None and spec.loader is not None:
+            spec.loader.exec_module = self._deferring(spec.loader.exec_module)
+        return spec
+
+    def _deferring(self, exec_module: Callable) -> Callable:
+        def exec_deferred(module) -> None:  # noqa: ANN001 - a module
+            if self.depth == 0:
+                self.handler = signal.signal(signal.SIGINT, lambda signum, frame: _INTERRUPTED.set())
+            self.depth += 1
+            try:
+                exec_module(module)
+            finally:
+                self.depth -= 1
+                if self.depth == 0:
+                    signal.signal(signal.SIGINT, self.handler)
+            if self.depth == 0:
+                check_interrupted()
+        return exec_deferred
 
 
 def interrupted() -> bool:

@@ -102,3 +102,38 @@ def test_a_ctrl_c_noted_while_the_cli_imported_is_kept_when_the_command_starts(p
             assert ui.interrupted()
     with ui.interrupts_noted():
         assert not ui.interrupted()
+
+
+USD_IMPORT_INTERRUPTED = """
+import os, signal, sys
+from sagebench import ui
+fired = []
+def ctrl_c_as(event, args):
+    if event == "import" and args[0] == sys.argv[1] and not fired:
+        fired.append(args[0])
+        os.kill(os.getpid(), signal.SIGINT)
+sys.addaudithook(ctrl_c_as)
+with ui.interrupts_noted():
+    try:
+        from pxr import Usd
+        print("went on")
+    except KeyboardInterrupt:
+        print("interrupted", fired)
+from pxr import Usd
+print(Usd.Stage.CreateInMemory().GetRootLayer() is not None)
+"""
+
+
+@pytest.mark.parametrize("module", ["pxr.Gf", "pxr.Sdf", "pxr.Ts"])
+def test_a_ctrl_c_while_usd_loads_its_libraries_waits_for_the_import(module, tmp_path):
+    """USD loads the modules of the libraries pxr.Usd needs under a catch-all that printed a Ctrl-C there as a
+    'Warning' with a Traceback (CI saw it after `run` had printed its interrupt line) and left them half-loaded;
+    the Ctrl-C now ends the import first, then is raised, and USD still works after it."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "usd_import.py"
+    script.write_text(USD_IMPORT_INTERRUPTED)
+    done = subprocess.run([sys.executable, str(script), module], capture_output=True, text=True, timeout=120)
+    assert (done.returncode, done.stderr) == (0, "")
+    assert done.stdout.splitlines() == [f"interrupted ['{module}']", "True"]
