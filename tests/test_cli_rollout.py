@@ -176,3 +176,35 @@ def test_the_continuous_action_space_from_the_command_line(demo_eval_run, tmp_pa
         steps = np.hypot(*np.diff(np.array(row["poses"])[:, :2], axis=0).T)
         assert row["stopped"] and len(steps) == 3
         assert all(d == pytest.approx(0.15, abs=1e-4) or c > 0 for d, c in zip(steps, row["collision_intensity"][1:]))
+
+
+@pytest.mark.parametrize("was, new, expect", [
+    ("sage+http://a:1/nogoal_step", "sage+http://b:2/nogoal_step", "sage+http://b:2/nogoal_step"),
+    ("sage+socket://a:1", "sage+socket://b:2", "sage+socket://b:2"),
+    ("http://a:1/act", "https://b:2/act", "https://b:2/act"),
+    ("sage+http://a:1", "oracle", "sage+http://a:1"),  # --policy not given: the record's
+    ("sage+http://a:1", "http://b:2", "error: --policy: the rollout being resumed ran SAGE's http client on "
+                                      "/vln_step, not a policy server over sagebench's HTTP protocol"),
+    ("sage+http://a:1", "sage+http://a:1/nogoal_step", "error: --policy: the rollout being resumed ran SAGE's http "
+                                                       "client on /vln_step, not SAGE's http client on /nogoal_step"),
+    ("http://a:1", "sage+socket://a:1", "error: --policy: the rollout being resumed ran a policy server over "
+                                        "sagebench's HTTP protocol, not SAGE's socket client"),
+    ("straight", "http://b:2", "error: --policy: the rollout being resumed ran the built-in policy straight, not a "
+                               "policy server over sagebench's HTTP protocol"),
+])
+def test_a_resumed_rollout_takes_a_new_url_only_for_the_same_client(was, new, expect, tmp_path):
+    """A policy server may move (a new host or port) between a killed rollout and its --resume; the client that
+    decides the predictions may not change. A sage+ URL given with --resume was ignored: the rollout went on
+    calling the old server."""
+    from types import SimpleNamespace
+
+    from sagebench.errors import ConfigError
+    from sagebench.settings.rollout import RolloutConfig
+    from sagebench.stages.rollout import resumed
+
+    earlier = SimpleNamespace(policy=was, settings={})
+    try:
+        got = resumed(RolloutConfig(policy=new), earlier, tmp_path / "p.jsonl").policy
+    except ConfigError as err:
+        got = f"error: {err}"
+    assert got == expect

@@ -276,11 +276,23 @@ def resumed(config: RolloutConfig, earlier: RolloutRecord | None, out: Path) -> 
     if earlier is None:
         raise ConfigError(f"nothing to resume: no {record_path(out).name} beside {out}", field="--resume")
     policy = earlier.policy
-    if config.policy.startswith(("http://", "https://")):
-        if not policy.startswith(("http://", "https://")):
-            raise ConfigError(f"the rollout being resumed ran the built-in policy {policy}", field="--policy")
+    if config.policy not in BUILT_IN:  # a server's new URL (a built-in given with --resume was refused)
+        was, now = client(policy), client(config.policy)
+        if was != now:
+            raise ConfigError(f"the rollout being resumed ran {was}, not {now}", field="--policy")
         policy = config.policy
     return RolloutConfig.model_validate({**config.model_dump(), **earlier.settings, "policy": policy})
+
+
+def client(policy: str) -> str:
+    """How rollout talks to `policy`, which decides its predictions: a resumed rollout may move to a new URL only
+    with the same client (SAGE's endpoint included)."""
+    if policy.startswith(SAGE_SCHEMES):
+        server = sage_server(policy)
+        return f"SAGE's {server.transport} client" + (f" on {server.endpoint}" if server.endpoint else "")
+    if policy.startswith(("http://", "https://")):
+        return "a policy server over sagebench's HTTP protocol"
+    return f"the VLN-CE agent {policy}" if AGENT_SPEC.fullmatch(policy) else f"the built-in policy {policy}"
 
 
 def observed(sensors: Sensors, policy: str) -> Observed:
