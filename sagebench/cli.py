@@ -194,9 +194,9 @@ def import_interiorgs_cmd(
 
     Writes OUT/scene.json, OUT/meshes/*.ply (walls with their openings, floor and ceiling slabs, and each
     object's surface made from its own Gaussians), OUT/gaussians.ply (the Gaussians with instance ids),
-    OUT/interiorgs_import.json (shares of Gaussians per outcome, floaters dropped, doors, unlabelled obstacles,
-    the occupancy agreement) and OUT/occupancy_check.png (occupancy.png against the imported geometry, the
-    unlabelled obstacles in orange). Geometry no label explains (background Gaussians dense in the agent's band,
+    OUT/interiorgs_import.json (shares of Gaussians per outcome, floaters dropped, the surface noise, doors,
+    unlabelled obstacles, the occupancy agreement) and OUT/occupancy_check.png (occupancy.png against the
+    imported geometry, the unlabelled obstacles in orange). Geometry no label explains (background Gaussians dense in the agent's band,
     cells occupancy.png marks occupied) becomes "unlabelled" obstacles, a warning past max_unlabelled_area m^2.
     OUT must be new, empty or an
     earlier import (unless --force), and never SRC or COLLISION_USD, inside one, a folder holding one, or

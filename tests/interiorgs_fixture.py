@@ -406,18 +406,20 @@ def _in_parts(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Mess:
-    """What `write_messy_folder` did: the instance id (mesh scene) of the removed label and the floaters added."""
+    """What `write_messy_folder` did: the instance id (mesh scene) of the removed label, the floaters added and the
+    labels.json index of the label given the ins_id before it, with that ins_id (None when none was)."""
 
     removed: int
     floaters: int
+    duplicated: tuple[int, str] | None
 
 
 def write_messy_folder(clean: Path, out: Path, truth: Truth, *, removed: str = "bed", floaters: float = 0.05,
-                       jitter: float = 0.01, seed: int = 0) -> Mess:
+                       jitter: float = 0.01, duplicate: bool = True, seed: int = 0) -> Mess:
     """A copy of the InteriorGS folder `clean` as real captures come: every Gaussian moved by `jitter` (m, normal
     per axis), a `floaters` share more Gaussians scattered over the scene's bounds (small, of any opacity: the
-    stray splats training leaves in the air), and the first label of category `removed` taken out of labels.json.
-    Written in the INRIA layout (3dgs.ply)."""
+    stray splats training leaves in the air), the first label of category `removed` taken out of labels.json and,
+    with `duplicate`, the last label given the ins_id of the one before it. Written in the INRIA layout (3dgs.ply)."""
     from sagebench.splats.ply import read_ply
 
     rng = np.random.default_rng(seed)
@@ -438,8 +440,11 @@ def write_messy_folder(clean: Path, out: Path, truth: Truth, *, removed: str = "
     (out / "3dgs.ply").write_bytes(inria_ply(stray))
     labels = json.loads((clean / "labels.json").read_text())
     k = next(i for i, lab in enumerate(labels) if lab["label"] == removed.replace("_", " "))
-    (out / "labels.json").write_text(json.dumps(labels[:k] + labels[k + 1:], indent=1))
-    return Mess(truth.label_ids[k], n)
+    labels = labels[:k] + labels[k + 1:]
+    if duplicate:
+        labels[-1]["ins_id"] = labels[-2]["ins_id"]
+    (out / "labels.json").write_text(json.dumps(labels, indent=1))
+    return Mess(truth.label_ids[k], n, (len(labels) - 1, labels[-1]["ins_id"]) if duplicate else None)
 
 
 def volume_iou(truth_mesh: trimesh.Trimesh, mesh: trimesh.Trimesh, *, step: float = 0.02) -> float:

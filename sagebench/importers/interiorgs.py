@@ -14,6 +14,8 @@
 - What no label explains, background Gaussians dense enough in the agent's band and cells occupancy.png marks
   occupied that nothing imported covers, becomes "unlabelled" obstacles (importers/interiorgs_evidence.py),
   numbered after the ceilings; more of their floor than `max_unlabelled_area` is a warning.
+- How far the Gaussians on walls and floor scatter about their planes (importers/interiorgs_evidence.py) is
+  reported; more than `max_surface_noise` is a warning.
 - The shipped occupancy.png is compared with the imported geometry's own height-band occupancy.
 - scene.json's `sage_offset` is where SAGE-3D's 3D frame of the scene lies (sagebench.importers.sage_frame).
 
@@ -40,7 +42,7 @@ from sagebench.importers.config import OCCUPANCY_PICTURE, REPORT_FILE
 from sagebench.importers.interiorgs_files import (
     LABELS, STRUCTURE, InteriorGSFolder, WallSegment, read_folder,
 )
-from sagebench.importers.interiorgs_evidence import Unlabelled, floaters, unlabelled_obstacles
+from sagebench.importers.interiorgs_evidence import Unlabelled, floaters, surface_noise, unlabelled_obstacles
 from sagebench.importers.interiorgs_occupancy import band_blocked, compare_occupancy
 from sagebench.importers.interiorgs_structure import (
     DEFAULT_CEILING_M, SLAB_M, DoorPose, Opening, box_mesh, door_pose, openings_on, room_polygon, room_type, slab,
@@ -106,6 +108,9 @@ def import_interiorgs(src: Path, config: InteriorGSConfig = InteriorGSConfig(),
     if gaussians.count == 0:
         raise DataError("holds no Gaussians", path=folder.ply, field="vertex")
     stray = floaters(gaussians.means, config.floater_cell, config.floater_neighbours)
+    noise = surface_noise(gaussians.means[~stray], pieces, shapely.union_all(rooms), [t.box for t in objects],
+                          config.box_margin, config.structure_reach)
+    noise = None if noise is None else round(noise, 4)  # m, as reported
     _match_doors(objects, walls, folder, rooms)
     things = [*objects, *walls, *slabs]
     for k, t in enumerate(things, start=1):
@@ -139,6 +144,10 @@ def import_interiorgs(src: Path, config: InteriorGSConfig = InteriorGSConfig(),
                         f" m^2) is blocked as unlabelled obstacles: "
                         f"{', '.join(t.category + f'_{t.instance_id}' for t in unlabelled.things)}; see "
                         f"{OCCUPANCY_PICTURE} (orange)")
+    if noise is not None and noise > config.max_surface_noise:
+        warnings.append(f"{scene_id}: the Gaussians on walls and floor scatter {noise * 100:.2f} cm about their planes "
+                        f"(robust standard deviation, over {config.max_surface_noise * 100:g} cm): positional noise "
+                        "that widens every obstacle and wall of the maps by about as much")
     for w in warnings:
         ui.warn(w)
     ids[~np.isin(ids, [t.instance_id for t in kept])] = 0  # floaters and a left-out label's Gaussians: background
@@ -146,6 +155,7 @@ def import_interiorgs(src: Path, config: InteriorGSConfig = InteriorGSConfig(),
         "scene_id": scene_id,
         "gaussians": gaussians.count,
         "floaters_dropped": int(stray.sum()),
+        "surface_noise_m": noise,  # importers/interiorgs_evidence.py
         "shares": shares,
         "labels": len(folder.labels),
         "objects": sum(t.label is not None for t in kept),  # labelled objects (walls, floors, ceilings aside)

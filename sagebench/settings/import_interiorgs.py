@@ -45,3 +45,7 @@ class InteriorGSConfig(BaseModel):
     max_unlabelled_area: float = Field(
         default=0.25, ge=0,
         description="Warn when the unlabelled obstacles cover more floor than this (labels and evidence disagree), m^2.")
+    max_surface_noise: float = Field(
+        default=0.005, ge=0,
+        description="Warn when the Gaussians on walls and floor scatter more than this about their planes (robust "
+                    "standard deviation): noise that widens obstacles and walls by about as much, m.")

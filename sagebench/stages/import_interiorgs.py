@@ -2,7 +2,7 @@
 
 Reads SRC/3dgs_compressed.ply (or 3dgs.ply), labels.json, structure.json, occupancy.png and occupancy.json, and
 a SAGE-3D collision USD when given. Writes OUT/scene.json, OUT/meshes/*.ply, OUT/gaussians.ply (with instance
-ids), OUT/interiorgs_import.json (what was matched, the shares, the occupancy agreement) and
+ids), OUT/interiorgs_import.json (what was matched, the shares, the surface noise, the occupancy agreement) and
 OUT/occupancy_check.png, all at once (a staged directory renamed into place).
 """
 
@@ -34,8 +34,12 @@ class ImportResult:
                 f"rooms, {r['walls']} walls, {len(r['doors'])} doors, {r['gaussians']:,} Gaussians "
                 f"({r['floaters_dropped']:,} floaters dropped; "
                 f"{s['object_boxes']:.1%} in object boxes, {s['structure']:.1%} on walls, floors and ceilings, "
-                f"{s['background']:.1%} background), unlabelled obstacles: "
+                f"{s['background']:.1%} background), surface noise {_cm(r['surface_noise_m'])}, unlabelled obstacles: "
                 f"{len(r['unlabelled'])} ({sum(u['area_m2'] for u in r['unlabelled'].values()):.2f} m^2), occupancy.png agreement {r['occupancy_iou']:.3f} IoU -> {self.out_dir}")
+
+
+def _cm(metres: float | None) -> str:
+    return "unmeasured" if metres is None else f"{metres * 100:.2f} cm"
 
 
 def import_interiorgs_scene(src: Path, out: Path, config: InteriorGSConfig = InteriorGSConfig(), *,
