@@ -47,6 +47,8 @@ MUTANTS = (
            'return "gsplat" if gsplat_missing() is None else "cpu"', ("tests/test_render_backends.py",)),
     Mutant("run's pool workers start with every core's threads, spinning", "sagebench/pipeline/executors.py",
            "    worker_init(threads)\n    signal.signal(", "    signal.signal(", ("tests/test_threads.py",)),
+    Mutant("run's spawned pool workers ignore --quiet", "sagebench/pipeline/executors.py",
+           "    ui.adopt(settings)\n", "", ("tests/test_ui.py",)),
     Mutant("kernels warmed before fan-out miss the DTW kernel", "sagebench/pipeline/kernels.py",
            "    dtw(np.zeros((2, 2)), np.ones((3, 2)))\n", "", ("tests/test_pipeline_kernels.py",)),
     Mutant("oracle passes a station only by ending near it", "sagebench/navsim/policies.py",

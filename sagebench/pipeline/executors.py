@@ -85,8 +85,8 @@ def _pool_worker_init(threads: int, settings: ui.Settings) -> None:
     import os
     import signal
 
-    worker_init(threads)
     ui.adopt(settings)
+    worker_init(threads)
     signal.signal(signal.SIGINT, lambda *_: os._exit(130))
 
 
