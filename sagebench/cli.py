@@ -429,7 +429,8 @@ def export_habitat_cmd(
     ObjectNav as ObjectNav-v1 (goals_by_category, the category maps), PointNav and ImageNav as PointNav-v1 (what
     habitat-lab's ImageNav task reads). vln episodes go to export-vlnce; nogoal ones have no habitat format.
 
-    Reads RUN_DIR/episodes/<id>/part-*.parquet and RUN_DIR/scenes/<id>/scene.json + meshes/.
+    Reads RUN_DIR/episodes/<id>/part-*.parquet and RUN_DIR/scenes/<id>/scene.json + meshes/, topdown.npz and
+    semantic_map.json (what ObjectNav's view points see).
 
     Writes OUT/<task>/<split>/<split>.json.gz per task and split, OUT/scenes/<id>/<id>.glb and
     OUT/habitat_export.json (each task's habitat dataset type, data_path and scenes_dir; also printed). OUT
