@@ -388,8 +388,9 @@ def validate_cmd(
         raise typer.Exit(code=1)
 
 
-@app.command("export-vlnce")
+@app.command("export-vlnce", cls=settings_command("sagebench.settings.export_vlnce:VlnceExportConfig"))
 def export_vlnce_cmd(
+    ctx: typer.Context,
     run_dir: Annotated[Path, typer.Argument(metavar="RUN_DIR", callback=existing, help="Run directory with episodes/<id>/ and scenes/<id>/.")],
     out: Annotated[Path, typer.Option("--out", help="Dataset directory to write (habitat's data_path root).")],
     split: Annotated[str | None, typer.Option("--split", autocompletion=splits,
@@ -403,13 +404,16 @@ def export_vlnce_cmd(
     OUT/<split>/<split>_gt.json.gz (the oracle's teacher path: what VLN-CE's NDTW and recollect trainer
     read), OUT/vocab.txt, OUT/vlnce_opts.txt (the VLN-CE config options for this data, printed too: paths,
     splits, vocabulary size, success distance) and OUT/scenes/<id>/<id>.glb (the scene's visual meshes,
-    Y up) for habitat-sim. OUT must be new, empty or an earlier export-vlnce output, outside RUN_DIR.
+    Y up) for habitat-sim. instruction_tokens index the run's vocabulary, or the one given (--vocab: a pretrained
+    VLN-CE model's), split by --tokenizer, as rollout's closed loop does. OUT must be new, empty or an earlier
+    export-vlnce output, outside RUN_DIR.
     """
     from sagebench.run_folder import claim_export_dir
     from sagebench.stages.export_vlnce import OPTS_FILE, export_vlnce
 
+    config = settings(ctx)
     with claim_export_dir(out, run_dir, "export-vlnce", OPTS_FILE):
-        for line in export_vlnce(run_dir, out, split=split).lines():
+        for line in export_vlnce(run_dir, out, split=split, config=config).lines():
             typer.echo(line)
 
 
@@ -425,7 +429,8 @@ def export_habitat_cmd(
     ObjectNav as ObjectNav-v1 (goals_by_category, the category maps), PointNav and ImageNav as PointNav-v1 (what
     habitat-lab's ImageNav task reads). vln episodes go to export-vlnce; nogoal ones have no habitat format.
 
-    Reads RUN_DIR/episodes/<id>/part-*.parquet and RUN_DIR/scenes/<id>/scene.json + meshes/.
+    Reads RUN_DIR/episodes/<id>/part-*.parquet and RUN_DIR/scenes/<id>/scene.json + meshes/, topdown.npz and
+    semantic_map.json (what ObjectNav's view points see).
 
     Writes OUT/<task>/<split>/<split>.json.gz per task and split, OUT/scenes/<id>/<id>.glb and
     OUT/habitat_export.json (each task's habitat dataset type, data_path and scenes_dir; also printed). OUT

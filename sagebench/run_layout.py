@@ -105,7 +105,8 @@ CONTRACT: dict[str, StageFiles] = {
     "baseline": StageFiles(reads=(Place("episodes"), Place("scene", TOPDOWN), *REPLAY_MODEL)),  # rollout, no images
     "render": StageFiles(reads=(Place("scene", SCENE_FILE), Place("scene", GAUSSIANS))),
     "export_vlnce": StageFiles(reads=(Place("episodes"), *NORMALISED_SCENE)),  # writes its own directory
-    "export_habitat": StageFiles(reads=(Place("episodes"), *NORMALISED_SCENE)),  # writes its own directory
+    "export_habitat": StageFiles(reads=(Place("episodes"), *NORMALISED_SCENE, Place("scene", TOPDOWN),
+                                        Place("scene", SEMANTIC_MAP))),  # its own directory; the maps: view points' sight
     "export_sage": StageFiles(reads=(Place("episodes"), Place("scene", SCENE_FILE), Place("scene", SEMANTIC_MAP))),
     # writes its own directory; the map: objects to name room goals by
     "import_sage": StageFiles(reads=(Place("scene", SCENE_FILE), Place("scene", TOPDOWN), Place("scene", SEMANTIC_MAP)),

@@ -30,6 +30,17 @@ class Settings:
 
 
 SETTINGS = Settings()
+
+
+def worker_settings() -> Settings:
+    """The driver's --quiet and --debug, for the initializer of a worker process (`adopt`)."""
+    return Settings(quiet=SETTINGS.quiet, debug=SETTINGS.debug)
+
+
+def adopt(settings: Settings) -> None:
+    """In a worker process: the driver's settings (`worker_settings`). A spawned or fork-server process starts
+    from the defaults, and its progress lines ignored --quiet."""
+    SETTINGS.quiet, SETTINGS.debug = settings.quiet, settings.debug
 PROGRESS_EVERY_S = 5.0  # off a terminal, a long stage prints where it is at most this often
 _INTERRUPTED = threading.Event()
 

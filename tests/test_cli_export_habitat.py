@@ -118,3 +118,42 @@ def test_every_split_s_objectnav_file_numbers_the_categories_alike(task_run, run
             for out, s in (("all", "train"), ("all", "test"), ("train", "train"))]
     want = {c: i for i, c in enumerate(sorted({"aaa_first", objectnav[0]["goal_category"]}))}
     assert maps == [want, want, want]
+
+
+def test_objectnav_view_points_face_their_object_and_say_what_of_it_is_in_sight(task_run, run_cli, tmp_path):  # noqa: F811
+    """habitat-lab reads a view point as ObjectViewLocation(agent_state=AgentState(position, rotation), iou)
+    (habitat-lab object_nav_dataset.py:80-86, object_nav_task.py:47-67; tests/habitat_datasets.py): each view point
+    turns the agent level to face its instance's centre, as habitat's view point generator does
+    (datasets/rearrange/viewpoints.py at 6f568c0, lines 124-128: the direction to the object, y zeroed, from -Z),
+    and its iou is the share of the instance's footprint in sight: 1 from open floor beside it, 0 from behind the
+    nearest wall (main wrote the identity rotation and null)."""
+    from shapely.geometry import Point, Polygon
+
+    from sagebench.topdown.semantic_map import read_semantic_map
+
+    smap = read_semantic_map(task_run / "scenes" / SCENE / "semantic_map.json")
+    walls = [Polygon(p[0], p[1:]) for i in smap.instances if i.kind == "wall" for p in i.polygon.coordinates]
+    chosen = max((i for i in smap.instances if i.kind == "object" and i.polygon.coordinates),
+                 key=lambda i: min(w.distance(Polygon(i.polygon.coordinates[0][0])) for w in walls))
+    centre = np.array(Polygon(chosen.polygon.coordinates[0][0]).centroid.coords[0])
+    wall = min(walls, key=lambda w: w.distance(Point(centre)))
+    near = np.array(wall.exterior.interpolate(wall.exterior.project(Point(centre))).coords[0])
+    away = (near - centre) / np.linalg.norm(near - centre)
+    behind, beside = near + 0.5 * away, centre - (np.linalg.norm(near - centre) - 0.3) * away
+    row = dict(next(r for r in _rows(task_run, "objectnav")), goal_category=chosen.category,
+               goal_instance_ids=[chosen.instance_id], goal_viewpoints=[[*behind, 0.0], [*beside, 0.0]])
+    run = tmp_path / "run"
+    shutil.copytree(task_run / "scenes", run / "scenes")
+    (run / "episodes" / SCENE).mkdir(parents=True)
+    write_shards([row], run / "episodes" / SCENE, 2**27, TASK_SCHEMA)
+    assert run_cli("export-habitat", run, "--out", tmp_path / "h")[0] == 0
+    data = objectnav_dataset(next((tmp_path / "h" / "objectnav").rglob("*.json.gz")))
+    (goal,) = data["episodes"][0]["goals"]
+    views = {tuple(np.round(from_habitat(v["agent_state"]["position"])[:2], 6)): v for v in goal["view_points"]}
+    assert [views[tuple(np.round(p, 6))]["iou"] for p in (behind, beside)] == [0.0, 1.0]
+    mesh_centre = from_habitat(goal["position"])
+    for xy, view in views.items():
+        x, y, z, w = view["agent_state"]["rotation"]
+        assert x == z == 0.0 and math.isclose(y * y + w * w, 1.0)
+        facing = math.atan2(mesh_centre[1] - xy[1], mesh_centre[0] - xy[0])
+        assert _yaw_gap(rotation_to_yaw(view["agent_state"]["rotation"]), facing) < 1e-6

@@ -8,6 +8,7 @@ from __future__ import annotations
 import importlib
 import re
 from pathlib import Path
+from typing import Literal, get_origin
 
 import pytest
 from pydantic import BaseModel
@@ -28,6 +29,7 @@ SETTINGS = {  # command -> the module and model of its settings
     "import-interiorgs": ("sagebench.settings.import_interiorgs", "InteriorGSConfig"),
     "import-sage-episodes": ("sagebench.settings.import_sage_episodes", "SageImportConfig"),
     "export-training": ("sagebench.settings.export_training", "TrainingExportConfig"),
+    "export-vlnce": ("sagebench.settings.export_vlnce", "VlnceExportConfig"),
     "report": ("sagebench.settings.report", "ReportConfig"),
     "run": ("sagebench.settings.run", "RunConfig"),
 }
@@ -163,7 +165,8 @@ def test_doc_option_blocks_match_help(run_cli):
 def test_a_bad_value_names_the_option(command):
     model, checked = _model(command), 0
     for option, setting in _settings(command).items():
-        if isinstance(setting.default, str | type(None)) or setting.option.parse is not None:
+        free = isinstance(setting.default, str | type(None)) and get_origin(setting.kind) is not Literal
+        if free or setting.option.parse is not None:
             continue  # a free string (a URL, a model name) has no bad value of this kind; parsed text has its own
         with pytest.raises(ConfigError) as err:
             from_options(model, {option: "not a value"})

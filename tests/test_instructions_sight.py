@@ -71,3 +71,22 @@ def test_a_kitchen_path_of_the_demo_lists_no_study_object(demo_built_run):
         assert {room_of[i] for i in seen - doors} <= {kitchen}, [ctx.names.get(i) for i in seen - doors]
         lamp_passed += lamp in {ctx.layout.ids[j] for j in objects_passed(ctx.layout, xy)}
     assert lamp_passed > 0  # within 1 m of some kitchen paths, behind the wall
+
+
+
+def test_the_share_of_a_footprint_in_sight_counts_what_no_wall_hides(two_rooms):
+    """export-habitat's view point iou: from the left room the chair is all in sight and the lamp behind the wall
+    none of it, the two together in the share of their points; through the doorway the plant is in sight."""
+    import shapely
+
+    from sagebench.instructions.sight import FOOTPRINT_POINTS, footprint_points
+
+    _, _, sight = two_rooms
+    shapes = {"chair": box(3.0, 0.3, 3.4, 0.6), "lamp": box(4.2, 0.3, 4.5, 0.6), "plant": box(4.3, 1.8, 4.6, 2.1)}
+    chair, lamp, plant = (footprint_points([shapes[k]], RES, (0.0, 0.0)) for k in ("chair", "lamp", "plant"))
+    assert len(chair) == len(lamp) == FOOTPRINT_POINTS and shapely.contains_xy(shapes["lamp"], *lamp.T).all()
+    here = np.array([[2.0, 0.45], [3.5, 2.0]])
+    assert sight.share_seen(here, chair).tolist() == [1.0, 1.0]
+    assert sight.share_seen(here[:1], lamp).tolist() == [0.0]
+    assert sight.share_seen(here[:1], np.concatenate([chair, lamp[:16]])).tolist() == [32 / 48]
+    assert sight.share_seen(here[1:], plant).tolist() == [1.0]

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import os
 import signal
+import subprocess
+import sys
 import time
 
 import pytest
@@ -137,3 +140,19 @@ def test_a_ctrl_c_while_usd_loads_its_libraries_waits_for_the_import(module, tmp
     done = subprocess.run([sys.executable, str(script), module], capture_output=True, text=True, timeout=120)
     assert (done.returncode, done.stderr) == (0, "")
     assert done.stdout.splitlines() == [f"interrupted ['{module}']", "True"]
+
+
+def test_quiet_reaches_the_workers_of_a_two_worker_run(tiny_scene, tmp_path):
+    """`-q run --workers 2`: the spawned workers that run the stages print no progress either. A sitecustomize
+    shortens every process's progress interval, so that each stage would print lines if it were not quiet."""
+    from test_fuzz_safety import TOML
+
+    (tmp_path / "site").mkdir()
+    (tmp_path / "site" / "sitecustomize.py").write_text("import sagebench.ui\nsagebench.ui.PROGRESS_EVERY_S = 0.01\n")
+    config = tmp_path / "t.toml"
+    config.write_text(TOML.format(scene=tiny_scene, out=tmp_path / "out"))
+    path = os.pathsep.join(filter(None, [str(tmp_path / "site"), os.environ.get("PYTHONPATH")]))
+    proc = subprocess.run([sys.executable, "-m", "sagebench", "-q", "run", str(config), "--workers", "2"],
+                          capture_output=True, text=True, timeout=600, env={**os.environ, "PYTHONPATH": path})
+    assert proc.returncode == 0 and "1 scenes complete" in proc.stdout, proc.stdout + proc.stderr
+    assert proc.stderr == ""

@@ -110,3 +110,39 @@ def test_a_bad_vocabulary_is_one_line_and_nothing_is_written(tiny_run, tmp_path,
     code, stdout, err = run_cli("rollout", "--run", tiny_run, "--out", tmp_path / "p.jsonl", "--vocab", vocab, *args)
     assert (code, stdout, err) == (2, "", f"error: {message.format(vocab=vocab)}\n")
     assert [p.name for p in tmp_path.iterdir()] == ["vocab.json"] and snapshot(tiny_run) == before
+
+
+def _exported(out, split: str = "train") -> dict:
+    return json.loads(gzip.decompress((out / split / f"{split}.json.gz").read_bytes()))
+
+
+def test_export_vlnce_tokenizes_with_the_given_vocabulary(tiny_run, tmp_path, run_cli):
+    """export-vlnce --vocab R2R's --tokenizer habitat: each exported instruction's tokens are the ids habitat's
+    tokenize and that vocabulary give (what a pretrained VLN-CE model embeds), the files hold that vocabulary, and
+    the summary counts the words it lacks."""
+    texts = Simulator(tiny_run, EnvConfig(profile="vlnce")).instructions
+    index = r2r_vocab_file(tmp_path / "train.json.gz", some_words(texts.values()))
+    code, stdout, err = run_cli("export-vlnce", tiny_run, "--out", tmp_path / "out", "--tokenizer", "habitat",
+                                "--vocab", tmp_path / "train.json.gz")
+    assert code == 0, err
+    data = _exported(tmp_path / "out")
+    episodes = [e["instruction"] for e in data["episodes"]]
+    assert len(episodes) == len(texts) >= 4
+    assert [e["instruction_tokens"] for e in episodes] == [expected_ids(e["instruction_text"], index) for e in episodes]
+    assert data["instruction_vocab"]["word_list"] == list(index) == (tmp_path / "out" / "vocab.txt").read_text().split()
+    tokens = [t for e in episodes for t in habitat_tokens(e["instruction_text"])]
+    unknown = sum(t not in index for t in tokens)
+    assert 0 < unknown < len(tokens)
+    assert (f"vocabulary {tmp_path / 'train.json.gz'}: {len(index)} words, the habitat tokenizer; {unknown} of the "
+            f"{len(tokens)} instruction tokens of the {len(episodes)} episodes are not in it (<unk>)\n") in stdout
+
+
+def test_export_vlnce_with_habitats_tokenizer_gives_the_closed_loops_ids(tiny_run, tmp_path, run_cli):
+    """--tokenizer habitat without a vocabulary: the dataset's tokens are the ids rollout's agent gets under the same
+    option, so a model trained on the export reads the closed loop's instructions alike."""
+    assert run_cli("export-vlnce", tiny_run, "--out", tmp_path / "out", "--tokenizer", "habitat")[0] == 0
+    sim = Simulator(tiny_run, EnvConfig(profile="vlnce", tokenizer="habitat"))
+    exported = {e["episode_id"]: e["instruction"]["instruction_tokens"] for e in _exported(tmp_path / "out")["episodes"]}
+    given = {eid: r.observation["instruction_tokens"].tolist() for eid, r in zip(sim.order, sim.start(sim.order))}
+    assert exported == given and len(given) >= 4
+    assert _exported(tmp_path / "out")["instruction_vocab"]["word_list"] == list(sim.vocabulary.word_list)

@@ -15,6 +15,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, TypeVar
 
+from sagebench import ui
 R = TypeVar("R")
 
 WORKER_PRELOAD = ("sagebench.collider_export.pieces", "cv2", "coacd", "pymeshfix")
@@ -48,7 +49,8 @@ def map_processes(fn: Callable[..., R], args: Sequence[tuple[Any, ...]], *, work
         return [fn(*a) for a in args]
     order = sorted(range(len(args)), key=lambda i: -sizes[i]) if sizes is not None else range(len(args))
     out: list[Any] = [None] * len(args)
-    with ProcessPoolExecutor(max_workers=min(workers, len(args)), mp_context=worker_context()) as pool:
+    with ProcessPoolExecutor(max_workers=min(workers, len(args)), mp_context=worker_context(),
+                             initializer=ui.adopt, initargs=(ui.worker_settings(),)) as pool:
         futures = {pool.submit(fn, *args[i]): i for i in order}
         for future, i in futures.items():
             out[i] = future.result()

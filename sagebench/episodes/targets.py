@@ -11,6 +11,7 @@ from sagebench.instructions.base import SceneContext, make_context
 from sagebench.instructions.naming import ObjectInfo, RoomInfo
 from sagebench.instructions.sight import SightMap, sight_map
 from sagebench.scene.model import UNLABELLED, SceneSpec
+from sagebench.topdown.grid_file import TopdownGrids
 from sagebench.topdown.semantic_map import SemanticMap
 
 TARGET_KINDS = ("object", "door")  # what a trajectory may start or end at, besides rooms
@@ -42,8 +43,9 @@ def scene_context(spec: SceneSpec, smap: SemanticMap, type_mix: dict[str, float]
                         type_mix=type_mix)
 
 
-def scene_sight(smap: SemanticMap, grid: GridMap, occupancy: np.ndarray) -> SightMap:
-    """The cells that block the view: blocked cells inside a wall's or a closed door's footprint."""
+def scene_sight(smap: SemanticMap, grid: GridMap | TopdownGrids, occupancy: np.ndarray) -> SightMap:
+    """The cells that block the view: blocked cells inside a wall's or a closed door's footprint (`grid`: its
+    resolution and origin)."""
     blockers = [Polygon(p[0], p[1:]) for i in smap.instances
                 if i.kind == "wall" or (i.kind == "door" and i.door_state == "closed") for p in i.polygon.coordinates]
     return sight_map(occupancy, grid.resolution, grid.origin, blockers)

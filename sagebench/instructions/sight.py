@@ -19,6 +19,8 @@ from shapely.ops import nearest_points
 from sagebench.instructions.relations import PASSED_M, Layout, objects_passed
 
 STEP_M = 0.25  # path points tested, metres apart
+SEEN_BATCH = 256  # points whose sight `share_seen` tests at once (bounded memory)
+FOOTPRINT_POINTS = 32  # points at most that stand for a footprint (`footprint_points`)
 
 
 @dataclass(frozen=True)
@@ -29,17 +31,44 @@ class SightMap:
 
     def clear(self, p: np.ndarray, q: np.ndarray) -> bool:
         """No wall cell on the segment p -> q ([2] world metres), its two end cells left out."""
-        n = max(int(np.ceil(np.hypot(*(q - p)) / (self.resolution / 2))), 1)
-        t = np.linspace(0.0, 1.0, n + 1)[:, None]
-        cells = np.floor((p + t * (q - p) - np.asarray(self.origin)) / self.resolution).astype(np.int64)
-        end = {tuple(cells[0]), tuple(cells[-1])}
+        return bool(self.clear_all(np.asarray(p, dtype=np.float64)[None], np.asarray(q, dtype=np.float64)[None])[0])
+
+    def clear_all(self, p: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """[N] bool: `clear` of each segment p[i] -> q[i] ([N, 2] world metres), all at once: each sampled every
+        half cell from p to q, the points past its own end repeating the end."""
+        n = np.maximum(np.ceil(np.hypot(*(q - p).T) / (self.resolution / 2)).astype(np.int64), 1)
+        k = np.arange(int(n.max(initial=1)) + 1)
+        t = np.where(k[None] >= n[:, None], 1.0, k[None] * (1.0 / n[:, None]))[..., None]  # as np.linspace's
+        cells = np.floor((p[:, None] + t * (q - p)[:, None] - np.asarray(self.origin)) / self.resolution
+                         ).astype(np.int64)
+        end = (cells == cells[:, :1]).all(-1) | (cells == cells[:, -1:]).all(-1)
         h, w = self.walls.shape
-        for col, row in cells:
-            if (col, row) in end or not (0 <= row < h and 0 <= col < w):
-                continue
-            if self.walls[row, col]:
-                return False
-        return True
+        col, row = cells[..., 0], cells[..., 1]
+        inside = (row >= 0) & (row < h) & (col >= 0) & (col < w)
+        blocked = self.walls[row.clip(0, h - 1), col.clip(0, w - 1)] & inside & ~end
+        return ~blocked.any(axis=1)
+
+    def share_seen(self, p: np.ndarray, targets: np.ndarray) -> np.ndarray:
+        """[K] the share of the `targets` [M, 2] that each point of p [K, 2] sees (world metres; `clear`)."""
+        if not len(p):
+            return np.zeros(0)
+        m = len(targets)
+        return np.concatenate([self.clear_all(np.repeat(c, m, axis=0), np.tile(targets, (len(c), 1))).reshape(-1, m)
+                               .mean(axis=1) for c in np.array_split(p, -(-len(p) // SEEN_BATCH))])
+
+def footprint_points(polygons: Sequence[shapely.Geometry], resolution: float,
+                     origin: tuple[float, float]) -> np.ndarray:
+    """[M, 2] points standing for a footprint (world metres), M <= FOOTPRINT_POINTS: the centres of the map cells
+    inside it, evenly thinned out in row order; its representative point when no cell centre lies inside."""
+    shape = shapely.union_all(list(polygons))
+    x0, y0, x1, y1 = shape.bounds
+    cols = np.arange(np.floor((x0 - origin[0]) / resolution), np.ceil((x1 - origin[0]) / resolution))
+    rows = np.arange(np.floor((y0 - origin[1]) / resolution), np.ceil((y1 - origin[1]) / resolution))
+    gx, gy = np.meshgrid(origin[0] + (cols + 0.5) * resolution, origin[1] + (rows + 0.5) * resolution)
+    inside = np.column_stack([gx.ravel(), gy.ravel()])[shapely.contains_xy(shape, gx.ravel(), gy.ravel())]
+    if not len(inside):
+        return np.asarray(shape.representative_point().coords, dtype=np.float64)
+    return inside[np.unique(np.linspace(0, len(inside) - 1, min(len(inside), FOOTPRINT_POINTS)).round().astype(int))]
 
 
 def sight_map(occupancy: np.ndarray, resolution: float, origin: tuple[float, float],

@@ -11,6 +11,7 @@ from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import Any, Protocol, TypeVar
 
+from sagebench import ui
 from sagebench.errors import ConfigError
 from sagebench.threads import share, thread_env, worker_init
 
@@ -62,7 +63,7 @@ class PoolExecutor:
         # spawn: forking a process that has started numba or MuJoCo threads is not safe
         self.threads = share(workers)
         self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                         initializer=_pool_worker_init, initargs=(self.threads,))
+                                         initializer=_pool_worker_init, initargs=(self.threads, ui.worker_settings()))
         self.capacity = workers
         self.nodes: Counter[str] = Counter()
 
@@ -77,13 +78,14 @@ class PoolExecutor:
         self._pool.shutdown(cancel_futures=True)
 
 
-def _pool_worker_init(threads: int) -> None:
-    """A pool worker: threads.worker_init, and Ctrl-C ends it at once and without a traceback of its own (it
+def _pool_worker_init(threads: int, settings: ui.Settings) -> None:
+    """A pool worker: threads.worker_init, the driver's --quiet and --debug (ui.adopt), and Ctrl-C ends it at once and without a traceback of its own (it
     reaches every process of the terminal's group, and the run reports it once: cli's Interrupted). What it was
     writing is a temporary that the next run removes."""
     import os
     import signal
 
+    ui.adopt(settings)
     worker_init(threads)
     signal.signal(signal.SIGINT, lambda *_: os._exit(130))
 

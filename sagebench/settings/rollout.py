@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from pathlib import Path
 from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -12,7 +11,8 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from sagebench.errors import ConfigError
 from sagebench.settings.option import EXPAND, Option
 from sagebench.settings.shared import (
-    RENDERER, SPLITS, ActionConfig, CameraConfig, RendererChoice, ReplayConfig, Task, beyond_limits,
+    RENDERER, SPLITS, ActionConfig, CameraConfig, RendererChoice, ReplayConfig, Task, TokenizerSetting, VocabSetting,
+    beyond_limits,
 )
 
 ProfileName = Literal["custom", "vlnce", "sage", "full"]
@@ -21,7 +21,6 @@ PrivilegedKey = Literal["pose", "gps_compass", "instance"]
 PRIVILEGED: tuple[str, ...] = ("pose", "gps_compass", "instance")
 CameraKey = Literal["rgb", "depth"]  # the images a custom profile may name (instance is privileged)
 Encoding = Literal["raw", "png", "json"]  # how images go to a policy server (navsim/protocol.py)
-Tokenizer = Literal["sagebench", "habitat"]  # how instruction_tokens split an instruction (vlnce/vocab.py)
 
 
 class ProfileError(ValueError):
@@ -96,15 +95,8 @@ class EnvConfig(BaseModel):
         default="vln", description="Which task's episodes to run, each agent told of its goal as that task says: vln "
                                    "(the instruction), nogoal (the exploration instruction), pointnav (pointgoal), "
                                    "objectnav (objectgoal) or imagenav (imagegoal); docs/tasks.md.")
-    tokenizer: Annotated[Tokenizer, Option("--tokenizer")] = Field(
-        default="sagebench", description="How instruction_tokens split an instruction: sagebench (words; punctuation "
-                                         "dropped) or habitat (habitat-lab's tokenize, R2R-CE's: punctuation kept as "
-                                         "tokens, ',' and '?' removed); vlnce/vocab.py.")
-    vocab: Annotated[Path | None, Option("--vocab")] = Field(
-        default=None, description="instruction_tokens index this vocabulary (a pretrained VLN-CE model's): VLN-CE's "
-                                  "format, an R2R-CE dataset file (.json or .json.gz) or its instruction_vocab "
-                                  "(word_list or itos); words not in it are <unk>, counted (default: the run's "
-                                  "vocabulary).")
+    tokenizer: TokenizerSetting
+    vocab: VocabSetting
     success_distance: float | None = Field(
         default=None, gt=0, description="Success radius instead of each episode's goal_radius, m.")
     max_steps: Annotated[int, Option("--max-steps")] = Field(

@@ -1,10 +1,12 @@
 """Settings that several commands share: the agent's body and camera, the renderer, the MuJoCo replay, the
-discrete actions, the metrics' constants and the split names (defaults here, nowhere else)."""
+discrete actions, the metrics' constants, the split names and how instructions become tokens (defaults here,
+nowhere else)."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
@@ -22,6 +24,18 @@ Task = Literal["vln", "nogoal", "objectnav", "pointnav", "imagenav"]
 RendererChoice = Literal["auto", "cpu", "gsplat"]
 RENDERER = ("Renderer: cpu (the reference), gsplat (CUDA GPU, pip install 'sagebench[gpu]') or auto (gsplat when it "
             "can run here).")
+
+Tokenizer = Literal["sagebench", "habitat"]  # how instruction_tokens split an instruction (vlnce/vocab.py)
+# instruction_tokens of rollout's closed loop and of export-vlnce's dataset: one declaration for both commands
+TokenizerSetting = Annotated[Tokenizer, Option("--tokenizer"), Field(
+    default="sagebench", description="How instruction_tokens split an instruction: sagebench (words; punctuation "
+                                     "dropped) or habitat (habitat-lab's tokenize, R2R-CE's: punctuation kept as "
+                                     "tokens, ',' and '?' removed); vlnce/vocab.py.")]
+VocabSetting = Annotated[Path | None, Option("--vocab"), Field(
+    default=None, description="instruction_tokens index this vocabulary (a pretrained VLN-CE model's): VLN-CE's "
+                              "format, an R2R-CE dataset file (.json or .json.gz) or its instruction_vocab "
+                              "(word_list or itos); words not in it are <unk>, counted (default: the run's "
+                              "vocabulary).")]
 
 
 class AgentConfig(BaseModel):

@@ -4,8 +4,8 @@ habitat's Y-up frame (sagebench.vlnce.tasks).
 A command of its own, beside export-vlnce: habitat-lab's task datasets are not VLN-CE's (no vocabulary, no
 teacher paths, habitat-lab's own config keys), so export-vlnce's output stays what VLN-CE reads, and each export
 claims its folder by its own mark. Reads RUN/episodes/<id>/part-*.parquet and RUN/scenes/<id>/scene.json +
-meshes/. Writes OUT/<task>/<split>/<split>.json.gz per goal task and split, OUT/scenes/<id>/<id>.glb (as
-export-vlnce writes them) and OUT/habitat_export.json (per task: habitat's dataset type, data_path and
+meshes/, topdown.npz and semantic_map.json (what ObjectNav's view points see). Writes
+OUT/<task>/<split>/<split>.json.gz per goal task and split, OUT/scenes/<id>/<id>.glb (as export-vlnce writes them) and OUT/habitat_export.json (per task: habitat's dataset type, data_path and
 scenes_dir, and the episodes per split; the mark of an export-habitat folder). Everything is computed before
 the first byte is written; vln and nogoal rows are left out (habitat-lab has no dataset format for them).
 """
@@ -16,18 +16,24 @@ from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pyarrow as pa
+from shapely.geometry import Polygon
 
 from sagebench.episodes.shards import read_episodes
+from sagebench.episodes.targets import scene_sight
 from sagebench.episodes.tasks import row_task
 from sagebench.errors import ConfigError, DataError
 from sagebench.fileio import dumps_json, write_bytes, write_text
-from sagebench.run_layout import CONTRACT, require, run_episodes_dir, run_scene_dir, run_scenes
-from sagebench.scene.loader import load_scene
+from sagebench.instructions.sight import footprint_points
+from sagebench.run_layout import CONTRACT, SEMANTIC_MAP, TOPDOWN, require, run_episodes_dir, run_scene_dir, run_scenes
+from sagebench.scene.loader import LoadedScene, load_scene
 from sagebench.settings.shared import SPLITS
+from sagebench.topdown.grid_file import read_topdown_grids
+from sagebench.topdown.semantic_map import read_semantic_map
 from sagebench.vlnce.episodes import scene_glb_path
 from sagebench.vlnce.glb import scene_glb
-from sagebench.vlnce.tasks import HABITAT_TASKS, task_dataset_bytes
+from sagebench.vlnce.tasks import HABITAT_TASKS, SceneObjects, task_dataset_bytes
 
 MARKER = "habitat_export.json"
 SCENES_DIR = "scenes"
@@ -69,9 +75,8 @@ def export_habitat(run_dir: Path, out_dir: Path, *, split: str | None = None) ->
         what = f"split {split!r}" if split is not None else "the run"
         raise DataError(f"no objectnav, pointnav or imagenav episodes in {what}", path=Path(run_dir))
     scenes = {sid: load_scene(run_scene_dir(run_dir, sid)) for sid in sorted({r["scene_id"] for r in rows})}
-    centres = {sid: {iid: mesh.bounds.mean(axis=0).tolist() for iid, mesh in s.meshes.items()}
-               for sid, s in scenes.items()}
-    files = {task_file(t, s): task_dataset_bytes(t, v, centres, categories) for (t, s), v in groups.items()}
+    objects = {sid: _scene_objects(run_scene_dir(run_dir, sid), s) for sid, s in scenes.items()}
+    files = {task_file(t, s): task_dataset_bytes(t, v, objects, categories) for (t, s), v in groups.items()}
     files.update({f"{SCENES_DIR}/{scene_glb_path(sid)}": scene_glb(s) for sid, s in scenes.items()})
     for rel, data in files.items():
         write_bytes(Path(out_dir) / rel, data)
@@ -80,6 +85,17 @@ def export_habitat(run_dir: Path, out_dir: Path, *, split: str | None = None) ->
             "episodes": {s: len(v) for (t2, s), v in groups.items() if t2 == t}}
         for t in sorted({t for t, _ in groups})}}))
     return HabitatExport(Path(out_dir), {k: len(v) for k, v in groups.items()}, list(scenes), skipped)
+
+
+def _scene_objects(scene_dir: Path, scene: LoadedScene) -> SceneObjects:
+    """A scene's instances as ObjectNav's goals need them: mesh centres, and the share of each footprint in sight
+    from a view point on the scene's map (an instance without a footprint: its centre's)."""
+    smap, grids = read_semantic_map(scene_dir / SEMANTIC_MAP), read_topdown_grids(scene_dir / TOPDOWN)
+    sight = scene_sight(smap, grids, grids.occupancy)
+    centres = {iid: mesh.bounds.mean(axis=0).tolist() for iid, mesh in scene.meshes.items()}
+    points = {i.instance_id: footprint_points([Polygon(p[0], p[1:]) for p in i.polygon.coordinates], grids.resolution,
+                                              grids.origin) for i in smap.instances if i.polygon.coordinates}
+    return SceneObjects(centres, lambda iid, xy: sight.share_seen(xy, points.get(iid, np.array([centres[iid][:2]]))))
 
 
 def _task_rows(run_dir: Path, split: str | None) -> tuple[list[dict], Counter, list[str]]:

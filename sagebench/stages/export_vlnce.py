@@ -4,7 +4,9 @@ Reads RUN/episodes/<id>/part-*.parquet and RUN/scenes/<id>/scene.json + meshes/.
 {split}/{split}.json.gz per split (R2R-CE episodes with the vocabulary) and {split}/{split}_gt.json.gz (the
 oracle's teacher path: NDTW's locations, the recollect trainer's actions), vocab.txt (one word a line),
 vlnce_opts.txt (the VLN-CE config options for this data, `KEY VALUE` a line) and scenes/<id>/<id>.glb (every
-visual mesh of the scene). Everything is computed before the first byte is written; rows without an
+visual mesh of the scene). instruction_tokens index the run's vocabulary (every exported instruction's words,
+split by the tokenizer chosen) or the one given (a pretrained VLN-CE model's), as rollout's closed loop does
+(navsim/simulator.py), and the files hold that vocabulary. Everything is computed before the first byte is written; rows without an
 instruction (gen-trajectories --instructions none) and rows of the tasks other than vln (R2R's format holds
 instruction-following episodes only; docs/tasks.md) are left out, and counted.
 """
@@ -24,12 +26,13 @@ from sagebench.fileio import write_bytes, write_text
 from sagebench.run_layout import CONTRACT, require, run_episodes_dir, run_scene_dir, run_scenes
 from sagebench.scene.loader import load_scene
 from sagebench.navsim.teacher import teacher_path
+from sagebench.settings.export_vlnce import VlnceExportConfig
 from sagebench.settings.shared import SPLITS, MetricConfig
 from sagebench.vlnce.episodes import dataset_bytes, scene_glb_path
 from sagebench.vlnce.gt import gt_bytes, gt_entry
 from sagebench.vlnce.overrides import DATA, GT, opts_text, vlnce_opts
 from sagebench.vlnce.glb import scene_glb
-from sagebench.vlnce.vocab import Vocabulary
+from sagebench.vlnce.vocab import Vocabulary, read_vocabulary
 
 VOCAB_FILE = "vocab.txt"
 OPTS_FILE = "vlnce_opts.txt"
@@ -55,11 +58,14 @@ class VlnceExport:
     files: list[Path] = field(default_factory=list)
     opts: list[tuple[str, str]] = field(default_factory=list)  # VLN-CE config options, as in OPTS_FILE
     radii: tuple[float, ...] = ()  # the episodes' goal radii, each once
+    coverage: str | None = None  # what the vocabulary given lacks of the instructions (Vocabulary.coverage)
 
     def lines(self) -> list[str]:
         counts = ", ".join(f"{s} {n}" for s, n in self.episodes.items())
         out = [f"export-vlnce: {sum(self.episodes.values())} episodes ({counts}), {len(self.scenes)} scene GLB(s), "
                f"{self.vocabulary} words -> {self.out_dir}"]
+        if self.coverage:
+            out.append(self.coverage)
         if self.skipped:
             out.append(f"left out {self.skipped} rows without an instruction")
         if self.other_tasks:
@@ -77,8 +83,9 @@ class VlnceExport:
         return out
 
 
-def export_vlnce(run_dir: Path, out_dir: Path, *, split: str | None = None) -> VlnceExport:
-    """Write the dataset of every split of the run (or of `split`) into `out_dir`."""
+def export_vlnce(run_dir: Path, out_dir: Path, *, split: str | None = None,
+                 config: VlnceExportConfig = VlnceExportConfig()) -> VlnceExport:
+    """Write the dataset of every split of the run (or of `split`) into `out_dir`, its tokens as `config` says."""
     if split is not None and split not in SPLITS:
         raise ConfigError(f"{split!r} is not a split (one of {', '.join(SPLITS)})", field="--split")
     rows, skipped, other = [], 0, {}
@@ -89,7 +96,6 @@ def export_vlnce(run_dir: Path, out_dir: Path, *, split: str | None = None) -> V
             skipped += 1
         else:
             rows.append(row)
-    vocab = Vocabulary.from_texts(r["instruction_text"] for r in rows)  # every split's words: one vocabulary
     by_split = {s: [r for r in rows if r["split"] == s] for s in SPLITS if split in (None, s)}
     by_split = {s: v for s, v in by_split.items() if v}
     if not by_split:
@@ -97,6 +103,8 @@ def export_vlnce(run_dir: Path, out_dir: Path, *, split: str | None = None) -> V
         besides = f" (only {sum(other.values())} episodes of tasks other than vln)" if other else ""
         raise DataError(f"no episodes with an instruction in {what}{besides}", path=Path(run_dir))
     scenes = sorted({r["scene_id"] for v in by_split.values() for r in v})
+    vocab, coverage = _vocabulary(config, [r["instruction_text"] for r in rows],
+                                  [r["instruction_text"] for v in by_split.values() for r in v])
     files = {split_file(s): dataset_bytes(v, vocab) for s, v in by_split.items()}
     files.update({gt_file(s): _gt(v, Path(run_dir)) for s, v in by_split.items()})
     radii = tuple(sorted({float(r["goal_radius"]) for v in by_split.values() for r in v}))
@@ -111,7 +119,18 @@ def export_vlnce(run_dir: Path, out_dir: Path, *, split: str | None = None) -> V
         written.append(Path(out_dir) / rel)
     write_text(Path(out_dir) / VOCAB_FILE, vocab.to_text())
     return VlnceExport(Path(out_dir), {s: len(v) for s, v in by_split.items()}, scenes, len(vocab.word_list),
-                       skipped, dict(sorted(other.items())), [*written, Path(out_dir) / VOCAB_FILE], opts, radii)
+                       skipped, dict(sorted(other.items())), [*written, Path(out_dir) / VOCAB_FILE], opts, radii,
+                       coverage)
+
+
+def _vocabulary(config: VlnceExportConfig, every: list[str], exported: list[str]) -> tuple[Vocabulary, str | None]:
+    """(the vocabulary instruction_tokens index, what it lacks of the `exported` instructions when it was given):
+    the one given (--vocab), else the words of `every` split's instructions (one vocabulary for all) split by the
+    tokenizer chosen."""
+    if config.vocab is None:
+        return Vocabulary.from_texts(every, config.tokenizer), None
+    vocab = read_vocabulary(config.vocab, config.tokenizer)
+    return vocab, vocab.coverage(config.vocab, exported)
 
 
 def _run_rows(run_dir: Path) -> list[dict]:

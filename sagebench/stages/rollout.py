@@ -234,10 +234,7 @@ def vocab_line(config: RolloutConfig, sim: Simulator, asked: list[str]) -> str |
     vocab = sim.vocabulary
     if config.env.vocab is None or vocab is None:
         return None
-    counts = [vocab.unknown(sim.instructions.get(i, "")) for i in asked]
-    unknown, total = sum(u for u, _ in counts), sum(t for _, t in counts)
-    return (f"vocabulary {config.env.vocab}: {len(vocab.word_list):,} words, the {vocab.tokenizer} tokenizer; "
-            f"{unknown:,} of the {total:,} instruction tokens of the {len(asked):,} episodes are not in it (<unk>)")
+    return vocab.coverage(config.env.vocab, [sim.instructions.get(i, "") for i in asked])
 
 
 def open_inputs(sim: Simulator, asked: list[str], out: Path) -> None:

@@ -67,6 +67,14 @@ class Vocabulary:
         tokens = tokenize(text, self.tokenizer)
         return sum(t not in self.index for t in tokens), len(tokens)
 
+    def coverage(self, source: Path, texts: list[str]) -> str:
+        """What a vocabulary given (read from `source`) lacks of `texts`, one an episode: `vocabulary FILE: N words,
+        the T tokenizer; K of the M instruction tokens of the E episodes are not in it (<unk>)`."""
+        counts = [self.unknown(text) for text in texts]
+        unknown, total = sum(u for u, _ in counts), sum(t for _, t in counts)
+        return (f"vocabulary {source}: {len(self.word_list):,} words, the {self.tokenizer} tokenizer; {unknown:,} of "
+                f"the {total:,} instruction tokens of the {len(texts):,} episodes are not in it (<unk>)")
+
     def to_json(self) -> dict:
         """The dataset file's instruction_vocab (habitat's VocabDict reads word_list)."""
         return {"word_list": list(self.word_list), "num_vocab": len(self.word_list),
