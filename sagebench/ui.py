@@ -41,6 +41,8 @@ def adopt(settings: Settings) -> None:
     """In a worker process: the driver's settings (`worker_settings`). A spawned or fork-server process starts
     from the defaults, and its progress lines ignored --quiet."""
     SETTINGS.quiet, SETTINGS.debug = settings.quiet, settings.debug
+
+
 PROGRESS_EVERY_S = 5.0  # off a terminal, a long stage prints where it is at most this often
 _INTERRUPTED = threading.Event()
 

@@ -16,6 +16,7 @@ from concurrent.futures import ProcessPoolExecutor
 from typing import Any, TypeVar
 
 from sagebench import ui
+
 R = TypeVar("R")
 
 WORKER_PRELOAD = ("sagebench.collider_export.pieces", "cv2", "coacd", "pymeshfix")

@@ -79,9 +79,9 @@ class PoolExecutor:
 
 
 def _pool_worker_init(threads: int, settings: ui.Settings) -> None:
-    """A pool worker: threads.worker_init, the driver's --quiet and --debug (ui.adopt), and Ctrl-C ends it at once and without a traceback of its own (it
-    reaches every process of the terminal's group, and the run reports it once: cli's Interrupted). What it was
-    writing is a temporary that the next run removes."""
+    """A pool worker: threads.worker_init, the driver's --quiet and --debug (ui.adopt), and Ctrl-C ends it at once
+    and without a traceback of its own (it reaches every process of the terminal's group, and the run reports it
+    once: cli's Interrupted). What it was writing is a temporary that the next run removes."""
     import os
     import signal
 
