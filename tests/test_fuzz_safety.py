@@ -394,6 +394,44 @@ def test_ctrl_c_a_library_swallows_while_the_cli_imports_still_ends_the_run(tiny
     assert not (tmp_path / "out").exists()
 
 
+CTRL_C_AT_IMPORT = """
+import os, signal, sys
+module, fired = sys.argv[1:3]
+def ctrl_c_at(event, args):  # Ctrl-C as `module` starts to load, once
+    if event == "import" and args[0] == module and not os.path.exists(fired):
+        open(fired, "w").close()
+        os.kill(os.getpid(), signal.SIGINT)
+sys.addaudithook(ctrl_c_at)
+sys.argv[0:3] = ["sagebench"]
+from sagebench.__main__ import entry
+entry()
+"""
+
+
+@pytest.mark.slow  # a run per library, for CI (make test-slow); the timed Ctrl-Cs above run in make test
+@pytest.mark.parametrize("module", ["pxr.Gf", "pxr.Sdf", "pxr.UsdPhysics", "trimesh", "mujoco", "numba",
+                                    "scipy.spatial", "pyarrow.parquet", "cv2"])
+def test_ctrl_c_as_each_heavy_library_loads_is_one_line(module, tiny_scene, tmp_path):
+    """CI sent Ctrl-C 1.8 s into a run as USD loaded the modules of its libraries: USD's loader printed it as a
+    'Warning' with a Traceback. Ctrl-C at the first import of each library the run's own process loads (its pool
+    workers end at a Ctrl-C without a word), wherever the run is then: one interrupt line, no traceback or library
+    warning, nothing partial."""
+    import signal
+
+    from signals import as_from_a_terminal
+
+    config, fired = _toml(tmp_path / "run.toml", tiny_scene, tmp_path / "out"), tmp_path / "fired"
+    proc = subprocess.run([sys.executable, "-c", CTRL_C_AT_IMPORT, module, str(fired), "run", str(config)],
+                          capture_output=True, text=True, timeout=600, preexec_fn=as_from_a_terminal)
+    assert fired.exists(), f"the run never imported {module}"
+    assert proc.returncode in (130, -signal.SIGINT), (proc.returncode, proc.stderr)
+    last = proc.stderr.splitlines()[-1]
+    assert last.startswith("error: interrupted") and "Traceback" not in proc.stderr and "Warning:" not in proc.stderr, \
+        proc.stderr
+    out = tmp_path / "out"
+    assert not [p for p in out.rglob("*") if ".tmp" in p.name] if out.exists() else True
+
+
 # ---------------------------------------------------------------- the count
 
 
