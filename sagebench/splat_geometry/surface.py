@@ -36,6 +36,7 @@ from sagebench.collider_export.voxel import band_outside, greedy_boxes, layer_we
 from sagebench.render.gaussians import Gaussians
 
 MAX_VOXELS = 2**25  # voxels of one object's grid at most: its weights, labels and masks take about 0.8 GB
+_BLOCK = 2**16  # Gaussians whose covariances are computed at a time: float64 temporaries of a few MB
 _CORNER_INSET = 1e-3  # enclosed cells contribute their corners pulled this fraction of a voxel inwards, so that
 # two boxes' hulls never share a point (a shared edge would join them into one part, one hull, for the footprint)
 
@@ -85,10 +86,14 @@ def grid_voxels(half: np.ndarray, pitch: float) -> float:
 
 
 def gaussian_covariances(g: Gaussians) -> np.ndarray:
-    """[N, 3, 3] each Gaussian's covariance (world m^2): R diag(sigma^2) R^T."""
-    rot = quat_matrices(g.quats_wxyz)
-    var = np.exp(2 * g.log_scales.astype(np.float64))
-    return np.einsum("nij,nj,nkj->nik", rot, var, rot)
+    """[N, 3, 3] each Gaussian's covariance (world m^2): R diag(sigma^2) R^T. Computed _BLOCK Gaussians at a time:
+    the float64 temporaries of a whole scene cost more in page faults than the arithmetic."""
+    out = np.empty((g.count, 3, 3))
+    for a in range(0, g.count, _BLOCK):
+        rot = quat_matrices(g.quats_wxyz[a:a + _BLOCK])
+        var = np.exp(2 * g.log_scales[a:a + _BLOCK].astype(np.float64))
+        out[a:a + _BLOCK] = np.einsum("nij,nj,nkj->nik", rot, var, rot)
+    return out
 
 
 def object_surface(points: np.ndarray, weights: np.ndarray, centre: np.ndarray, axes: np.ndarray,

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from numpy.lib.recfunctions import structured_to_unstructured
 
 from sagebench.errors import DataError
 from sagebench.fileio import staged_file
@@ -68,6 +69,8 @@ def _checked(g: Gaussians, path: Path) -> Gaussians:
         return g
     for name, values in (("position", g.means), ("rotation", g.quats_wxyz), ("scale", g.log_scales),
                          ("opacity", g.opacity_logits), ("colour", g.sh)):
+        if np.isfinite(values.min()) and np.isfinite(values.max()):  # NaN spreads to both, -inf to min, inf to max
+            continue
         bad = ~np.isfinite(values.reshape(g.count, int(np.prod(values.shape[1:])))).all(axis=1)  # N may be 0
         if bad.any():
             raise DataError(f"Gaussian {int(np.argmax(bad))} has a non-finite {name} "
@@ -101,18 +104,19 @@ def write_ply(path: Path | str, gaussians: Gaussians) -> None:
 
 
 def _inria_rows(g: Gaussians, dtype: np.dtype) -> np.ndarray:
-    """The rows of the INRIA table (`dtype`) for the Gaussians `g`; normals zero, f_rest channel-major."""
+    """The rows of the INRIA table (`dtype`: x y z nx ny nz f_dc_0..2 f_rest_* opacity scale_0..2 rot_0..3, then
+    instance_id) for the Gaussians `g`; normals zero, f_rest channel-major. The float columns are filled as
+    blocks of a [n, columns] float32 view of the table, not one field at a time."""
     n, k = g.count, g.sh.shape[1]
     table = np.zeros(n, dtype=dtype)
-    for c in range(3):
-        table[["x", "y", "z"][c]] = g.means[:, c]
-        table[f"f_dc_{c}"] = g.sh[:, 0, c]
-        table[f"scale_{c}"] = g.log_scales[:, c]
-        for i in range(k - 1):
-            table[f"f_rest_{c * (k - 1) + i}"] = g.sh[:, 1 + i, c]
-    for i in range(4):
-        table[f"rot_{i}"] = g.quats_wxyz[:, i]
-    table["opacity"] = g.opacity_logits
+    cols = table.view(np.float32).reshape(n, -1)
+    rest = 9 + 3 * (k - 1)
+    cols[:, 0:3] = g.means
+    cols[:, 6:9] = g.sh[:, 0, :]
+    cols[:, 9:rest].reshape(n, 3, k - 1)[:] = g.sh[:, 1:, :].transpose(0, 2, 1)
+    cols[:, rest] = g.opacity_logits
+    cols[:, rest + 1:rest + 4] = g.log_scales
+    cols[:, rest + 4:rest + 8] = g.quats_wxyz
     table["instance_id"] = g.instance_id
     return table
 
@@ -274,9 +278,10 @@ def _decode_block(chunk: np.ndarray, vertex: np.ndarray, sh_table: np.ndarray | 
     out.opacity_logits[:] = np.log(alpha / (1.0 - alpha))
     out.sh[:, 0, :] = (rgb - 0.5) / SH_C0
     k = out.sh.shape[1]
-    for i in range(0 if sh_table is None else 3 * (k - 1)):  # channel-major: every red coefficient, then green...
-        q = sh_table[f"f_rest_{i}"]
-        out.sh[:, 1 + i % (k - 1), i // (k - 1)] = _SH_OF_UCHAR[q] if q.dtype == np.uint8 else _sh_value(q)
+    if sh_table is not None:  # channel-major: every red coefficient, then green...; one [n, 3 (k - 1)] array
+        q = structured_to_unstructured(sh_table[[f"f_rest_{i}" for i in range(3 * (k - 1))]])
+        rest = _SH_OF_UCHAR[q] if q.dtype == np.uint8 else _sh_value(q)
+        out.sh[:, 1:, :] = rest.reshape(n, 3, k - 1).transpose(0, 2, 1)
 
 
 def _sh_value(q: np.ndarray) -> np.ndarray:
@@ -285,4 +290,4 @@ def _sh_value(q: np.ndarray) -> np.ndarray:
     return (np.where(q == 0, 0.0, np.where(q == 255, 1.0, (q + 0.5) / 256.0)) - 0.5) * 8.0
 
 
-_SH_OF_UCHAR = _sh_value(np.arange(256))  # the layout's uchar coefficients, looked up
+_SH_OF_UCHAR = _sh_value(np.arange(256)).astype(np.float32)  # the layout's uchar coefficients, looked up
