@@ -208,6 +208,12 @@ def _lerp(lo: np.ndarray, hi: np.ndarray, t: np.ndarray) -> np.ndarray:
         return lo * (1.0 - t) + hi * t
 
 
+def _in_chunks(lo: np.ndarray, hi: np.ndarray, t: np.ndarray, n: int) -> np.ndarray:
+    """The first `n` of the values `t` [chunks * CHUNK_SIZE (, k)] lerped within their chunk's bounds `lo`, `hi`
+    [chunks, 1, 1 or k], as [n, 1 or k]: each chunk's bounds broadcast over its Gaussians, not repeated for each."""
+    return _lerp(lo, hi, t.reshape(len(lo), CHUNK_SIZE, -1)).reshape(len(t), -1)[:n]
+
+
 def _decode_compressed(tables: dict[str, np.ndarray], path: Path) -> Gaussians:
     """Chunks of 256 Gaussians share min/max bounds; each Gaussian packs four uint32 words:
 
@@ -249,16 +255,18 @@ def _decode_compressed(tables: dict[str, np.ndarray], path: Path) -> Gaussians:
 
 def _decode_block(chunk: np.ndarray, vertex: np.ndarray, sh_table: np.ndarray | None, out: Gaussians) -> None:
     """Decode the Gaussians `vertex` (starting at `chunk`'s first) into `out` (views of the arrays to fill)."""
-    n = len(vertex)
-    c = {name: np.repeat(chunk[name].astype(np.float64), CHUNK_SIZE)[:n] for name in chunk.dtype.names}
-    words = {name: vertex[name].astype(np.uint32) for name in _PACKED}
+    n, chunks = len(vertex), len(chunk)
+    c = {name: chunk[name].astype(np.float64)[:, None, None] for name in chunk.dtype.names}  # [chunks, 1, 1]
+    words = {name: np.zeros(chunks * CHUNK_SIZE, np.uint32) for name in _PACKED}  # whole chunks: the last may be short
+    for name, bits in words.items():
+        bits[:n] = vertex[name]
 
     pos, scl = words["packed_position"], words["packed_scale"]
     for j, (a, s, w) in enumerate((("x", 21, 11), ("y", 11, 10), ("z", 0, 11))):
-        out.means[:, j] = _lerp(c[f"min_{a}"], c[f"max_{a}"], _unorm(pos, s, w))
-        out.log_scales[:, j] = _lerp(c[f"min_scale_{a}"], c[f"max_scale_{a}"], _unorm(scl, s, w))
+        out.means[:, j] = _in_chunks(c[f"min_{a}"], c[f"max_{a}"], _unorm(pos, s, w), n)[:, 0]
+        out.log_scales[:, j] = _in_chunks(c[f"min_scale_{a}"], c[f"max_scale_{a}"], _unorm(scl, s, w), n)[:, 0]
 
-    rot = words["packed_rotation"]
+    rot = words["packed_rotation"][:n]
     abc = np.stack([(_unorm(rot, s, 10) - 0.5) * math.sqrt(2.0) for s in (20, 10, 0)], axis=-1)
     largest = (rot >> np.uint32(30)).astype(np.int64)
     m = np.sqrt(np.maximum(0.0, 1.0 - (abc**2).sum(axis=1)))
@@ -271,10 +279,10 @@ def _decode_block(chunk: np.ndarray, vertex: np.ndarray, sh_table: np.ndarray | 
     col = words["packed_color"]
     rgb = np.stack([_unorm(col, s, 8) for s in (24, 16, 8)], axis=-1)
     if all(name in c for name in _CHUNK_COLOUR):
-        lo = np.stack([c["min_r"], c["min_g"], c["min_b"]], axis=-1)
-        hi = np.stack([c["max_r"], c["max_g"], c["max_b"]], axis=-1)
-        rgb = _lerp(lo, hi, rgb)
-    alpha = np.clip(_unorm(col, 0, 8), 1e-6, 1.0 - 1e-6)
+        lo, hi = (np.concatenate([c[f"{e}_{k}"] for k in "rgb"], axis=-1) for e in ("min", "max"))
+        rgb = _in_chunks(lo, hi, rgb, n)
+    rgb = rgb[:n]
+    alpha = np.clip(_unorm(col[:n], 0, 8), 1e-6, 1.0 - 1e-6)
     out.opacity_logits[:] = np.log(alpha / (1.0 - alpha))
     out.sh[:, 0, :] = (rgb - 0.5) / SH_C0
     k = out.sh.shape[1]
