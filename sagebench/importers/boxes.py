@@ -93,22 +93,22 @@ def box_owner(points: np.ndarray, boxes: list[OrientedBox], margin: float = 0.0)
     """[N] int: for each point [N, 3], the index of the smallest box of `boxes` that holds it, -1 for none.
 
     Boxes are visited from the largest to the smallest volume, each overwriting the points it holds, so a
-    point in nested boxes ends with the tightest. Each box only tests the points inside its x range (the points
-    sorted by x once).
+    point in nested boxes ends with the tightest. Each box only tests the points inside its x range: the points
+    are sorted by x once, each coordinate in its own array, so that range is a slice, not a copy.
     """
     pts = np.asarray(points, dtype=np.float64)
     owner = np.full(len(pts), -1, dtype=np.int64)
     if not boxes or not len(pts):
         return owner
     order = np.argsort(pts[:, 0], kind="stable")
-    xs = pts[order, 0]
+    xs, ys, zs = pts[order].T.copy()
     for b in sorted(range(len(boxes)), key=lambda i: -boxes[i].volume):
         lo, hi = boxes[b].aabb(margin)
-        idx = order[np.searchsorted(xs, lo[0], "left"):np.searchsorted(xs, hi[0], "right")]
-        p = pts[idx]
-        near = ((p[:, 1:] >= lo[1:]) & (p[:, 1:] <= hi[1:])).all(axis=1)
-        idx = idx[near]
-        owner[idx[boxes[b].contains(pts[idx], margin)]] = b
+        a, e = np.searchsorted(xs, lo[0], "left"), np.searchsorted(xs, hi[0], "right")
+        y, z = ys[a:e], zs[a:e]
+        near = a + np.flatnonzero((y >= lo[1]) & (y <= hi[1]) & (z >= lo[2]) & (z <= hi[2]))
+        inside = boxes[b].contains(np.stack([xs[near], ys[near], zs[near]], axis=1), margin)
+        owner[order[near[inside]]] = b
     return owner
 
 

@@ -400,7 +400,7 @@ def _surfaces(g: Gaussians, ids: np.ndarray, objects: list[_Thing], settings: Su
     sel = np.flatnonzero(np.isin(ids, [t.instance_id for t in objects]))
     chosen = g.take(sel)
     points, weights, source = gaussian_points(chosen, settings.voxel)
-    cov = gaussian_covariances(chosen)[source]
+    cov = gaussian_covariances(chosen)  # per Gaussian: a point takes its own Gaussian's (no copy for every point)
     owner = ids[sel][source]
     order = np.argsort(owner, kind="stable")
     bounds = np.searchsorted(owner[order], [[t.instance_id, t.instance_id + 1] for t in objects]) if objects else []
@@ -408,7 +408,7 @@ def _surfaces(g: Gaussians, ids: np.ndarray, objects: list[_Thing], settings: Su
     for t, (a, b) in ui.track(list(zip(objects, bounds)), "object surfaces"):
         rows = order[a:b]
         mesh = object_surface(points[rows], weights[rows], t.box.centre, t.box.axes, t.box.half, settings,
-                              cov[rows]) if len(rows) else None
+                              cov[source[rows]]) if len(rows) else None
         if mesh is None:
             empty.append(t.label)
             continue

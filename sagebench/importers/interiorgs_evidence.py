@@ -42,22 +42,22 @@ _INSET = 1e-3  # each box is pulled in by this (m), so that boxes sharing an edg
 
 
 def floaters(means: np.ndarray, cell: float, neighbours: int) -> np.ndarray:
-    """[N] whether each Gaussian is a floater (module docstring). Only Gaussians whose own cell holds no more than
-    `neighbours` + 1 are looked at further: any other has that many neighbours in its own cell."""
+    """[N] whether each Gaussian is a floater (module docstring). Counted per occupied cell, not per Gaussian: only
+    the cells holding no more than `neighbours` + 1 are looked at further (any other Gaussian has that many
+    neighbours in its own cell), and a neighbouring cell's key is the cell's own plus a fixed step."""
     c = np.floor(np.asarray(means, dtype=np.float64) / cell).astype(np.int64)
     c -= c.min(axis=0) - 1  # one empty cell of margin below, so every neighbour index is >= 0
     dims = c.max(axis=0) + 2
-    key = np.ravel_multi_index(c.T, dims)
-    cells, inverse, count = np.unique(key, return_inverse=True, return_counts=True)
-    suspect = np.flatnonzero(count[inverse] <= neighbours + 1)
-    near = np.zeros(len(suspect), dtype=np.int64)
-    for offset in np.argwhere(np.ones((3, 3, 3), dtype=bool)) - 1:
-        k = np.ravel_multi_index((c[suspect] + offset).T, dims)
+    cells, inverse, count = np.unique(np.ravel_multi_index(c.T, dims), return_inverse=True, return_counts=True)
+    few = np.flatnonzero(count <= neighbours + 1)
+    near = np.zeros(len(few), dtype=np.int64)
+    for step in (np.argwhere(np.ones((3, 3, 3), dtype=bool)) - 1) @ np.array([dims[1] * dims[2], dims[2], 1]):
+        k = cells[few] + step
         at = np.minimum(np.searchsorted(cells, k), len(cells) - 1)
         near += np.where(cells[at] == k, count[at], 0)
-    out = np.zeros(len(c), dtype=bool)
-    out[suspect[near - 1 <= neighbours]] = True
-    return out
+    lonely = np.zeros(len(cells), dtype=bool)
+    lonely[few[near - 1 <= neighbours]] = True
+    return lonely[inverse]
 
 
 MAD_TO_SD = 1.4826  # the median absolute deviation of normal noise times this is its standard deviation

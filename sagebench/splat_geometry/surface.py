@@ -36,6 +36,7 @@ from sagebench.collider_export.voxel import band_outside, greedy_boxes, layer_we
 from sagebench.render.gaussians import Gaussians
 
 MAX_VOXELS = 2**25  # voxels of one object's grid at most: its weights, labels and masks take about 0.8 GB
+_BLOCK = 2**16  # Gaussians whose covariances are computed at a time: float64 temporaries of a few MB
 _CORNER_INSET = 1e-3  # enclosed cells contribute their corners pulled this fraction of a voxel inwards, so that
 # two boxes' hulls never share a point (a shared edge would join them into one part, one hull, for the footprint)
 
@@ -85,10 +86,14 @@ def grid_voxels(half: np.ndarray, pitch: float) -> float:
 
 
 def gaussian_covariances(g: Gaussians) -> np.ndarray:
-    """[N, 3, 3] each Gaussian's covariance (world m^2): R diag(sigma^2) R^T."""
-    rot = quat_matrices(g.quats_wxyz)
-    var = np.exp(2 * g.log_scales.astype(np.float64))
-    return np.einsum("nij,nj,nkj->nik", rot, var, rot)
+    """[N, 3, 3] each Gaussian's covariance (world m^2): R diag(sigma^2) R^T. Computed _BLOCK Gaussians at a time:
+    the float64 temporaries of a whole scene cost more in page faults than the arithmetic."""
+    out = np.empty((g.count, 3, 3))
+    for a in range(0, g.count, _BLOCK):
+        rot = quat_matrices(g.quats_wxyz[a:a + _BLOCK])
+        var = np.exp(2 * g.log_scales[a:a + _BLOCK].astype(np.float64))
+        out[a:a + _BLOCK] = np.einsum("nij,nj,nkj->nik", rot, var, rot)
+    return out
 
 
 def object_surface(points: np.ndarray, weights: np.ndarray, centre: np.ndarray, axes: np.ndarray,
@@ -128,30 +133,30 @@ def object_surface(points: np.ndarray, weights: np.ndarray, centre: np.ndarray, 
     for b, (i0, j0, k0, i1, j1, k1) in enumerate(boxes):
         label[i0:i1, j0:j1, k0:k1] = b
     kept = solid.reshape(-1)[flat]  # points in voxels that the solid dropped (lone floaters) are left out
+    local, cell, flat = local[kept], cell[kept], flat[kept]
     has_point = np.zeros(int(np.prod(shape)), dtype=bool)
-    has_point[flat[kept]] = True
+    has_point[flat] = True
     enclosed = np.argwhere(solid & ~has_point.reshape(shape))  # [E, 3] solid voxels no point is in
     unit = np.argwhere(np.ones((2, 2, 2), dtype=bool)) * (1 - 2 * _CORNER_INSET) + _CORNER_INSET  # [8, 3]
     corners = lo + (enclosed[:, None, :] + unit[None]) * pitch  # [E, 8, 3]
-    npts = int(kept.sum())
-    onto, onto_owner = _onto_shared_faces(local[kept], cell[kept], solid, label, lo, pitch)
-    pts = np.concatenate([local[kept], corners.reshape(-1, 3), onto])
-    owner = np.concatenate([label.reshape(-1)[flat[kept]], np.repeat(label[tuple(enclosed.T)], 8), onto_owner])
+    onto, onto_owner = _onto_shared_faces(local, cell, flat, solid, label, lo, pitch)
+    extra = np.concatenate([corners.reshape(-1, 3), onto])
+    of_points = _by_box(label.reshape(-1)[flat], len(boxes))
+    of_extra = _by_box(np.concatenate([np.repeat(label[tuple(enclosed.T)], 8), onto_owner]), len(boxes))
     inner = np.concatenate([np.repeat((solid & ~closed)[tuple(enclosed.T)], 8),  # the filled inside's corners,
                             np.ones(len(onto), dtype=bool)])  # not a closed gap's; the points on shared faces
     sigma = None if cov is None else np.sqrt(np.einsum("dj,njk,dk->nd", axes[:2], cov[kept], axes[:2]))  # [n, 2]
-    everywhere = (local[kept].min(axis=0), local[kept].max(axis=0))
+    everywhere = (local.min(axis=0), local.max(axis=0))
     parts = []
     for b in range(len(boxes)):
-        mine = owner == b
-        points_in_box = pts[:npts][mine[:npts]]
+        points_in_box = local[of_points[b]]
         lo_b, hi_b = (points_in_box.min(axis=0), points_in_box.max(axis=0)) if len(points_in_box) else everywhere
-        corners_b = pts[npts:][mine[npts:]]
-        inside_b = inner[mine[npts:]][:, None]
+        corners_b = extra[of_extra[b]]
+        inside_b = inner[of_extra[b]][:, None]
         group = np.concatenate([points_in_box, np.where(inside_b, np.clip(corners_b, *everywhere),
                                                         np.clip(corners_b, lo_b, hi_b))])
         if sigma is not None and len(points_in_box):
-            group = _as_wide_as_gaussians(group, np.median(sigma[mine[:npts]], axis=0), half)
+            group = _as_wide_as_gaussians(group, np.median(sigma[of_points[b]], axis=0), half)
         if len(group):
             part = hull_part(group)
             parts.append(trimesh.Trimesh(part.vertices @ axes + centre, part.faces, process=False))
@@ -178,20 +183,30 @@ def _as_wide_as_gaussians(group: np.ndarray, sigma: np.ndarray, half: np.ndarray
     return np.concatenate(out)
 
 
-def _onto_shared_faces(local: np.ndarray, cells: np.ndarray, solid: np.ndarray, label: np.ndarray, lo: np.ndarray,
-                       pitch: float) -> tuple[np.ndarray, np.ndarray]:
-    """Copies of the points (box frame, their voxels `cells`) next to a face their box shares with another
-    box's solid voxel, moved onto that face (a hair short of it), and their box: where a voxel boundary cuts
-    through the material (a table top's two faces in two layers, a leg under the top, a pole's Gaussians in two
-    columns) each side's hull then reaches the boundary, so the parts together are as thick as the Gaussians."""
-    own = label[tuple(cells.T)]
+def _by_box(owner: np.ndarray, boxes: int) -> list[np.ndarray]:
+    """The indices of the rows that each box owns (`owner` [N], the box of each row), in row order: one sort,
+    not a pass over every row for each box."""
+    order = np.argsort(owner, kind="stable")
+    cuts = np.searchsorted(owner[order], np.arange(boxes + 1))
+    return [order[a:e] for a, e in zip(cuts[:-1], cuts[1:])]
+
+
+def _onto_shared_faces(local: np.ndarray, cells: np.ndarray, flat: np.ndarray, solid: np.ndarray, label: np.ndarray,
+                       lo: np.ndarray, pitch: float) -> tuple[np.ndarray, np.ndarray]:
+    """Copies of the points (box frame, their voxels `cells`, flat indices `flat`) next to a face their box
+    shares with another box's solid voxel, moved onto that face (a hair short of it), and their box: where a voxel
+    boundary cuts through the material (a table top's two faces in two layers, a leg under the top, a pole's
+    Gaussians in two columns) each side's hull then reaches the boundary, so the parts together are as thick as
+    the Gaussians. Which voxels have such a face is found on the grid, then looked up for each point."""
+    own = label.reshape(-1)[flat]
     out, owner = [], []
     for d in range(3):
         for step in (-1, 1):
-            nb = cells.copy()
-            nb[:, d] += step
-            ok = (nb[:, d] >= 0) & (nb[:, d] < solid.shape[d])
-            ok[ok] = solid[tuple(nb[ok].T)] & (label[tuple(nb[ok].T)] != own[ok])
+            here, there = [slice(None)] * 3, [slice(None)] * 3
+            here[d], there[d] = (slice(0, -1), slice(1, None)) if step > 0 else (slice(1, None), slice(0, -1))
+            shared = np.zeros(solid.shape, dtype=bool)
+            shared[tuple(here)] = solid[tuple(there)] & (label[tuple(there)] != label[tuple(here)])
+            ok = shared.reshape(-1)[flat]
             moved = local[ok].copy()
             moved[:, d] = lo[d] + (cells[ok, d] + (step > 0)) * pitch - step * _CORNER_INSET * pitch
             out.append(moved)

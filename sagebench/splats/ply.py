@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from numpy.lib.recfunctions import structured_to_unstructured
 
 from sagebench.errors import DataError
 from sagebench.fileio import staged_file
@@ -68,6 +69,8 @@ def _checked(g: Gaussians, path: Path) -> Gaussians:
         return g
     for name, values in (("position", g.means), ("rotation", g.quats_wxyz), ("scale", g.log_scales),
                          ("opacity", g.opacity_logits), ("colour", g.sh)):
+        if np.isfinite(values.min()) and np.isfinite(values.max()):  # NaN spreads to both, -inf to min, inf to max
+            continue
         bad = ~np.isfinite(values.reshape(g.count, int(np.prod(values.shape[1:])))).all(axis=1)  # N may be 0
         if bad.any():
             raise DataError(f"Gaussian {int(np.argmax(bad))} has a non-finite {name} "
@@ -101,18 +104,19 @@ def write_ply(path: Path | str, gaussians: Gaussians) -> None:
 
 
 def _inria_rows(g: Gaussians, dtype: np.dtype) -> np.ndarray:
-    """The rows of the INRIA table (`dtype`) for the Gaussians `g`; normals zero, f_rest channel-major."""
+    """The rows of the INRIA table (`dtype`: x y z nx ny nz f_dc_0..2 f_rest_* opacity scale_0..2 rot_0..3, then
+    instance_id) for the Gaussians `g`; normals zero, f_rest channel-major. The float columns are filled as
+    blocks of a [n, columns] float32 view of the table, not one field at a time."""
     n, k = g.count, g.sh.shape[1]
     table = np.zeros(n, dtype=dtype)
-    for c in range(3):
-        table[["x", "y", "z"][c]] = g.means[:, c]
-        table[f"f_dc_{c}"] = g.sh[:, 0, c]
-        table[f"scale_{c}"] = g.log_scales[:, c]
-        for i in range(k - 1):
-            table[f"f_rest_{c * (k - 1) + i}"] = g.sh[:, 1 + i, c]
-    for i in range(4):
-        table[f"rot_{i}"] = g.quats_wxyz[:, i]
-    table["opacity"] = g.opacity_logits
+    cols = table.view(np.float32).reshape(n, -1)
+    rest = 9 + 3 * (k - 1)
+    cols[:, 0:3] = g.means
+    cols[:, 6:9] = g.sh[:, 0, :]
+    cols[:, 9:rest].reshape(n, 3, k - 1)[:] = g.sh[:, 1:, :].transpose(0, 2, 1)
+    cols[:, rest] = g.opacity_logits
+    cols[:, rest + 1:rest + 4] = g.log_scales
+    cols[:, rest + 4:rest + 8] = g.quats_wxyz
     table["instance_id"] = g.instance_id
     return table
 
@@ -204,6 +208,12 @@ def _lerp(lo: np.ndarray, hi: np.ndarray, t: np.ndarray) -> np.ndarray:
         return lo * (1.0 - t) + hi * t
 
 
+def _in_chunks(lo: np.ndarray, hi: np.ndarray, t: np.ndarray, n: int) -> np.ndarray:
+    """The first `n` of the values `t` [chunks * CHUNK_SIZE (, k)] lerped within their chunk's bounds `lo`, `hi`
+    [chunks, 1, 1 or k], as [n, 1 or k]: each chunk's bounds broadcast over its Gaussians, not repeated for each."""
+    return _lerp(lo, hi, t.reshape(len(lo), CHUNK_SIZE, -1)).reshape(len(t), -1)[:n]
+
+
 def _decode_compressed(tables: dict[str, np.ndarray], path: Path) -> Gaussians:
     """Chunks of 256 Gaussians share min/max bounds; each Gaussian packs four uint32 words:
 
@@ -245,16 +255,18 @@ def _decode_compressed(tables: dict[str, np.ndarray], path: Path) -> Gaussians:
 
 def _decode_block(chunk: np.ndarray, vertex: np.ndarray, sh_table: np.ndarray | None, out: Gaussians) -> None:
     """Decode the Gaussians `vertex` (starting at `chunk`'s first) into `out` (views of the arrays to fill)."""
-    n = len(vertex)
-    c = {name: np.repeat(chunk[name].astype(np.float64), CHUNK_SIZE)[:n] for name in chunk.dtype.names}
-    words = {name: vertex[name].astype(np.uint32) for name in _PACKED}
+    n, chunks = len(vertex), len(chunk)
+    c = {name: chunk[name].astype(np.float64)[:, None, None] for name in chunk.dtype.names}  # [chunks, 1, 1]
+    words = {name: np.zeros(chunks * CHUNK_SIZE, np.uint32) for name in _PACKED}  # whole chunks: the last may be short
+    for name, bits in words.items():
+        bits[:n] = vertex[name]
 
     pos, scl = words["packed_position"], words["packed_scale"]
     for j, (a, s, w) in enumerate((("x", 21, 11), ("y", 11, 10), ("z", 0, 11))):
-        out.means[:, j] = _lerp(c[f"min_{a}"], c[f"max_{a}"], _unorm(pos, s, w))
-        out.log_scales[:, j] = _lerp(c[f"min_scale_{a}"], c[f"max_scale_{a}"], _unorm(scl, s, w))
+        out.means[:, j] = _in_chunks(c[f"min_{a}"], c[f"max_{a}"], _unorm(pos, s, w), n)[:, 0]
+        out.log_scales[:, j] = _in_chunks(c[f"min_scale_{a}"], c[f"max_scale_{a}"], _unorm(scl, s, w), n)[:, 0]
 
-    rot = words["packed_rotation"]
+    rot = words["packed_rotation"][:n]
     abc = np.stack([(_unorm(rot, s, 10) - 0.5) * math.sqrt(2.0) for s in (20, 10, 0)], axis=-1)
     largest = (rot >> np.uint32(30)).astype(np.int64)
     m = np.sqrt(np.maximum(0.0, 1.0 - (abc**2).sum(axis=1)))
@@ -267,16 +279,17 @@ def _decode_block(chunk: np.ndarray, vertex: np.ndarray, sh_table: np.ndarray | 
     col = words["packed_color"]
     rgb = np.stack([_unorm(col, s, 8) for s in (24, 16, 8)], axis=-1)
     if all(name in c for name in _CHUNK_COLOUR):
-        lo = np.stack([c["min_r"], c["min_g"], c["min_b"]], axis=-1)
-        hi = np.stack([c["max_r"], c["max_g"], c["max_b"]], axis=-1)
-        rgb = _lerp(lo, hi, rgb)
-    alpha = np.clip(_unorm(col, 0, 8), 1e-6, 1.0 - 1e-6)
+        lo, hi = (np.concatenate([c[f"{e}_{k}"] for k in "rgb"], axis=-1) for e in ("min", "max"))
+        rgb = _in_chunks(lo, hi, rgb, n)
+    rgb = rgb[:n]
+    alpha = np.clip(_unorm(col[:n], 0, 8), 1e-6, 1.0 - 1e-6)
     out.opacity_logits[:] = np.log(alpha / (1.0 - alpha))
     out.sh[:, 0, :] = (rgb - 0.5) / SH_C0
     k = out.sh.shape[1]
-    for i in range(0 if sh_table is None else 3 * (k - 1)):  # channel-major: every red coefficient, then green...
-        q = sh_table[f"f_rest_{i}"]
-        out.sh[:, 1 + i % (k - 1), i // (k - 1)] = _SH_OF_UCHAR[q] if q.dtype == np.uint8 else _sh_value(q)
+    if sh_table is not None:  # channel-major: every red coefficient, then green...; one [n, 3 (k - 1)] array
+        q = structured_to_unstructured(sh_table[[f"f_rest_{i}" for i in range(3 * (k - 1))]])
+        rest = _SH_OF_UCHAR[q] if q.dtype == np.uint8 else _sh_value(q)
+        out.sh[:, 1:, :] = rest.reshape(n, 3, k - 1).transpose(0, 2, 1)
 
 
 def _sh_value(q: np.ndarray) -> np.ndarray:
@@ -285,4 +298,4 @@ def _sh_value(q: np.ndarray) -> np.ndarray:
     return (np.where(q == 0, 0.0, np.where(q == 255, 1.0, (q + 0.5) / 256.0)) - 0.5) * 8.0
 
 
-_SH_OF_UCHAR = _sh_value(np.arange(256))  # the layout's uchar coefficients, looked up
+_SH_OF_UCHAR = _sh_value(np.arange(256)).astype(np.float32)  # the layout's uchar coefficients, looked up
