@@ -38,6 +38,7 @@ from sagebench.render.gaussians import Gaussians
 MAX_VOXELS = 2**25  # voxels of one object's grid at most: its weights, labels and masks take about 0.8 GB
 _CORNER_INSET = 1e-3  # enclosed cells contribute their corners pulled this fraction of a voxel inwards, so that
 # two boxes' hulls never share a point (a shared edge would join them into one part, one hull, for the footprint)
+_POST_SIDES = 16  # sides of a post's prism: its outline is round to 2 % of its radius
 
 
 @dataclass(frozen=True)
@@ -139,7 +140,7 @@ def object_surface(points: np.ndarray, weights: np.ndarray, centre: np.ndarray, 
     owner = np.concatenate([label.reshape(-1)[flat[kept]], np.repeat(label[tuple(enclosed.T)], 8), onto_owner])
     inner = np.concatenate([np.repeat((solid & ~closed)[tuple(enclosed.T)], 8),  # the filled inside's corners,
                             np.ones(len(onto), dtype=bool)])  # not a closed gap's; the points on shared faces
-    sigma = None if cov is None else np.sqrt(np.einsum("dj,njk,dk->nd", axes[:2], cov[kept], axes[:2]))  # [n, 2]
+    across = None if cov is None else np.einsum("dj,njk,ek->nde", axes[:2], cov[kept], axes[:2])  # [n, 2, 2]
     everywhere = (local[kept].min(axis=0), local[kept].max(axis=0))
     parts = []
     for b in range(len(boxes)):
@@ -150,8 +151,8 @@ def object_surface(points: np.ndarray, weights: np.ndarray, centre: np.ndarray, 
         inside_b = inner[mine[npts:]][:, None]
         group = np.concatenate([points_in_box, np.where(inside_b, np.clip(corners_b, *everywhere),
                                                         np.clip(corners_b, lo_b, hi_b))])
-        if sigma is not None and len(points_in_box):
-            group = _as_wide_as_gaussians(group, np.median(sigma[mine[:npts]], axis=0), half)
+        if across is not None and len(points_in_box):
+            group = _as_wide_as_gaussians(group, points_in_box, across[mine[:npts]], half)
         if len(group):
             part = hull_part(group)
             parts.append(trimesh.Trimesh(part.vertices @ axes + centre, part.faces, process=False))
@@ -160,13 +161,19 @@ def object_surface(points: np.ndarray, weights: np.ndarray, centre: np.ndarray, 
     return trimesh.util.concatenate(parts)
 
 
-def _as_wide_as_gaussians(group: np.ndarray, sigma: np.ndarray, half: np.ndarray) -> np.ndarray:
-    """`group` (box frame) with, across each horizontal axis where it spans less than 2 `sigma`, copies of its
-    points at its middle +- sigma (kept within the box's `half` extents). A post, narrower than its widest
-    Gaussians both ways, is made that wide both ways: its splats may all face one way."""
+def _as_wide_as_gaussians(group: np.ndarray, points: np.ndarray, across: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """`group` (box frame) widened where it is narrower than its Gaussians (`points` [n, 3], their horizontal
+    covariances `across` [n, 2, 2] in the box's axes; sigma [2]: their median standard deviation along each
+    horizontal axis), its added points kept within the box's `half` extents.
+
+    A plate, narrower than 2 sigma across one axis, gets copies of its points at its middle +- sigma across it.
+    A post, narrower than 2 sigma.max() both ways, becomes a round post (`_post_ring`): a post's Gaussians lie on
+    its surface, often all on the side the cameras saw, and a square as wide as they are around them (what it
+    was) put half of it in the free space in front of them and reached past a 3 cm pole by a map cell."""
+    sigma = np.median(np.sqrt(np.diagonal(across, axis1=1, axis2=2)), axis=0)
     span = group[:, :2].max(axis=0) - group[:, :2].min(axis=0)
     if (span < 2 * sigma.max()).all():
-        sigma = np.full(2, sigma.max())
+        return np.concatenate([group, _post_ring(group, points, across, float(sigma.max()), half)])
     out = [group]
     for d in range(2):
         lo_d, hi_d = group[:, d].min(), group[:, d].max()
@@ -176,6 +183,26 @@ def _as_wide_as_gaussians(group: np.ndarray, sigma: np.ndarray, half: np.ndarray
                 copy[:, d] = np.clip((lo_d + hi_d) / 2 + side * sigma[d], -half[d], half[d])
                 out.append(copy)
     return np.concatenate(out)
+
+
+def _post_ring(group: np.ndarray, points: np.ndarray, across: np.ndarray, sigma: float,
+               half: np.ndarray) -> np.ndarray:
+    """The corners (box frame) of a vertical 16-sided prism over `group`'s height around the disc whose middle is
+    the point nearest the box's middle within `sigma` of all of `group` along both horizontal axes, and which
+    reaches one standard deviation past each Gaussian's centre (`points`, covariances `across`) along the line
+    from that middle: the Gaussians are on the post's surface, the post behind them towards the object's middle
+    (a lamp's pole is its box's middle; a chair's leg lies inwards of its outer face), as thick as they are."""
+    lo, hi = group[:, :2].min(axis=0), group[:, :2].max(axis=0)
+    middle = np.clip(0.0, hi - sigma, lo + sigma)
+    out = points[:, :2] - middle
+    dist = np.linalg.norm(out, axis=1)
+    u = np.where(dist[:, None] > 0, out / np.maximum(dist, 1e-12)[:, None], [1.0, 0.0])
+    radius = float((dist + np.sqrt(np.einsum("nd,nde,ne->n", u, across, u))).max())
+    turn = np.arange(_POST_SIDES) * 2 * math.pi / _POST_SIDES
+    ring = middle + np.stack([np.cos(turn), np.sin(turn)], axis=1) * radius / math.cos(math.pi / _POST_SIDES)
+    ring = np.clip(ring, -half[:2], half[:2])
+    z = (group[:, 2].min(), group[:, 2].max())
+    return np.array([[x, y, h] for x, y in ring for h in z])
 
 
 def _onto_shared_faces(local: np.ndarray, cells: np.ndarray, solid: np.ndarray, label: np.ndarray, lo: np.ndarray,
