@@ -99,9 +99,10 @@ def object_surface(points: np.ndarray, weights: np.ndarray, centre: np.ndarray, 
     (centre [3], axes [3, 3] rows, the most vertical last, half extents [3]); None when no voxel is occupied.
 
     Points outside the box are pulled onto it first, so the surface never reaches past the annotated box. With
-    `cov` [N, 3, 3], the covariance of each point's Gaussian, a part narrower across than its Gaussians (a pole
-    of splats centred on its axis) is widened, across each horizontal axis of the box, to one standard deviation
-    of its Gaussians (their median) either side of its middle: a pole as thick as its splats, not a sliver.
+    `cov` [N, 3, 3], the covariance of each point's Gaussian, a part narrower across than its Gaussians is widened
+    (`_as_wide_as_gaussians`): a plate to one standard deviation of its Gaussians (their median) either side of
+    its middle, a post (a pole, a chair's leg) to a round post behind its splats in which every Gaussian lies at
+    least its own narrowest standard deviation deep: a pole as thick as its splats, not a sliver.
     """
     pitch = settings.voxel
     local = np.clip((np.asarray(points, dtype=np.float64) - centre) @ axes.T, -half, half)
@@ -187,17 +188,16 @@ def _as_wide_as_gaussians(group: np.ndarray, points: np.ndarray, across: np.ndar
 
 def _post_ring(group: np.ndarray, points: np.ndarray, across: np.ndarray, sigma: float,
                half: np.ndarray) -> np.ndarray:
-    """The corners (box frame) of a vertical 16-sided prism over `group`'s height around the disc whose middle is
-    the point nearest the box's middle within `sigma` of all of `group` along both horizontal axes, and which
-    reaches one standard deviation past each Gaussian's centre (`points`, covariances `across`) along the line
-    from that middle: the Gaussians are on the post's surface, the post behind them towards the object's middle
-    (a lamp's pole is its box's middle; a chair's leg lies inwards of its outer face), as thick as they are."""
+    """The corners (box frame) of a vertical 16-sided prism over `group`'s height around a disc: its middle the
+    point nearest the box's middle within `sigma` of all of `group` along both horizontal axes, its radius the
+    largest distance of a Gaussian's centre (`points`) from there plus that Gaussian's narrowest horizontal
+    standard deviation (from `across`). The Gaussians are on the post's surface, the post behind them towards the
+    object's middle (a lamp's pole is its box's middle; a chair's leg lies inwards of its outer face), and every
+    Gaussian lies at least its own thickness inside it: a flat splat on a 3 cm pole adds 0.23 cm."""
     lo, hi = group[:, :2].min(axis=0), group[:, :2].max(axis=0)
     middle = np.clip(0.0, hi - sigma, lo + sigma)
-    out = points[:, :2] - middle
-    dist = np.linalg.norm(out, axis=1)
-    u = np.where(dist[:, None] > 0, out / np.maximum(dist, 1e-12)[:, None], [1.0, 0.0])
-    radius = float((dist + np.sqrt(np.einsum("nd,nde,ne->n", u, across, u))).max())
+    thickness = np.sqrt(np.maximum(np.linalg.eigvalsh(across)[:, 0], 0.0))  # each Gaussian's narrowest sigma
+    radius = float((np.linalg.norm(points[:, :2] - middle, axis=1) + thickness).max())
     turn = np.arange(_POST_SIDES) * 2 * math.pi / _POST_SIDES
     ring = middle + np.stack([np.cos(turn), np.sin(turn)], axis=1) * radius / math.cos(math.pi / _POST_SIDES)
     ring = np.clip(ring, -half[:2], half[:2])
