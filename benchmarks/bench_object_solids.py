@@ -98,5 +98,6 @@ def _lamps(n: int) -> dict:
                 if tris[part == p][..., 2].min() < 0.6 < tris[part == p][..., 2].max()]
         blocked.append(bool(post) and bool(((np.concatenate(post) @ sides).max(axis=0) >= 0.011).all()))
     return {"objects": n, "median_band_iou": round(float(np.median(ious)), 3),
-            "mean_band_iou": round(float(np.mean(ious)), 3), "band_iou_under_0.8": round(float(np.mean(np.array(ious) < 0.8)), 3),
+            "mean_band_iou": round(float(np.mean(ious)), 3),
+            "band_iou_under_0.8": round(float(np.mean(np.array(ious) < 0.8)), 3),
             "blocked_on_8_sides": round(float(np.mean(blocked)), 3)}

@@ -11,7 +11,7 @@ import shapely
 import trimesh
 
 from sagebench.collider_export.quality import lattice_points
-from sagebench.render.gaussians import Gaussians
+from sagebench.render.gaussians import Gaussians, concat
 from sagebench.scene.assets import COLOURS, floor_lamp, table
 from sagebench.splat_geometry.surface import (
     SurfaceSettings, gaussian_covariances, gaussian_points, object_surface,
@@ -156,12 +156,10 @@ def test_a_pole_seen_from_one_side_is_round_and_as_thick_as_its_splats(face):
     g = g.take(np.flatnonzero(~pole))
     z = np.arange(0.05, 1.28, 1 / 30)
     normal = np.tile([math.cos(face), math.sin(face), 0.0], (len(z), 1))
-    column = Gaussians((0.015 * math.cos(math.pi / 16) * normal + np.c_[0 * z, 0 * z, z]).astype(np.float32),
-                       normal_frames(normal).astype(np.float32), np.tile(np.log([0.023, 0.023, 0.0023]), (len(z), 1)).astype(np.float32),
-                       np.full(len(z), 3.0, np.float32), np.zeros((len(z), 1, 3), np.float32), np.ones(len(z), np.int32))
-    g = Gaussians(*(np.concatenate([a, b]) for a, b in zip(
-        (g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh, g.instance_id),
-        (column.means, column.quats_wxyz, column.log_scales, column.opacity_logits, column.sh, column.instance_id))))
+    f32 = np.float32
+    g = concat([g, Gaussians((0.015 * math.cos(math.pi / 16) * normal + np.c_[0 * z, 0 * z, z]).astype(f32),
+                             normal_frames(normal).astype(f32), np.log([[0.023, 0.023, 0.0023]] * len(z)).astype(f32),
+                             np.full(len(z), 3.0, f32), np.zeros((len(z), 1, 3), f32), np.ones(len(z), np.int32))])
     points, weights, source = gaussian_points(g, 0.04)
     surface = object_surface(points, weights, *_frame(mesh.vertices), SurfaceSettings(band=(0.05, 1.2)),
                              gaussian_covariances(g)[source])

@@ -191,9 +191,9 @@ def _post_ring(group: np.ndarray, points: np.ndarray, across: np.ndarray, sigma:
     """The corners (box frame) of a vertical 16-sided prism over `group`'s height around a disc: its middle the
     point nearest the box's middle, on the way there from the group's middle, within `sigma` of all of `group`,
     its radius the largest distance of a Gaussian's centre (`points`) from there plus that Gaussian's narrowest
-    horizontal standard deviation (from `across`). The Gaussians are on the post's surface, the post behind them towards the
-    object's middle (a lamp's pole is its box's middle; a chair's leg lies inwards of its outer face), and every
-    Gaussian lies at least its own thickness inside it: a flat splat on a 3 cm pole adds 0.23 cm."""
+    horizontal standard deviation (from `across`). The Gaussians are on the post's surface, the post behind them
+    towards the object's middle (a lamp's pole is its box's middle; a chair's leg lies inwards of its outer face),
+    and every Gaussian lies at least its own thickness inside it: a flat splat on a 3 cm pole adds 0.23 cm."""
     middle = _towards_middle((group[:, :2].min(axis=0) + group[:, :2].max(axis=0)) / 2, group[:, :2], sigma)
     thickness = np.sqrt(np.maximum(np.linalg.eigvalsh(across)[:, 0], 0.0))  # each Gaussian's narrowest sigma
     radius = float((np.linalg.norm(points[:, :2] - middle, axis=1) + thickness).max())
