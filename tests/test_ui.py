@@ -135,9 +135,12 @@ def test_a_ctrl_c_while_usd_loads_its_libraries_waits_for_the_import(module, tmp
     import subprocess
     import sys
 
+    from signals import as_from_a_terminal
+
     script = tmp_path / "usd_import.py"
     script.write_text(USD_IMPORT_INTERRUPTED)
-    done = subprocess.run([sys.executable, str(script), module], capture_output=True, text=True, timeout=120)
+    done = subprocess.run([sys.executable, str(script), module], capture_output=True, text=True, timeout=120,
+                          preexec_fn=as_from_a_terminal)
     assert (done.returncode, done.stderr) == (0, "")
     assert done.stdout.splitlines() == [f"interrupted ['{module}']", "True"]
 
