@@ -180,6 +180,25 @@ def tiny_run(tiny_scene, tmp_path_factory) -> Iterator[Path]:
 
 
 @pytest.fixture(scope="session")
+def tiny_goal_tasks_run(tiny_run, tmp_path_factory) -> Iterator[Path]:
+    """tiny_run with 2 episodes each of pointnav, objectnav and imagenav (goal images rendered from their recipes)
+    beside its VLN ones. Read-only: copy it."""
+    import shutil
+
+    def build(folder: Path) -> Path:
+        run = folder / "run"
+        shutil.copytree(tiny_run, run)
+        with pytest.raises(SystemExit) as done:
+            main(["-q", "gen-trajectories", str(run), "--per-scene", "4", "--min-geodesic", "1", "--tasks",
+                  "vln,pointnav,objectnav,imagenav", "--task-episodes", "2"])
+        assert done.value.code in (0, None)
+        return run
+
+    with built_once(tmp_path_factory, "tiny_goal_tasks_run", build) as run:
+        yield run
+
+
+@pytest.fixture(scope="session")
 def made_run(tiny_scene, tmp_path_factory) -> Iterator[Path]:
     """The tiny scene through `sagebench run` (a manifest, several shards). Read-only: copy it."""
     from test_fuzz_safety import TOML

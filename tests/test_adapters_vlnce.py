@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import re
-import shutil
 import threading
 
 import numpy as np
@@ -14,7 +13,6 @@ import pytest
 
 from vlnce_agents import HabitatSimActions
 
-from sagebench.cli import main
 from sagebench.adapters.vlnce import serve, vlnce_action, vlnce_observations
 from sagebench.navsim.actions import Action
 from sagebench.navsim.http_policy import RequestFailed, post
@@ -71,19 +69,7 @@ def test_an_agent_runs_unchanged_in_process_and_over_http_with_identical_results
 
 
 
-@pytest.fixture(scope="module")
-def imagenav_run(tiny_run, tmp_path_factory):
-    """tiny_run with 2 imagenav episodes (goal images rendered). Read-only."""
-    run = tmp_path_factory.mktemp("vlnce_imagenav") / "run"
-    shutil.copytree(tiny_run, run)
-    with pytest.raises(SystemExit) as done:
-        main(["-q", "gen-trajectories", str(run), "--per-scene", "4", "--min-geodesic", "1", "--tasks", "vln,imagenav",
-              "--task-episodes", "2"])
-    assert done.value.code in (0, None)
-    return run
-
-
-def test_an_imagenav_agent_sees_the_same_goal_image_in_process_and_behind_serve(imagenav_run, tmp_path, run_cli,
+def test_an_imagenav_agent_sees_the_same_goal_image_in_process_and_behind_serve(tiny_goal_tasks_run, tmp_path, run_cli,
                                                                               agent_server):
     """habitat's `imagegoal`, [224, 224, 3] uint8, reaches the agent in place of the instruction, byte for byte the
     same in-process and through the policy protocol in each encoding."""
@@ -93,8 +79,9 @@ def test_an_imagenav_agent_sees_the_same_goal_image_in_process_and_behind_serve(
     for how, policy, encoding in [("in-process", "vlnce:vlnce_agents:GoalAgent", "raw"),
                                   *((e, agent_server(vlnce_agents.GoalAgent), e) for e in ("raw", "png", "json"))]:
         vlnce_agents.GoalAgent.seen = []
-        code, stdout, err = run_cli("rollout", "--run", imagenav_run, "--out", tmp_path / "p.jsonl", "--policy", policy,
-                                    "--preset", "vlnce", "--task", "imagenav", "--policy-encoding", encoding)
+        code, stdout, err = run_cli("rollout", "--run", tiny_goal_tasks_run, "--out", tmp_path / "p.jsonl",
+                                    "--policy", policy, "--preset", "vlnce", "--task", "imagenav",
+                                    "--policy-encoding", encoding)
         assert code == 0 and "FAILED" not in stdout, (how, err, stdout)
         seen[how] = sorted(g.tobytes() for g in vlnce_agents.GoalAgent.seen)
         assert {(g.shape, g.dtype) for g in vlnce_agents.GoalAgent.seen} == {((224, 224, 3), np.dtype(np.uint8))}
@@ -357,20 +344,9 @@ def test_a_request_past_the_servers_bounds_is_refused_with_why(agent_server):
     conn.close()
 
 
-@pytest.fixture(scope="module")
-def goal_run(tiny_run, tmp_path_factory):
-    """tiny_run with 2 pointnav and 2 objectnav episodes. Read-only."""
-    run = tmp_path_factory.mktemp("vlnce_goals") / "run"
-    shutil.copytree(tiny_run, run)
-    with pytest.raises(SystemExit) as done:
-        main(["-q", "gen-trajectories", str(run), "--per-scene", "4", "--min-geodesic", "1", "--tasks",
-              "vln,pointnav,objectnav", "--task-episodes", "2"])
-    assert done.value.code in (0, None)
-    return run
-
-
-def test_pointnav_and_objectnav_agents_get_habitats_goal_sensors_in_process_and_behind_serve(goal_run, tmp_path,
-                                                                                           run_cli, agent_server):
+def test_pointnav_and_objectnav_agents_get_habitats_goal_sensors_in_process_and_behind_serve(tiny_goal_tasks_run,
+                                                                                           tmp_path, run_cli,
+                                                                                           agent_server):
     """A VLN-CE agent on pointnav gets habitat's pointgoal_with_gps_compass ([2] float32 [rho, phi], at the start
     the episode's goal_polar), on objectnav habitat's objectgoal ([1] int64, the category's id in the agent's
     category_to_task_category_id), never an instruction; the same in-process and behind serve()."""
@@ -378,7 +354,7 @@ def test_pointnav_and_objectnav_agents_get_habitats_goal_sensors_in_process_and_
     from sagebench.episodes.load import load_episodes
 
     agent = vlnce_agents.SensorAgent
-    episodes = load_episodes(goal_run)
+    episodes = load_episodes(tiny_goal_tasks_run)
     polar = sorted(tuple(e.goal_polar) for e in episodes if e.task == "pointnav")
     ids = sorted((agent.category_to_task_category_id[e.goal_category],) for e in episodes if e.task == "objectnav")
     assert len(polar) == len(ids) == 2
@@ -388,8 +364,9 @@ def test_pointnav_and_objectnav_agents_get_habitats_goal_sensors_in_process_and_
         for task, key, dtype, expect in (("pointnav", "pointgoal_with_gps_compass", np.float32, polar),
                                          ("objectnav", "objectgoal", np.int64, ids)):
             agent.seen = []
-            code, stdout, err = run_cli("rollout", "--run", goal_run, "--out", tmp_path / "p.jsonl", "--policy", policy,
-                                        "--preset", "vlnce", "--task", task, "--policy-encoding", encoding)
+            code, stdout, err = run_cli("rollout", "--run", tiny_goal_tasks_run, "--out", tmp_path / "p.jsonl",
+                                        "--policy", policy, "--preset", "vlnce", "--task", task,
+                                        "--policy-encoding", encoding)
             assert code == 0 and "FAILED" not in stdout, (how, task, err, stdout)
             assert all(set(o) == {key} for o in agent.seen), (how, task, agent.seen)
             assert {(o[key].shape, o[key].dtype) for o in agent.seen} == {((2,) if key != "objectgoal" else (1,),
@@ -400,9 +377,10 @@ def test_pointnav_and_objectnav_agents_get_habitats_goal_sensors_in_process_and_
     assert got["raw", "objectnav"] == got["json", "objectnav"] == got["in-process", "objectnav"]
 
 
-def test_an_objectnav_agent_without_habitats_category_map_fails_its_episodes_saying_why(goal_run, tmp_path, run_cli):
+def test_an_objectnav_agent_without_habitats_category_map_fails_its_episodes_saying_why(tiny_goal_tasks_run, tmp_path,
+                                                                                       run_cli):
     """An agent that knows no category ids cannot be told an ObjectNav goal: each episode fails by the policy, saying
     why (never a made-up id)."""
-    code, stdout, _ = run_cli("rollout", "--run", goal_run, "--out", tmp_path / "p.jsonl", "--policy",
+    code, stdout, _ = run_cli("rollout", "--run", tiny_goal_tasks_run, "--out", tmp_path / "p.jsonl", "--policy",
                               "vlnce:vlnce_agents:MaplessAgent", "--preset", "vlnce", "--task", "objectnav")
     assert code == 1 and stdout.count("category_to_task_category_id, and the agent (or its class) has none") == 2

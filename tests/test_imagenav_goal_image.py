@@ -19,17 +19,11 @@ GREEN = (10, 200, 30)
 
 
 @pytest.fixture(scope="module")
-def imagenav_run(tiny_run, tmp_path_factory) -> Path:
-    """tiny_run with 2 imagenav episodes: the first names goals/first.png (a flat green image), the second keeps its
-    rendered goal. Read-only: copy it."""
-    from sagebench.cli import main
-
+def imagenav_run(tiny_goal_tasks_run, tmp_path_factory) -> Path:
+    """tiny_goal_tasks_run, whose first imagenav episode names goals/first.png (a flat green image); the second keeps
+    its rendered goal. Read-only: copy it."""
     run = tmp_path_factory.mktemp("imagenav") / "run"
-    shutil.copytree(tiny_run, run)
-    with pytest.raises(SystemExit) as done:
-        main(["-q", "gen-trajectories", str(run), "--per-scene", "4", "--min-geodesic", "1", "--tasks", "vln,imagenav",
-              "--task-episodes", "2"])
-    assert done.value.code in (0, None)
+    shutil.copytree(tiny_goal_tasks_run, run)
     (shard,) = (run / "episodes" / "tiny").glob("part-*.parquet")  # the tiny run has one split
     table = pq.read_table(shard)
     first = table.column("task").to_pylist().index("imagenav")
