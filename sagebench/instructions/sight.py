@@ -56,6 +56,7 @@ class SightMap:
         return np.concatenate([self.clear_all(np.repeat(c, m, axis=0), np.tile(targets, (len(c), 1))).reshape(-1, m)
                                .mean(axis=1) for c in np.array_split(p, -(-len(p) // SEEN_BATCH))])
 
+
 def footprint_points(polygons: Sequence[shapely.Geometry], resolution: float,
                      origin: tuple[float, float]) -> np.ndarray:
     """[M, 2] points standing for a footprint (world metres), M <= FOOTPRINT_POINTS: the centres of the map cells
