@@ -16,7 +16,7 @@ from sagebench.render.backends import CpuRenderer, GsplatRenderer, choose_backen
 from sagebench.render.camera import agent_camera, agent_cameras
 from sagebench.render.chunks import pack
 from sagebench.render.observations import masked_depth, observation_arrays, to_uint8
-from sagebench.render.splat_render import render, render_packed
+from sagebench.render.splat_render import MAX_SIDE, render, render_packed
 from tests import gsplat_numpy
 from tests.test_render_gsplat_convention import _gaussians
 
@@ -101,6 +101,29 @@ def test_the_cpu_backends_observations_are_its_frames_converted_byte_for_byte():
         assert got["depth"][k].tobytes() == f.depth.astype(np.float32).tobytes()  # the CPU's depth is already 0
         assert got["instance"][k].tobytes() == f.instance.astype(np.int32).tobytes()  # where nothing was drawn
     assert list(CpuRenderer(g).observe(cams[:1], ("depth",))) == ["depth"]
+
+
+def test_observations_without_instance_ids_skip_drawing_them_and_are_the_same_bytes(monkeypatch):
+    """The env's RGB + depth: no ids drawn (the frames' instance is None), every other image byte-identical."""
+    g = pack(_gaussians(60, 1, seed=4))
+    cams = [agent_camera(0.0, 0.0, yaw, width=40, height=30) for yaw in (0.0, 0.4)]
+    asked = []
+    render_as_is = CpuRenderer.render
+    monkeypatch.setattr(CpuRenderer, "render", lambda self, cams, ids=True: asked.append(ids) or render_as_is(
+        self, cams, ids))
+    full = CpuRenderer(g).observe(cams, ("rgb", "depth", "alpha", "instance"))
+    lean = CpuRenderer(g).observe(cams, ("rgb", "depth", "alpha"))
+    assert asked == [True, False]
+    assert (full["instance"] > 0).any()  # the scene has ids to draw
+    assert all(lean[k].tobytes() == full[k].tobytes() for k in ("rgb", "depth", "alpha"))
+    assert {f.instance is None for f in render_as_is(CpuRenderer(g), cams, ids=False)} == {True}
+
+
+def test_a_view_wider_than_the_renderer_draws_is_one_clear_error():
+    cam = agent_camera(0.0, 0.0, 0.0, width=MAX_SIDE + 1, height=4)
+    with pytest.raises(ValueError, match=f"a {MAX_SIDE + 1}x4 view: the renderer draws at most {MAX_SIDE} pixels a "
+                                         "side"):
+        render(_gaussians(3, 1, seed=1), cam)
 
 
 @pytest.mark.parametrize(("cams", "keys", "message"), [

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from sagebench.render.camera import agent_camera
 from sagebench.render.chunks import pack, visible_chunks, visible_index
@@ -18,6 +19,7 @@ from sagebench.render.splat_render import (
     _concurrent_launches,
     _depth_order,
     _project,
+    _project_fast,
     render,
     render_packed,
 )
@@ -57,7 +59,8 @@ def test_pack_keeps_every_gaussian_and_makes_chunks_contiguous():
     assert (key(g) == key(p.gaussians)).all()
 
 
-def test_culled_chunks_hold_no_gaussian_the_renderer_draws():
+@pytest.mark.parametrize("project", [_project, _project_fast], ids=["reference", "float32"])
+def test_culled_chunks_hold_no_gaussian_the_renderer_draws(project):
     p = pack(_room(6000, seed=1), cell=1.0)
     g = p.gaussians
     culled_any = 0
@@ -65,9 +68,9 @@ def test_culled_chunks_hold_no_gaussian_the_renderer_draws():
         keep = visible_chunks(p, cam)
         culled_any += int((~keep).sum())
         rows = np.arange(g.count)
-        rect = _project(rows, g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh,
+        rect = project(rows, g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh,
                         np.ascontiguousarray(cam.world_to_camera), float(cam.fx), float(cam.fy), float(cam.cx),
-                        float(cam.cy), cam.width, cam.height, np.empty((g.count, RECORD)))
+                        float(cam.cy), cam.width, cam.height, np.empty((g.count, RECORD), np.float32 if project is _project_fast else np.float64))
         drawn_chunk = np.searchsorted(p.starts, np.flatnonzero(rect[:, 0] >= 0), side="right") - 1
         assert keep[drawn_chunk].all()
     assert culled_any > 0.2 * p.chunks * len(_cams())  # the cull does cut (measured: 28 % of chunk-views)

@@ -58,16 +58,18 @@ class CpuRenderer:
         """`real`: the frames' precision, float32, or float64 for the reference frames (splat_render.REFERENCE)."""
         self.gaussians, self.background, self.real = gaussians, background, real
 
-    def render(self, cams: Sequence[Camera]) -> list[Frame]:
+    def render(self, cams: Sequence[Camera], ids: bool = True) -> list[Frame]:
+        """Without `ids`, the frames' instance is None and the ids are not drawn (an observation without them)."""
         from sagebench.render.splat_render import render, render_packed
 
         if isinstance(self.gaussians, PackedGaussians):
-            return render_packed(self.gaussians, cams, background=self.background, real=self.real)
-        return [render(self.gaussians, cam, background=self.background, real=self.real) for cam in cams]
+            return render_packed(self.gaussians, cams, background=self.background, real=self.real, ids=ids)
+        return [render(self.gaussians, cam, background=self.background, real=self.real, ids=ids) for cam in cams]
 
     def observe(self, cams: Sequence[Camera], keys: Collection[str]) -> dict[str, np.ndarray]:
-        frames = self.render(_checked(cams, keys, self))
-        return observation_arrays({f: np.stack([getattr(fr, f) for fr in frames]) for f in fields_for(keys)}, keys)
+        fields = fields_for(keys)
+        frames = self.render(_checked(cams, keys, self), ids="instance" in fields)
+        return observation_arrays({f: np.stack([getattr(fr, f) for fr in frames]) for f in fields}, keys)
 
 
 class GsplatRenderer:

@@ -5,8 +5,9 @@ loop, one global stable depth sort (so every tile's list is in depth order), a c
 (tile, Gaussian) pairs (both sorts count and place slices of their input in parallel), then each tile
 composites its list front to back, stopping once every pixel's transmittance is spent. A Gaussian adds
 nothing outside its reach ellipse (3 sigma, less for faint ones: `_reach2`), so it is binned to the tiles of
-that ellipse's bounding box and, within a tile, visits only the pixels on the ellipse's chords of the rows
-still taking colour. Several cameras render side by side, one per thread.
+that ellipse's bounding box and, within a tile, visits only the pixels of that box in the rows that cross the
+ellipse and still take colour. Several cameras render side by side, one per thread. Each kernel is written
+once and compiled twice: exactly, for the float64 reference, and with FAST_MATH, for the float32 frames.
 """
 
 from __future__ import annotations
@@ -37,7 +38,10 @@ from sagebench.render.splat_reference import (
 )
 
 TILE = 16
+MAX_SIDE = np.iinfo(np.int16).max * TILE  # px: the tile rectangles are int16
 SLACK = 1e-6  # relative widening of each Gaussian's reach, so rounding never drops a pixel the per-pixel test keeps
+FAST_MATH = {"contract", "arcp"}  # how the float32 frames' kernels compile: a * b + c fused into one rounding
+# (a fused multiply-add on CPUs that have one) and x / y as x * (1 / y) (docs/rendering.md)
 REFERENCE = np.float64  # the precision of the reference frames (and of build-scene's pruning): bit for bit the
 # float64 renderer of before float32 frames (docs/rendering.md)
 # columns of the projected record [n, RECORD] of each Gaussian, in the frame's precision
@@ -109,15 +113,15 @@ def _sh_colour(sh: np.ndarray, i: int, c: int, k: int, x: float, y: float, z: fl
     return max(v + 0.5, 0.0)
 
 
-@numba.njit(parallel=True, nogil=True, cache=True)
-def _project(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, width, height,
-             rec):  # pragma: no cover - jit
+@numba.njit(inline="always")
+def _projection(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, width, height,
+                rec):  # pragma: no cover - jit
     """Per Gaussian of `index` [n], computed in float64 and stored in rec [n, RECORD] (rows follow `index`):
     image centre, conic, depth, opacity, reach and colour; returns the tile rectangles, rect[r, 0] = -1 if
-    culled."""
+    culled. Inlined into `_project` and `_project_fast`, which differ only in how numba compiles it."""
     n = index.shape[0]
     k = sh.shape[1]
-    rect = np.full((n, 4), -1, np.int32)
+    rect = np.full((n, 4), -1, np.int16)  # 8 bytes a row: the binning's random reads stay in L2
     limx, limy = FOV_CLAMP * width / (2 * fx), FOV_CLAMP * height / (2 * fy)
     r00, r01, r02, t0 = w2c[0, 0], w2c[0, 1], w2c[0, 2], w2c[0, 3]
     r10, r11, r12, t1 = w2c[1, 0], w2c[1, 1], w2c[1, 2], w2c[1, 3]
@@ -190,6 +194,20 @@ def _project(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, w
     return rect
 
 
+@numba.njit(parallel=True, nogil=True, cache=True)
+def _project(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, width, height,
+             rec):  # pragma: no cover - jit
+    """`_projection` compiled exactly: each operation rounded on its own (the float64 reference)."""
+    return _projection(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, width, height, rec)
+
+
+@numba.njit(parallel=True, nogil=True, cache=True, fastmath=FAST_MATH, error_model="numpy")
+def _project_fast(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, width, height,
+                  rec):  # pragma: no cover - jit
+    """`_projection` compiled with FAST_MATH (float32 frames)."""
+    return _projection(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy, width, height, rec)
+
+
 @numba.njit(cache=True)
 def _parts(n, threads):  # pragma: no cover - jit
     """[P + 1] bounds of P near-equal slices of range(n), one per thread (one slice below 8192 items)."""
@@ -251,7 +269,7 @@ def _bin(order, rect, gx, n_tiles, threads):  # pragma: no cover - jit
     offsets = np.empty(n_tiles + 1, np.int64)
     offsets[n_tiles] = _starts(count)
     offsets[:n_tiles] = count[0]
-    pairs = np.empty(offsets[n_tiles], np.int64)
+    pairs = np.empty(offsets[n_tiles], np.int32)  # rows of the frame's index (fewer than 2^31)
     for p in numba.prange(len(bounds) - 1):
         for r in range(bounds[p], bounds[p + 1]):
             g = order[r]
@@ -263,16 +281,19 @@ def _bin(order, rect, gx, n_tiles, threads):  # pragma: no cover - jit
     return offsets, pairs
 
 
-@numba.njit(parallel=True, nogil=True, cache=True)
-def _rasterise(offsets, pairs, rec, inst, width, height, bg,
+@numba.njit(inline="always")
+def _composite(offsets, pairs, rec, inst, width, height, bg,
                out_rgb, out_depth, out_alpha, out_inst, pair_weight):  # pragma: no cover - jit
     """Composite each tile's pairs front to back in the precision of `rec` (float32 frames, float64 reference):
-    tile buffers, alpha and blending in that precision; each row's chord of a reach ellipse in float64."""
+    tile buffers, alpha and blending in that precision; each reach ellipse's box and rows in float64. The
+    instance ids are drawn when out_inst has pixels, each pair's summed weight kept when pair_weight has room.
+    Inlined into `_rasterise` and `_rasterise_fast`, which differ only in how numba compiles it."""
     real = rec.dtype.type
     zero, one, half, cut = real(0.0), real(1.0), real(0.5), real(CUTOFF)
     max_alpha, min_alpha, min_trans = real(MAX_ALPHA), real(MIN_ALPHA), real(MIN_TRANSMITTANCE)
     gx = (width + TILE - 1) // TILE
     n_tiles = offsets.shape[0] - 1
+    ids, weights = out_inst.size > 0, pair_weight.size > 0
     for t in numba.prange(n_tiles):
         tx0, ty0 = (t % gx) * TILE, (t // gx) * TILE
         tw, th = min(TILE, width - tx0), min(TILE, height - ty0)
@@ -287,27 +308,27 @@ def _rasterise(offsets, pairs, rec, inst, width, height, bg,
             g = pairs[k]
             u, v = rec[g, U], rec[g, V]
             ca, cb, cc = rec[g, CA], rec[g, CB], rec[g, CC]
-            o = rec[g, OPAC]
-            # only the pixels whose centres lie inside the reach ellipse: rows within its height, and in each
-            # row the chord  ca dx^2 + 2 cb dx dy + cc dy^2 <= r2  (dx = u - x, dy = v - y)
+            o, depth = rec[g, OPAC], rec[g, DEPTH]
+            red, green, blue = rec[g, RED], rec[g, RED + 1], rec[g, RED + 2]
+            # only the pixels of the reach ellipse's bounding box  ca dx^2 + 2 cb dx dy + cc dy^2 <= r2  (dx = u - x,
+            # dy = v - y), in the rows that cross the ellipse: the per-pixel tests below drop the box's corners,
+            # at less cost than each row's chord (a square root and a division per row; most boxes are 2-5 px)
             fu, fv, fa, fb, fc, r2 = float(u), float(v), float(ca), float(cb), float(cc), float(rec[g, REACH2])
             det = fa * fc - fb * fb
-            hy = math.sqrt(r2 * fa / det)
+            hy, hx = math.sqrt(r2 * fa / det), math.sqrt(r2 * fc / det)
             i0, i1 = _pixels(fv - hy - ty0, fv + hy - ty0, th)
+            j0, j1 = _pixels(fu - hx - tx0, fu + hx - tx0, tw)
             wsum = 0.0
             for i in range(i0, i1 + 1):
-                if live[i] == 0:
+                row = live[i]
+                if row == 0:
                     continue
                 fdy = fv - (ty0 + i + 0.5)
-                disc = fa * r2 - det * fdy * fdy
-                if disc < 0.0:
+                if fa * r2 < det * fdy * fdy:
                     continue
-                hx = math.sqrt(disc) / fa
-                mid = fu + fb * fdy / fa
-                j0, j1 = _pixels(mid - hx - tx0, mid + hx - tx0, tw)
                 dy = v - (real(ty0 + i) + half)
                 for j in range(j0, j1 + 1):
-                    if not (live[i] >> j) & 1:
+                    if not (row >> j) & 1:
                         continue
                     dx = u - (real(tx0 + j) + half)
                     power = -half * (ca * dx * dx + cc * dy * dy) - cb * dx * dy
@@ -316,22 +337,25 @@ def _rasterise(offsets, pairs, rec, inst, width, height, bg,
                     alpha = min(max_alpha, o * _exp(power))
                     if alpha < min_alpha:
                         continue
-                    t_next = trans[i, j] * (one - alpha)
+                    tr = trans[i, j]
+                    t_next = tr * (one - alpha)
                     if t_next < min_trans:
-                        live[i] &= ~(1 << j)
+                        row &= ~(1 << j)
                         active -= 1
                         continue
-                    w = alpha * trans[i, j]
-                    acc[i, j, 0] += w * rec[g, RED]
-                    acc[i, j, 1] += w * rec[g, RED + 1]
-                    acc[i, j, 2] += w * rec[g, RED + 2]
-                    dacc[i, j] += w * rec[g, DEPTH]
-                    if w > best[i, j]:
+                    w = alpha * tr
+                    acc[i, j, 0] += w * red
+                    acc[i, j, 1] += w * green
+                    acc[i, j, 2] += w * blue
+                    dacc[i, j] += w * depth
+                    if ids and w > best[i, j]:
                         best[i, j] = w
                         bid[i, j] = inst[g]
                     trans[i, j] = t_next
-                    wsum += w
-            if pair_weight.size:  # contributions only
+                    if weights:
+                        wsum += w
+                live[i] = row
+            if weights:
                 pair_weight[k] = wsum
             if active == 0:
                 break
@@ -342,16 +366,36 @@ def _rasterise(offsets, pairs, rec, inst, width, height, bg,
                     out_rgb[ty0 + i, tx0 + j, c] = acc[i, j, c] + tr * bg[c]
                 out_alpha[ty0 + i, tx0 + j] = one - tr
                 out_depth[ty0 + i, tx0 + j] = dacc[i, j] / (one - tr) if tr < one else zero
-                out_inst[ty0 + i, tx0 + j] = bid[i, j]
+                if ids:
+                    out_inst[ty0 + i, tx0 + j] = bid[i, j]
+
+
+@numba.njit(parallel=True, nogil=True, cache=True)
+def _rasterise(offsets, pairs, rec, inst, width, height, bg,
+               out_rgb, out_depth, out_alpha, out_inst, pair_weight):  # pragma: no cover - jit
+    """`_composite` compiled exactly: each operation rounded on its own (the float64 reference)."""
+    _composite(offsets, pairs, rec, inst, width, height, bg, out_rgb, out_depth, out_alpha, out_inst, pair_weight)
+
+
+@numba.njit(parallel=True, nogil=True, cache=True, fastmath=FAST_MATH, error_model="numpy")
+def _rasterise_fast(offsets, pairs, rec, inst, width, height, bg,
+                    out_rgb, out_depth, out_alpha, out_inst, pair_weight):  # pragma: no cover - jit
+    """`_composite` compiled with FAST_MATH (float32 frames)."""
+    _composite(offsets, pairs, rec, inst, width, height, bg, out_rgb, out_depth, out_alpha, out_inst, pair_weight)
 
 
 def _run(g: Gaussians, cam: Camera, background: tuple[float, float, float], index: np.ndarray | None = None,
-         real: type = np.float32, weights: bool = False) -> tuple[Frame, np.ndarray | None, np.ndarray | None]:
-    """Render the Gaussians at `index` [M] (all when None) in precision `real`; with `weights`, also each
-    (tile, Gaussian) pair's Gaussian (a row of g) and its blending weight summed over the tile."""
+         real: type = np.float32, weights: bool = False, ids: bool = True
+         ) -> tuple[Frame, np.ndarray | None, np.ndarray | None]:
+    """Render the Gaussians at `index` [M] (all when None) in precision `real` (float32 with the FAST_MATH
+    kernels); with `weights`, also each (tile, Gaussian) pair's Gaussian (a row of g) and its blending weight
+    summed over the tile; without `ids`, the frame's instance is None (and costs nothing)."""
+    if max(cam.width, cam.height) > MAX_SIDE:
+        raise ValueError(f"a {cam.width}x{cam.height} view: the renderer draws at most {MAX_SIDE} pixels a side")
     index = np.arange(g.count, dtype=np.int64) if index is None else np.asarray(index, dtype=np.int64)
+    project, rasterise = (_project_fast, _rasterise_fast) if real == np.float32 else (_project, _rasterise)
     rec = np.empty((len(index), RECORD), real)
-    rect = _project(index, g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh,
+    rect = project(index, g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh,
                     np.ascontiguousarray(cam.world_to_camera, np.float64),
                     float(cam.fx), float(cam.fy), float(cam.cx), float(cam.cy), cam.width, cam.height, rec)
     visible = np.flatnonzero(rect[:, 0] >= 0)
@@ -364,28 +408,30 @@ def _run(g: Gaussians, cam: Camera, background: tuple[float, float, float], inde
     out_rgb = np.empty((h, w, 3), np.float32)
     out_depth = np.empty((h, w), np.float32)
     out_alpha = np.empty((h, w), np.float32)
-    out_inst = np.empty((h, w), np.int32)
+    out_inst = np.empty((h, w) if ids else (0, 0), np.int32)
     pair_weight = np.zeros(len(pairs) if weights else 0)
-    _rasterise(offsets, pairs, rec, g.instance_id[index], w, h, np.asarray(background, real),
+    inst = g.instance_id[index] if ids else np.zeros(0, np.int32)
+    rasterise(offsets, pairs, rec, inst, w, h, np.asarray(background, real),
                out_rgb, out_depth, out_alpha, out_inst, pair_weight)
-    frame = Frame(rgb=out_rgb, depth=out_depth, alpha=out_alpha, instance=out_inst)
+    frame = Frame(rgb=out_rgb, depth=out_depth, alpha=out_alpha, instance=out_inst if ids else None)
     return (frame, index[pairs], pair_weight) if weights else (frame, None, None)
 
 
 def render(g: Gaussians, cam: Camera, *, background: tuple[float, float, float] = (0.0, 0.0, 0.0),
-           real: type = np.float32) -> Frame:
-    """Render `g` through `cam`: RGB, expected depth, alpha and the instance-id image; `real=REFERENCE` gives
-    the float64 reference frame."""
-    return _run(g, cam, background, real=real)[0]
+           real: type = np.float32, ids: bool = True) -> Frame:
+    """Render `g` through `cam`: RGB, expected depth, alpha and (with `ids`) the instance-id image;
+    `real=REFERENCE` gives the float64 reference frame."""
+    return _run(g, cam, background, real=real, ids=ids)[0]
 
 
 def render_packed(packed: PackedGaussians, cams: Sequence[Camera], *,
-                  background: tuple[float, float, float] = (0.0, 0.0, 0.0), real: type = np.float32) -> list[Frame]:
+                  background: tuple[float, float, float] = (0.0, 0.0, 0.0), real: type = np.float32,
+                  ids: bool = True) -> list[Frame]:
     """One frame per camera of packed Gaussians, projecting only the chunks each camera may see; every frame
     equals `render(packed.gaussians, cam)` (chunks.py). Several cameras render concurrently, each frame on one
     thread: no barrier between a frame's passes and no core idling on a frame's serial sort and binning."""
     def one(cam: Camera) -> Frame:
-        return _run(packed.gaussians, cam, background, visible_index(packed, cam), real)[0]
+        return _run(packed.gaussians, cam, background, visible_index(packed, cam), real, ids=ids)[0]
 
     threads = min(len(cams), numba.get_num_threads())
     if threads < 2 or not _concurrent_launches():
