@@ -45,8 +45,8 @@ FAST_MATH = {"contract", "arcp"}  # how the float32 frames' kernels compile: a *
 REFERENCE = np.float64  # the precision of the reference frames (and of build-scene's pruning): bit for bit the
 # float64 renderer of before float32 frames (docs/rendering.md)
 # columns of the projected record [n, RECORD] of each Gaussian, in the frame's precision
-U, V, CA, CB, CC, DEPTH, OPAC, REACH2, RED = range(9)
-RECORD = 12  # RED, RED + 1, RED + 2: colour; padded to 48 bytes in float32
+U, V, CA, CB, CC, DEPTH, OPAC, HX, HY, RED = range(10)  # HX, HY: half the reach ellipse's width and height, px
+RECORD = 12  # RED, RED + 1, RED + 2: colour; 48 bytes in float32
 _FULL_REACH = math.exp(CUTOFF) * (1.0 + 1e-12)  # above it, log() >= CUTOFF whatever the rounding
 EXP_STEPS = 64  # table points per unit of the float32 exp
 _EXP_TABLE = np.exp(-np.arange(int(CUTOFF * EXP_STEPS) + 2) / EXP_STEPS).astype(np.float32)
@@ -178,8 +178,9 @@ def _projection(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy
         if det <= 0.0:
             continue
         r2 = _reach2(o)
-        x0, x1 = _tiles(u - math.sqrt(r2 * ca), u + math.sqrt(r2 * ca), width)
-        y0, y1 = _tiles(v - math.sqrt(r2 * cc), v + math.sqrt(r2 * cc), height)
+        hx, hy = math.sqrt(r2 * ca), math.sqrt(r2 * cc)
+        x0, x1 = _tiles(u - hx, u + hx, width)
+        y0, y1 = _tiles(v - hy, v + hy, height)
         if x1 <= x0 or y1 <= y0:
             continue
         dx, dy, dz = mx - ox, my - oy, mz - oz
@@ -189,7 +190,7 @@ def _projection(index, means, quats, log_scales, logits, sh, w2c, fx, fy, cx, cy
             rec[r, RED + c] = _sh_colour(sh, i, c, k, dx, dy, dz)
         rec[r, U], rec[r, V] = u, v
         rec[r, CA], rec[r, CB], rec[r, CC] = cc / det, -cb / det, ca / det
-        rec[r, DEPTH], rec[r, OPAC], rec[r, REACH2] = pz, o, r2
+        rec[r, DEPTH], rec[r, OPAC], rec[r, HX], rec[r, HY] = pz, o, hx, hy
         rect[r, 0], rect[r, 1], rect[r, 2], rect[r, 3] = x0, x1, y0, y1
     return rect
 
@@ -310,21 +311,16 @@ def _composite(offsets, pairs, rec, inst, width, height, bg,
             ca, cb, cc = rec[g, CA], rec[g, CB], rec[g, CC]
             o, depth = rec[g, OPAC], rec[g, DEPTH]
             red, green, blue = rec[g, RED], rec[g, RED + 1], rec[g, RED + 2]
-            # only the pixels of the reach ellipse's bounding box  ca dx^2 + 2 cb dx dy + cc dy^2 <= r2  (dx = u - x,
-            # dy = v - y), in the rows that cross the ellipse: the per-pixel tests below drop the box's corners,
-            # at less cost than each row's chord (a square root and a division per row; most boxes are 2-5 px)
-            fu, fv, fa, fb, fc, r2 = float(u), float(v), float(ca), float(cb), float(cc), float(rec[g, REACH2])
-            det = fa * fc - fb * fb
-            hy, hx = math.sqrt(r2 * fa / det), math.sqrt(r2 * fc / det)
+            # only the pixels of the reach ellipse's bounding box (its half width and height: projected in float64,
+            # widened by _pixels): the per-pixel tests below drop the box's corners, at less cost than each row's
+            # chord (a square root and a division per row; most boxes are 2-5 px a side)
+            fu, fv, hx, hy = float(u), float(v), float(rec[g, HX]), float(rec[g, HY])
             i0, i1 = _pixels(fv - hy - ty0, fv + hy - ty0, th)
             j0, j1 = _pixels(fu - hx - tx0, fu + hx - tx0, tw)
             wsum = 0.0
             for i in range(i0, i1 + 1):
                 row = live[i]
                 if row == 0:
-                    continue
-                fdy = fv - (ty0 + i + 0.5)
-                if fa * r2 < det * fdy * fdy:
                     continue
                 dy = v - (real(ty0 + i) + half)
                 for j in range(j0, j1 + 1):
