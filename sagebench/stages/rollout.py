@@ -17,6 +17,7 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import cv2
 
@@ -45,6 +46,7 @@ from sagebench.threads import share_cores
 
 
 AGENT_SPEC = re.compile(r"vlnce:(?P<module>[\w.]+):(?P<name>\w+)")  # a VLN-CE agent (class or object) to import
+PolicyKind = Literal["built-in", "sage", "vlnce", "http"]
 
 # options that decide the predictions: a resumed rollout takes them from its record
 DECISIVE_OPTIONS = ("--split", "--episode-id", "--episodes", "--seed", "--preset", "--profile", "--width", "--height",
@@ -59,7 +61,7 @@ def make_config(given: Mapping[str, object], *, resume: bool = False) -> Rollout
     if resume:
         _refuse_on_resume(given, given.get("--policy"))
     given = parsed(RolloutConfig, given)
-    if str(given.get("--policy") or "").startswith(SAGE_SCHEMES) and given.get("--preset") is None:
+    if policy_kind(str(given.get("--policy") or "")) == "sage" and given.get("--preset") is None:
         # SAGE's models see SAGE's images and move freely, unless told otherwise (then refused below)
         given = {**given, "--profile": given.get("--profile") or "sage",
                  "--action-space": given.get("--action-space") or "continuous"}
@@ -75,23 +77,34 @@ def make_config(given: Mapping[str, object], *, resume: bool = False) -> Rollout
     except ProfileError as err:
         raise ConfigError(str(err), field=PROFILE_FIELDS[err.field]) from None
     config = from_options(RolloutConfig, given, {"env": base})
-    p = config.policy
-    if p.startswith(SAGE_SCHEMES):
-        _check_sage(config)
-    elif p not in BUILT_IN and not p.startswith(("http://", "https://")) and not AGENT_SPEC.fullmatch(p):
+    p, kind = config.policy, policy_kind(config.policy)
+    if kind is None:
         raise ConfigError(f"{p!r} is neither an http(s):// URL, sage+http:// or sage+socket:// URL, "
                           f"vlnce:MODULE:NAME nor one of {', '.join(BUILT_IN)}", field="--policy")
-    if p in BUILT_IN and config.env.action_space != "discrete":
+    if kind == "sage":
+        _check_sage(config)
+    if kind == "built-in" and config.env.action_space != "discrete":
         raise ConfigError(f"the built-in policy {p} acts in the discrete action space", field="--action-space")
-    if AGENT_SPEC.fullmatch(p) and (config.env.profile, config.env.action_space) != ("vlnce", "discrete"):
+    if kind == "vlnce" and (config.env.profile, config.env.action_space) != ("vlnce", "discrete"):
         raise ConfigError("a VLN-CE agent needs the vlnce profile and discrete actions (--preset vlnce)",
                           field="--profile")
     if config.env.vocab is not None and not env_sensors(config.env).tokens:
         raise ConfigError(f"the {config.env.profile} profile has no instruction_tokens (vlnce and full have)",
                           field="--vocab")
-    if p in BUILT_IN and "pose" not in config.env.privileged:  # the baselines steer by the pose: say so
+    if kind == "built-in" and "pose" not in config.env.privileged:  # the baselines steer by the pose: say so
         config = from_options(RolloutConfig, {**given, "--privileged": (*config.env.privileged, "pose")}, {"env": base})
     return config
+
+
+def policy_kind(policy: str) -> PolicyKind | None:
+    """Which client runs `policy` (None: none can): the one place a --policy string is classified."""
+    if policy in BUILT_IN:
+        return "built-in"
+    if policy.startswith(SAGE_SCHEMES):
+        return "sage"
+    if AGENT_SPEC.fullmatch(policy):
+        return "vlnce"
+    return "http" if policy.startswith(("http://", "https://")) else None
 
 
 def _check_sage(config: RolloutConfig) -> None:
@@ -116,7 +129,7 @@ def _refuse_on_resume(given: Mapping[str, object], policy: object) -> None:
     if clash:
         raise ConfigError("not with --resume: a resumed rollout keeps the settings it was started with",
                           field=clash[0])
-    if policy in BUILT_IN:
+    if policy_kind(str(policy)) == "built-in":
         raise ConfigError("with --resume, only a policy server's new URL", field="--policy")
 
 
@@ -251,13 +264,14 @@ def open_inputs(sim: Simulator, asked: list[str], out: Path) -> None:
 def make_policy(config: RolloutConfig, maps: Callable[[str], NavigableMap] | None = None) -> Policy:
     """The built-in policy the config names (the explorer reads the scenes' maps from `maps`), a VLN-CE agent
     in-process, a SAGE model server's client, or a client of its policy server."""
-    if config.policy in BUILT_IN:
+    kind = policy_kind(config.policy)
+    if kind == "built-in":
         return built_in(config.policy, seed=config.seed, actions=config.env.actions, maps=maps)
-    if config.policy.startswith(SAGE_SCHEMES):
+    if kind == "sage":
         return SagePolicy(config.policy, actions=config.env.actions, replay=config.env.replay,
                           timeout=config.policy_timeout, retries=config.policy_retries)
-    spec = AGENT_SPEC.fullmatch(config.policy)
-    if spec:
+    if kind == "vlnce":
+        spec = AGENT_SPEC.fullmatch(config.policy)
         try:
             agent = getattr(importlib.import_module(spec["module"]), spec["name"])
             return VlnceAgents(agent)
@@ -273,7 +287,7 @@ def resumed(config: RolloutConfig, earlier: RolloutRecord | None, out: Path) -> 
     if earlier is None:
         raise ConfigError(f"nothing to resume: no {record_path(out).name} beside {out}", field="--resume")
     policy = earlier.policy
-    if config.policy not in BUILT_IN:  # a server's new URL (a built-in given with --resume was refused)
+    if policy_kind(config.policy) != "built-in":  # a server's new URL (a built-in given with --resume was refused)
         was, now = client(policy), client(config.policy)
         if was != now:
             raise ConfigError(f"the rollout being resumed ran {was}, not {now}", field="--policy")
@@ -284,18 +298,19 @@ def resumed(config: RolloutConfig, earlier: RolloutRecord | None, out: Path) -> 
 def client(policy: str) -> str:
     """How rollout talks to `policy`, which decides its predictions: a resumed rollout may move to a new URL only
     with the same client (SAGE's endpoint included)."""
-    if policy.startswith(SAGE_SCHEMES):
+    kind = policy_kind(policy)
+    if kind == "sage":
         server = sage_server(policy)
         return f"SAGE's {server.transport} client" + (f" on {server.endpoint}" if server.endpoint else "")
-    if policy.startswith(("http://", "https://")):
+    if kind == "http":
         return "a policy server over sagebench's HTTP protocol"
-    return f"the VLN-CE agent {policy}" if AGENT_SPEC.fullmatch(policy) else f"the built-in policy {policy}"
+    return f"the VLN-CE agent {policy}" if kind == "vlnce" else f"the built-in policy {policy}"
 
 
 def observed(sensors: Sensors, policy: str) -> Observed:
     """The record's `observations`: the profile's, plus what a built-in baseline reads of the episode itself."""
     seen = sensors.describe()
-    if policy in BUILT_IN:
+    if policy_kind(policy) == "built-in":
         seen["privileged"] = [*seen["privileged"], "episode"]
         seen["keys"]["episode"] = "the goal and the reference path (a built-in baseline)"
     return Observed.model_validate(seen)
