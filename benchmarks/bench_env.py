@@ -110,8 +110,8 @@ def _precision_rows(run: Path, config: EnvConfig, episodes: list[str]) -> list[d
     target = "target: 1.4x cheaper than when issue 40 was filed"
     rows = [{"name": name, "reference": "float64 reference frames (today's kernels)", "seconds": new,
              "speed-up": cpu["float64"] / new, "cpu-s": new,
-             "notes": f"{new * 1e3:.1f} against {cpu['float64'] * 1e3:.1f} CPU-ms per step; frames within PSNR 50 dB, "
-                      f"depth 1 mm median of these"}]
+             "notes": f"{new * 1e3:.1f} against {cpu['float64'] * 1e3:.1f} CPU-ms per step; float32 frames within "
+                      f"PSNR 50 dB and 1 mm median depth of these (docs/rendering.md)"}]
     if before is None:
         rows.append({"name": name, "reference": f"renderer of {BEFORE}", "seconds": new, "speed-up": float("nan"),
                      "cpu-s": new, "notes": f"not measured: no git history to read {BEFORE} from ({target})"})
