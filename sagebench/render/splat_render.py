@@ -454,5 +454,5 @@ def _pool(threads: int) -> ThreadPoolExecutor:
 def contributions(g: Gaussians, cam: Camera) -> np.ndarray:
     """[N] float64: each Gaussian's blending weight alpha * T summed over the pixels of this view, rendered in the
     reference precision (build-scene prunes by it: its outputs do not depend on the frames' precision)."""
-    _, pairs, pair_weight = _run(g, cam, (0.0, 0.0, 0.0), real=REFERENCE, weights=True)
+    _, pairs, pair_weight = _run(g, cam, (0.0, 0.0, 0.0), real=REFERENCE, weights=True, ids=False)
     return np.bincount(pairs, weights=pair_weight, minlength=g.count)

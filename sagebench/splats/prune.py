@@ -59,6 +59,7 @@ def psnr_from_mse(value: float) -> float:
 def prune(g: Gaussians, fraction: float, scoring: list[Camera], held_out: list[Camera]) -> tuple[Gaussians, PruneReport]:
     """Prune `fraction` of `g` by contribution over `scoring` views; report PSNR on `held_out` views."""
     pruned = prune_lowest(g, contribution_scores(g, scoring), fraction)
-    errors = [mse(render(pruned, cam, real=REFERENCE).rgb, render(g, cam, real=REFERENCE).rgb) for cam in held_out]
+    errors = [mse(render(pruned, cam, real=REFERENCE, ids=False).rgb, render(g, cam, real=REFERENCE, ids=False).rgb)
+              for cam in held_out]
     score = psnr_from_mse(float(np.mean(errors))) if errors else float("nan")
     return pruned, PruneReport(fraction, g.count, pruned.count, score)
