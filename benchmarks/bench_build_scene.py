@@ -11,15 +11,14 @@ from __future__ import annotations
 
 import hashlib
 import json
-import subprocess
 import tempfile
 import time
-import types
 from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
+from benchmarks.history import module_at
 from sagebench.fileio import dumps_json, write_bytes
 from sagebench.scene.loader import load_scene
 from sagebench.scene.synth import write_synth_scene
@@ -83,10 +82,7 @@ def _cpu(fn) -> float:
 @contextmanager
 def _passages_before():
     """build-scene with `BEFORE`'s passages.py in place of today's (the rest of the stage as it is)."""
-    src = subprocess.run(["git", "show", f"{BEFORE}:sagebench/topdown/passages.py"], capture_output=True, text=True,
-                         check=True, cwd=Path(__file__).parent).stdout
-    module = types.ModuleType("passages_before")
-    exec(compile(src, f"{BEFORE}:sagebench/topdown/passages.py", "exec"), module.__dict__)
+    module = module_at(BEFORE, "sagebench/topdown/passages.py")
     today = builder.open_passages
     builder.open_passages = module.open_passages
     try:

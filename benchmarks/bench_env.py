@@ -14,7 +14,6 @@ import shutil
 import subprocess
 import tempfile
 import time
-import types
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
@@ -23,6 +22,7 @@ import numba
 import numpy as np
 
 from benchmarks.env_fairness import transport_rows, wait_rows
+from benchmarks.history import module_at
 from sagebench.navsim.motion import Agents
 from sagebench.navsim.observe import observe
 from sagebench.navsim.policies import RandomWalk
@@ -63,13 +63,9 @@ def _renderer_before() -> Callable | None:
     """A CpuRenderer factory drawing with `BEFORE`'s splat_render.py (compiled here, not cached), or None without
     git history."""
     try:
-        src = subprocess.run(["git", "show", f"{BEFORE}:sagebench/render/splat_render.py"], capture_output=True,
-                             text=True, check=True, cwd=Path(__file__).parent).stdout
+        module = module_at(BEFORE, "sagebench/render/splat_render.py")
     except (OSError, subprocess.CalledProcessError):
         return None
-    module = types.ModuleType("splat_render_before")
-    exec(compile(src.replace("cache=True", "cache=False"), f"{BEFORE}:sagebench/render/splat_render.py", "exec"),
-         module.__dict__)
 
     class Before(CpuRenderer):
         def render(self, cams, ids=True):
@@ -96,7 +92,8 @@ def _step_cpu(run: Path, config: EnvConfig, episodes: list[str], renderer: Calla
 
 def _precision_rows(run: Path, config: EnvConfig, episodes: list[str]) -> list[dict]:
     """The env step with float32 frames against `BEFORE`'s renderer and the float64 reference frames, one
-    thread, alternating, median of ROUNDS each (the first round also compiles `BEFORE`'s kernels: not counted)."""
+    thread, alternating, median of ROUNDS each (after one uncounted step of each, which compiles `BEFORE`'s
+    kernels)."""
     kinds = {"float32": lambda g: CpuRenderer(g, real=np.float32), "float64": lambda g: CpuRenderer(g, real=REFERENCE)}
     before = _renderer_before()
     if before is not None:
