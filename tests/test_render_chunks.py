@@ -70,7 +70,8 @@ def test_culled_chunks_hold_no_gaussian_the_renderer_draws(project):
         rows = np.arange(g.count)
         rect = project(rows, g.means, g.quats_wxyz, g.log_scales, g.opacity_logits, g.sh,
                         np.ascontiguousarray(cam.world_to_camera), float(cam.fx), float(cam.fy), float(cam.cx),
-                        float(cam.cy), cam.width, cam.height, np.empty((g.count, RECORD), np.float32 if project is _project_fast else np.float64))
+                        float(cam.cy), cam.width, cam.height,
+                        np.empty((g.count, RECORD), np.float32 if project is _project_fast else np.float64))
         drawn_chunk = np.searchsorted(p.starts, np.flatnonzero(rect[:, 0] >= 0), side="right") - 1
         assert keep[drawn_chunk].all()
     assert culled_any > 0.2 * p.chunks * len(_cams())  # the cull does cut (measured: 28 % of chunk-views)

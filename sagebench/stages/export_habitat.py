@@ -1,13 +1,14 @@
 """`export-habitat`: a run's ObjectNav, PointNav and ImageNav episodes as habitat-lab datasets of those tasks, in
 habitat's Y-up frame (sagebench.vlnce.tasks).
 
-A command of its own, beside export-vlnce: habitat-lab's task datasets are not VLN-CE's (no vocabulary, no
-teacher paths, habitat-lab's own config keys), so export-vlnce's output stays what VLN-CE reads, and each export
-claims its folder by its own mark. Reads RUN/episodes/<id>/part-*.parquet and RUN/scenes/<id>/scene.json +
-meshes/, topdown.npz and semantic_map.json (what ObjectNav's view points see). Writes
-OUT/<task>/<split>/<split>.json.gz per goal task and split, OUT/scenes/<id>/<id>.glb (as export-vlnce writes them) and OUT/habitat_export.json (per task: habitat's dataset type, data_path and
-scenes_dir, and the episodes per split; the mark of an export-habitat folder). Everything is computed before
-the first byte is written; vln and nogoal rows are left out (habitat-lab has no dataset format for them).
+A command of its own, beside export-vlnce: habitat-lab's task datasets are not VLN-CE's (no vocabulary, no teacher
+paths, habitat-lab's own config keys), so export-vlnce's output stays what VLN-CE reads, and each export claims its
+folder by its own mark. Reads RUN/episodes/<id>/part-*.parquet and RUN/scenes/<id>/scene.json + meshes/, topdown.npz
+and semantic_map.json (what ObjectNav's view points see). Writes OUT/<task>/<split>/<split>.json.gz per goal task
+and split, OUT/scenes/<id>/<id>.glb (as export-vlnce writes them) and OUT/habitat_export.json (per task: habitat's
+dataset type, data_path and scenes_dir, and the episodes per split; the mark of an export-habitat folder).
+Everything is computed before the first byte is written; vln and nogoal rows are left out (habitat-lab has no
+dataset format for them).
 """
 
 from __future__ import annotations

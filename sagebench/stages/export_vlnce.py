@@ -1,13 +1,13 @@
 """`export-vlnce`: a run's episodes as a VLN-CE / habitat dataset, in habitat's Y-up frame.
 
 Reads RUN/episodes/<id>/part-*.parquet and RUN/scenes/<id>/scene.json + meshes/. Writes into OUT:
-{split}/{split}.json.gz per split (R2R-CE episodes with the vocabulary) and {split}/{split}_gt.json.gz (the
-oracle's teacher path: NDTW's locations, the recollect trainer's actions), vocab.txt (one word a line),
-vlnce_opts.txt (the VLN-CE config options for this data, `KEY VALUE` a line) and scenes/<id>/<id>.glb (every
-visual mesh of the scene). instruction_tokens index the run's vocabulary (every exported instruction's words,
-split by the tokenizer chosen) or the one given (a pretrained VLN-CE model's), as rollout's closed loop does
-(navsim/simulator.py), and the files hold that vocabulary. Everything is computed before the first byte is written; rows without an
-instruction (gen-trajectories --instructions none) and rows of the tasks other than vln (R2R's format holds
+{split}/{split}.json.gz per split (R2R-CE episodes with the vocabulary) and {split}/{split}_gt.json.gz (the oracle's
+teacher path: NDTW's locations, the recollect trainer's actions), vocab.txt (one word a line), vlnce_opts.txt (the
+VLN-CE config options for this data, `KEY VALUE` a line) and scenes/<id>/<id>.glb (every visual mesh of the scene).
+instruction_tokens index the run's vocabulary (every exported instruction's words, split by the tokenizer chosen) or
+the one given (a pretrained VLN-CE model's), as rollout's closed loop does (navsim/simulator.py), and the files hold
+that vocabulary. Everything is computed before the first byte is written; rows without an instruction
+(gen-trajectories --instructions none) and rows of the tasks other than vln (R2R's format holds
 instruction-following episodes only; docs/tasks.md) are left out, and counted.
 """
 
